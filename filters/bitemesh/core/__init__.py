@@ -1,0 +1,1 @@
+"""The numpy/scipy core of bitemesh: no VTK import anywhere below here."""

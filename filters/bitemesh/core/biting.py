@@ -1,0 +1,126 @@
+"""Node placement by "biting": Algorithm 1 of Schaerer et al., in any dimension k.
+
+Alive = grid nodes with f > 0.  Repeatedly select an Alive node on the border between Alive and Dead, add it to the
+node set X and kill (mark Dead) every Alive node within R of it, until nothing is Alive.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from .errors import InvalidInputError, MeshingError, check_choice, check_number
+from .grid import ImplicitGrid
+from .progress import ProgressCallback, report
+
+ORDERS = ("boundary", "random")
+#: fewer nodes than this cannot make a useful mesh.
+MIN_NODES = 8
+
+
+def ball_offsets(radius: float, spacing: np.ndarray, padded_shape: tuple) -> np.ndarray:
+    """Flat-index offsets, in an array of ``padded_shape``, of the grid nodes within ``radius`` of a node."""
+    reach = np.floor(radius / spacing).astype(int)
+    axes = [np.arange(-r, r + 1) for r in reach]
+    index = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(reach))
+    inside = np.sum((index * spacing) ** 2, axis=1) < radius**2
+    strides = np.cumprod((1,) + padded_shape[:0:-1])[::-1]
+    return index[inside] @ strides
+
+
+def selection_order(grid: ImplicitGrid, border: np.ndarray, order: str, rng: np.random.Generator) -> np.ndarray:
+    """The flat indices of the Alive nodes in the order SelectNode visits them.
+
+    ``boundary``: first the border layer (Alive nodes with a Dead axis neighbour) as a front that advances over the
+    surface from a seeded start (by distance from it), which packs the surface nodes densely; then the others by
+    increasing f, a front advancing inward.  Every pick is on the border between Alive and Dead.
+    ``random``: a seeded shuffle.  Ties are broken by the seeded generator.
+    """
+    candidates = np.flatnonzero(grid.values > 0)
+    tie_break = rng.random(candidates.size)
+    if order == "random":
+        return candidates[np.argsort(tie_break)]
+    on_border = border.ravel()[candidates]
+    start = grid.node_coordinates(candidates[on_border][rng.integers(np.count_nonzero(on_border))][None])
+    key = grid.values.ravel()[candidates]
+    key[on_border] = np.linalg.norm(grid.node_coordinates(candidates[on_border]) - start, axis=1)
+    return candidates[np.lexsort((tie_break, key, ~on_border))]
+
+
+def project_to_surface(grid: ImplicitGrid, points: np.ndarray, *, steps: int = 4) -> np.ndarray:
+    """Move (m, k) points onto f = 0 by Newton steps along grad f, each step at most one grid spacing long."""
+    limit = float(np.max(grid.spacing))
+    for _ in range(steps):
+        value = grid.evaluate(points)
+        gradient = grid.gradient(points)
+        squared = np.maximum(np.einsum("ij,ij->i", gradient, gradient), 1e-12)
+        step = -(value / squared)[:, None] * gradient
+        length = np.linalg.norm(step, axis=1, keepdims=True)
+        points = points + step * np.minimum(1.0, limit / np.maximum(length, 1e-300))
+    return points
+
+
+def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: int = 0, jitter: float = 0.15,
+         project_boundary: bool = True, progress: ProgressCallback = None) -> np.ndarray:
+    """Place mesh nodes at least about ``radius`` apart inside {f > 0}.
+
+    Parameters
+    ----------
+    grid : the implicit function sampled on the grid I
+    radius : R, minimum distance between nodes (input units); from 2 grid spacings to half the shape's extent
+    order : ``"boundary"`` (border first, then inward) or ``"random"``
+    seed : seed of the generator that breaks ties and jitters the nodes
+    jitter : interior nodes move by up to ``jitter`` grid spacings per axis, so qhull never sees an exact lattice
+    project_boundary : move the nodes of the border layer onto f = 0
+
+    Returns
+    -------
+    nodes : (n, k) float64, node coordinates (input units)
+    """
+    check_choice(order, "order", ORDERS)
+    check_number(jitter, "jitter", low=0, high=0.5)
+    spacing = grid.spacing
+    alive = grid.values > 0
+    if not alive.any():
+        raise InvalidInputError("the implicit function is positive nowhere on the grid (nothing is inside); "
+                                "check the normals' orientation and the grid's extent")
+    extent = float(np.min(np.ptp(np.argwhere(alive), axis=0) * spacing)) + float(np.max(spacing))
+    check_number(radius, "radius", low=2 * float(np.max(spacing)), high=extent,
+                 hint="radius is R, the node spacing: from 2 grid spacings up to the shape's extent; "
+                      "lower grid_spacing for a smaller radius")
+    rng = np.random.default_rng(seed)
+
+    # Pad so that a ball around any node stays inside the array: KillNodes is then one flat fancy-index per bite.
+    pad = int(np.ceil(radius / np.min(spacing)))
+    padded = np.pad(alive, pad)
+    offsets = ball_offsets(radius, spacing, padded.shape)
+    border = alive & ~ndimage.binary_erosion(alive, border_value=0)
+    ordered = selection_order(grid, border, order, rng)
+    padded_index = np.ravel_multi_index(
+        tuple(i + pad for i in np.unravel_index(ordered, alive.shape)), padded.shape)
+
+    alive_flat = padded.ravel()
+    selected = []
+    chunk = 4096
+    for start in range(0, ordered.size, chunk):
+        report(progress, start / ordered.size, "biting")
+        block = slice(start, start + chunk)
+        for position in np.flatnonzero(alive_flat[padded_index[block]]) + start:
+            node = padded_index[position]
+            if alive_flat[node]:
+                selected.append(position)
+                alive_flat[node + offsets] = False
+    report(progress, 1.0, "biting")
+    chosen = ordered[np.array(selected, dtype=np.int64)]
+    if chosen.size < MIN_NODES:
+        raise InvalidInputError(
+            f"radius {radius:g} is too large for the shape: it leaves only {chosen.size} nodes "
+            f"(at least {MIN_NODES} are needed); use a smaller radius")
+
+    nodes = grid.node_coordinates(chosen) + rng.uniform(-jitter, jitter, (chosen.size, grid.dim)) * spacing
+    if project_boundary:
+        on_border = border.ravel()[chosen]
+        nodes[on_border] = project_to_surface(grid, nodes[on_border])
+    if not np.isfinite(nodes).all():
+        raise MeshingError("projecting the border nodes onto f = 0 failed (non-finite coordinates); "
+                           "the implicit function may be flat there: try a finer grid_spacing")
+    return nodes

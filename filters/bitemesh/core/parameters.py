@@ -1,0 +1,84 @@
+"""One frozen dataclass of parameters per step: defaults, units and valid ranges in one place.
+
+Each field's metadata holds ``help``, ``unit`` and either ``range`` (low, high, low_open, high_open) or ``choices``.
+The CLI flags, the VTK setters, the ParaView domains and the Slicer parameter node read them from here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Optional
+
+from .errors import InvalidInputError, check_choice, check_number
+
+INF = float("inf")
+
+
+def parameter(default, help: str, *, unit: str = "", low=None, high=None, low_open=False, high_open=False,
+              choices=None, integer=False):
+    """A dataclass field carrying its help text, unit and valid range (None: optional, chosen automatically)."""
+    metadata = {"help": help, "unit": unit, "integer": integer}
+    if choices is not None:
+        metadata["choices"] = tuple(choices)
+    else:
+        metadata["range"] = (low, high, low_open, high_open)
+    return field(default=default, metadata=metadata)
+
+
+class Parameters:
+    """Checks every field against its metadata when the dataclass is made."""
+
+    def __post_init__(self):
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if value is None:
+                continue
+            if "choices" in item.metadata:
+                check_choice(value, item.name, item.metadata["choices"])
+                continue
+            low, high, low_open, high_open = item.metadata["range"]
+            number = check_number(value, item.name, low=low, high=high, low_open=low_open, high_open=high_open)
+            if item.metadata["integer"] and number != int(number):
+                raise InvalidInputError(f"{item.name} must be a whole number, got {value!r}")
+            object.__setattr__(self, item.name, int(number) if item.metadata["integer"] else number)
+
+
+@dataclass(frozen=True)
+class ImplicitParameters(Parameters):
+    """PointsToImplicit: scattered points to f sampled on the grid I."""
+
+    method: str = parameter("mpu", "implicit reconstruction: multilevel partition of unity, or thin-plate RBF "
+                            "for sparse data", choices=("mpu", "rbf"))
+    error_bound: Optional[float] = parameter(
+        None, "eps0, the largest local fitting error of MPU; default 0.005 x bounding-box diagonal",
+        unit="input units", low=0, low_open=True)
+    grid_spacing: Optional[float] = parameter(
+        None, "h, the spacing of the grid I on which f is sampled; default radius / 4", unit="input units",
+        low=0, low_open=True)
+    margin: Optional[float] = parameter(None, "extra grid around the data; default 3 grid spacings",
+                                        unit="input units", low=0)
+    max_memory_mb: float = parameter(4096.0, "largest grid the mesher may allocate", unit="MiB", low=1)
+
+
+@dataclass(frozen=True)
+class BitingParameters(Parameters):
+    """BitingSampler: node placement on the grid (Algorithm 1 of the paper)."""
+
+    radius: Optional[float] = parameter(
+        None, "R, the minimum distance between nodes (close to the mean edge length); default: chosen for about "
+        "`cells` cells", unit="input units", low=0, low_open=True)
+    cells: int = parameter(10000, "the number of cells to aim for when radius is not given", low=10,
+                           high=50_000_000, integer=True)
+    order: str = parameter("boundary", "SelectNode order: the border layer first then inward, or random",
+                           choices=("boundary", "random"))
+    seed: int = parameter(0, "seed of the random generator (same input and seed give the same mesh)", low=0,
+                          high=2**32 - 1, integer=True)
+
+
+@dataclass(frozen=True)
+class SpuriousParameters(Parameters):
+    """SpuriousCellFilter: drop the cells outside the domain, then make the domain valid."""
+
+    threshold: float = parameter(0.4, "a cell is outside when f < 0 at its circumcentre and the distance from it "
+                                 "to the surface exceeds threshold x circumradius", low=0, high=1)
+    min_component: float = parameter(0.01, "drop connected parts smaller than this fraction of the largest part's "
+                                     "volume", low=0, high=1)
