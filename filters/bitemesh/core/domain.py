@@ -14,12 +14,15 @@ from .errors import MeshingError
 from .grid import ImplicitGrid
 from .mesh import Mesh, signed_measures
 from .parameters import SpuriousParameters
+from .quality import radius_ratio
 from .progress import ProgressCallback, report
 from .spurious import outside_cells
-from .topology import components, facet_table, non_manifold_faces
+from .topology import connected_components, facet_table, non_manifold_faces
 
-#: rounds of pinch repair before giving up.
-MAX_REPAIR_ROUNDS = 20
+#: rounds of repair before giving up.
+MAX_REPAIR_ROUNDS = 30
+#: cells with a radius ratio below this are flat.
+FLAT_QUALITY = 0.02
 
 
 def enclosed_inside_voids(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -30,9 +33,9 @@ def enclosed_inside_voids(grid: ImplicitGrid, points: np.ndarray, cells: np.ndar
     dropped = np.flatnonzero(~keep)
     if len(dropped) == 0:
         return np.zeros(len(cells), bool)
-    facet_ids, _, counts = facet_table(cells)
-    on_hull = (counts[facet_ids[dropped]] == 1).any(axis=1)
-    labels = components(cells[dropped])
+    _, inverse, counts = facet_table(cells)
+    on_hull = (counts[inverse.reshape(cells.shape)[dropped]] == 1).any(axis=1)
+    labels = connected_components(cells[dropped])
     touches_hull = np.bincount(labels, weights=on_hull) > 0
     volume = signed_measures(points, cells[dropped])
     centroid_value = grid.evaluate(points[cells[dropped]].mean(axis=1))
@@ -45,31 +48,56 @@ def enclosed_inside_voids(grid: ImplicitGrid, points: np.ndarray, cells: np.ndar
 def drop_small_components(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, fraction: float) -> np.ndarray:
     """``keep`` without the facet-connected parts whose volume is below ``fraction`` x the largest part's."""
     kept = np.flatnonzero(keep)
-    labels = components(cells[kept])
+    labels = connected_components(cells[kept])
     volume = np.bincount(labels, weights=signed_measures(points, cells[kept]))
     result = keep.copy()
     result[kept] = (volume >= fraction * volume.max())[labels]
     return result
 
 
-def unpinch(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, faces: list) -> np.ndarray:
-    """``keep`` without, around each pinched face, every fan of cells but the one of largest volume.
+def peel_flat_boundary_cells(points: np.ndarray, cells: np.ndarray, keep: np.ndarray,
+                             flat_quality: float = FLAT_QUALITY) -> np.ndarray:
+    """``keep`` without the nearly flat cells that touch the boundary, layer by layer.
 
-    Two cells of a face's star belong to one fan when they share a facet (k vertices), which then holds the face.
+    Nodes projected onto a planar part of the surface are coplanar, and qhull joins four of them into a flat cell
+    that lies on the surface: it carries no volume, and removing it leaves the boundary where it was.
     """
-    kept = np.flatnonzero(keep)
-    incidence = sparse.csr_matrix((np.ones(kept.size * cells.shape[1]), (cells[kept].ravel(),
-                                   np.repeat(np.arange(kept.size), cells.shape[1]))),
-                                  shape=(len(points), kept.size))
-    volume = signed_measures(points, cells[kept])
+    flat = radius_ratio(points, cells) < flat_quality
+    result = keep.copy()
+    for _ in range(MAX_REPAIR_ROUNDS):
+        _, inverse, counts = facet_table(cells[result])
+        on_boundary = (counts[inverse.reshape(-1, cells.shape[1])] == 1).any(axis=1)
+        peel = np.flatnonzero(result)[on_boundary & flat[result]]
+        if len(peel) == 0:
+            break
+        result[peel] = False
+    return result
+
+
+def vertex_incidence(n_points: int, cells: np.ndarray) -> sparse.csr_matrix:
+    """(n_points, m) sparse, 1 where a point is a vertex of a cell."""
+    return sparse.csr_matrix((np.ones(cells.size), (cells.ravel(), np.repeat(np.arange(len(cells)), cells.shape[1]))),
+                             shape=(n_points, len(cells)))
+
+
+def unpinch(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, faces: list) -> np.ndarray:
+    """``keep`` mended around each face where the domain is not a manifold.
+
+    The kept cells around a face fall into fans (two share a facet, of k vertices, that then holds the face).
+    With several fans, all but the one of largest volume go; with one (a vertex whose link is an annulus), all
+    go.  Only ever removing cells, the repair cannot cycle.
+    """
+    incidence = vertex_incidence(len(points), cells)
+    volume = signed_measures(points, cells)
     result = keep.copy()
     for face in (f for group in faces for f in group):
-        star = incidence[face].sum(axis=0).A1 == len(face)
-        members = np.flatnonzero(star)
-        shared = (sparse.csr_matrix(incidence[:, members].T) @ incidence[:, members]).toarray()
-        _, labels = csgraph.connected_components(shared >= cells.shape[1] - 1, directed=False)
-        largest = np.argmax(np.bincount(labels, weights=volume[members]))
-        result[kept[members[labels != largest]]] = False
+        around = np.flatnonzero(incidence[face].sum(axis=0).A1 == len(face))
+        members = around[keep[around]]
+        local = incidence[:, members]
+        shared = (sparse.csr_matrix(local.T) @ local).toarray()
+        n_fans, labels = csgraph.connected_components(shared >= cells.shape[1] - 1, directed=False)
+        largest = np.argmax(np.bincount(labels, weights=volume[members])) if n_fans > 1 else -1
+        result[members[labels != largest]] = False
     return result
 
 
@@ -94,6 +122,7 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
         report(progress, round_ / MAX_REPAIR_ROUNDS, "repairing the boundary")
         if not keep.any():
             raise MeshingError("no cell is inside the domain; check the normals' orientation, or lower radius")
+        keep = peel_flat_boundary_cells(points, cells, keep)
         keep = drop_small_components(points, cells, keep, parameters.min_component)
         pinched = non_manifold_faces(cells[keep], len(points))
         if not pinched:

@@ -12,6 +12,7 @@ import numpy as np
 from scipy import ndimage
 
 from .errors import InvalidInputError, check_number
+from .progress import ProgressCallback, report
 
 #: bytes per grid node that the steps hold at once (f, its gradient, the biting masks).
 BYTES_PER_NODE = 48
@@ -100,7 +101,8 @@ def grid_shape(lower, upper, spacing, *, max_memory_mb: float) -> tuple:
 
 
 def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, spacing, *,
-                    margin: float = 0.0, max_memory_mb: float = 4096.0, chunk: int = 1 << 18) -> ImplicitGrid:
+                    margin: float = 0.0, max_memory_mb: float = 4096.0, chunk: int = 1 << 18,
+                    progress: ProgressCallback = None) -> ImplicitGrid:
     """Sample ``function`` on a grid over [lower - margin, upper + margin].
 
     Parameters
@@ -109,6 +111,7 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
     lower, upper : (k,) float64, the box to cover
     spacing : float or (k,) float64, grid spacing h (> 0)
     margin : float, added on every side of the box
+    progress : callable(fraction, message), optional, called once per chunk of ``chunk`` points
     """
     lower = np.asarray(lower, float) - margin
     upper = np.asarray(upper, float) + margin
@@ -120,8 +123,10 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
     total = int(np.prod(shape))
     values = np.empty(total)
     for start in range(0, total, chunk):
+        report(progress, start / total, f"sampling f on {' x '.join(map(str, shape))} nodes")
         flat = np.arange(start, min(start + chunk, total))
         index = np.unravel_index(flat, shape)
         points = np.stack([axes[d][index[d]] for d in range(len(shape))], axis=1)
         values[start:start + len(flat)] = function(points)
+    report(progress, 1.0, "sampling f: done")
     return ImplicitGrid(origin=lower, spacing=spacing_array, values=values.reshape(shape))

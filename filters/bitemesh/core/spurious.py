@@ -14,6 +14,9 @@ def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, thr
     The distance from c to the surface is approximated by d(c) = |f(c)| / |grad f(c)|; a cell is outside when
     d(c) / R_circ > ``threshold``.  The paper's text says "inferior to", but measured on a shell and a torus that
     reading keeps the spurious cells (+26 % and +37 % volume); the ">" reading used here is the one that works.
+
+    A cell whose centroid is outside (f < 0) is outside too: near a concave part of the surface the circumcentre
+    test alone keeps cells that bridge the concavity (measured: +1.3 % volume on the two-cavity shell).
     """
     check_number(threshold, "threshold", low=0, high=1)
     centres, radii = circumspheres(points, cells)
@@ -22,4 +25,4 @@ def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, thr
     value = grid.evaluate(centres[finite])
     slope = np.maximum(np.linalg.norm(grid.gradient(centres[finite]), axis=1), 1e-12)
     outside[finite] = (value < 0) & (np.abs(value) / slope > threshold * radii[finite])
-    return outside
+    return outside | (grid.evaluate(points[cells].mean(axis=1)) < 0)

@@ -14,50 +14,66 @@ from scipy.sparse import csgraph
 from .mesh import facets_of
 
 
-def unique_rows(simplices: np.ndarray):
-    """Identify simplices up to vertex order.
+def unique_rows(rows: np.ndarray):
+    """Group rows of vertex indices that hold the same vertices, whatever their order.
 
     Returns
     -------
-    unique : (u, j) int64, each distinct simplex once, vertices sorted
-    inverse : (s,) int64, row of ``unique`` for each input simplex
-    counts : (u,) int64, how many input simplices are each unique one
+    unique : (u, j) int64, each distinct row once, sorted
+    inverse : (r,) int64, the group of each input row
+    counts : (u,) int64, the size of each group
     """
-    keys = np.sort(simplices.reshape(len(simplices), -1), axis=1)
-    if len(keys) == 0:
-        return keys, np.zeros(0, np.int64), np.zeros(0, np.int64)
-    unique, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    rows = np.sort(rows.reshape(len(rows), -1), axis=1).astype(np.int64, copy=False)
+    n_points = int(rows.max()) + 1 if rows.size else 1
+    if float(n_points) ** rows.shape[1] < 2.0**63:  # an exact int64 key per sorted row: much faster than axis=0
+        keys = rows[:, 0].copy()
+        for column in range(1, rows.shape[1]):
+            keys = keys * n_points + rows[:, column]
+        _, first, inverse, counts = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
+        return rows[first], inverse.ravel(), counts
+    unique, inverse, counts = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
     return unique, inverse.ravel(), counts
 
 
 def facet_table(cells: np.ndarray):
-    """Facets of ``cells`` (m, k + 1): ``facet_ids`` (m, k + 1) into ``unique`` (u, k) and ``counts`` (u,)."""
-    unique, inverse, counts = unique_rows(facets_of(cells).reshape(-1, cells.shape[1] - 1))
-    return inverse.reshape(len(cells), cells.shape[1]), unique, counts
+    """Every facet of every cell, and which of them are the same facet.
+
+    Returns
+    -------
+    facets : (m (k + 1), k) int64, facet i of cell c at row c (k + 1) + i, oriented out of its cell
+    inverse : (m (k + 1),) int64, the same number for the rows that are the same facet
+    counts : (u,) int64, how many cells hold each distinct facet (1 on the boundary, 2 inside)
+    """
+    facets = facets_of(cells).reshape(-1, cells.shape[1] - 1)
+    _, inverse, counts = unique_rows(facets)
+    return facets, inverse, counts
+
+
+def neighbour_pairs(inverse: np.ndarray):
+    """(a, b): the row pairs of a facet table that are the same facet, as indices into the table."""
+    order = np.argsort(inverse, kind="stable")
+    same = inverse[order[1:]] == inverse[order[:-1]]
+    return order[:-1][same], order[1:][same]
 
 
 def boundary_facets(cells: np.ndarray) -> np.ndarray:
-    """(b, k) the facets that belong to one cell only, ordered with their normal pointing out of the domain."""
-    facet_ids, _, counts = facet_table(cells)
-    return facets_of(cells)[counts[facet_ids] == 1]
+    """(b, k) the facets held by one cell only, in cell order, oriented out of the domain.
+
+    3D: triangles (p, q, r) with (q - p) x (r - p) pointing out.  2D: edges (p, q) with the domain on the left.
+    """
+    facets, inverse, counts = facet_table(cells)
+    return facets[counts[inverse] == 1]
 
 
-def cell_graph(cells: np.ndarray) -> sparse.csr_matrix:
-    """(m, m) adjacency of the cells that share a facet."""
-    facet_ids, unique, counts = facet_table(cells)
-    owner = np.repeat(np.arange(len(cells)), cells.shape[1])
-    order = np.argsort(facet_ids.ravel(), kind="stable")
-    shared = counts[facet_ids.ravel()[order]] == 2
-    pairs = owner[order][shared].reshape(-1, 2)
-    graph = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(cells),) * 2)
-    return graph.tocsr()
-
-
-def components(cells: np.ndarray) -> np.ndarray:
-    """(m,) label of the facet-connected component of each cell, 0 .. n_components - 1."""
+def connected_components(cells: np.ndarray) -> np.ndarray:
+    """(m,) labels 0 .. c - 1 of the cells joined through shared facets (not through edges or vertices only)."""
     if len(cells) == 0:
         return np.zeros(0, np.int64)
-    return csgraph.connected_components(cell_graph(cells), directed=False)[1]
+    _, inverse, _ = facet_table(cells)
+    a, b = neighbour_pairs(inverse)
+    per_cell = cells.shape[1]
+    graph = sparse.coo_matrix((np.ones(len(a)), (a // per_cell, b // per_cell)), shape=(len(cells),) * 2)
+    return csgraph.connected_components(graph, directed=False)[1].astype(np.int64)
 
 
 def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
@@ -65,10 +81,14 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
     return np.stack([simplices[:, list(c)] for c in combinations(range(simplices.shape[1]), size)], axis=1)
 
 
+def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
+    """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted."""
+    return unique_rows(faces_of(simplices, size).reshape(-1, size))[0]
+
+
 def count_faces(simplices: np.ndarray, size: int, n_points: int) -> np.ndarray:
     """(n_points,) how many distinct faces with ``size`` vertices of ``simplices`` hold each point."""
-    unique, _, _ = unique_rows(faces_of(simplices, size).reshape(-1, size))
-    return np.bincount(unique.ravel(), minlength=n_points)
+    return np.bincount(distinct_faces(simplices, size).ravel(), minlength=n_points)
 
 
 def pinched_ridges(cells: np.ndarray) -> np.ndarray:
@@ -78,12 +98,13 @@ def pinched_ridges(cells: np.ndarray) -> np.ndarray:
     = #facets) or a single open fan (#cells = #facets + 1) is manifold.
     """
     k = cells.shape[1] - 1
-    _, facets, counts = facet_table(cells)
+    facets, inverse, _ = facet_table(cells)
+    interior = facets[neighbour_pairs(inverse)[0]]
     cell_ridges = faces_of(cells, k - 1).reshape(-1, k - 1)
-    facet_ridges = faces_of(facets[counts == 2], k - 1).reshape(-1, k - 1)
-    ridges, inverse, _ = unique_rows(np.concatenate([cell_ridges, facet_ridges]))
-    around = np.bincount(inverse[:len(cell_ridges)], minlength=len(ridges))
-    linked = np.bincount(inverse[len(cell_ridges):], minlength=len(ridges))
+    facet_ridges = faces_of(interior, k - 1).reshape(-1, k - 1)
+    ridges, groups, _ = unique_rows(np.concatenate([cell_ridges, facet_ridges]))
+    around = np.bincount(groups[:len(cell_ridges)], minlength=len(ridges))
+    linked = np.bincount(groups[len(cell_ridges):], minlength=len(ridges))
     return ridges[around - linked >= 2]
 
 

@@ -1,0 +1,427 @@
+"""Element quality (radius ratio, dihedral angles, edge statistics) and validity checks of a simplicial mesh.
+
+Dimension-generic: triangles in 2D, tetrahedra in 3D.  The quality criterion is the paper's (section 5)
+``Q = k r_in / R_circ`` (k = 2 or 3), 1 for the regular simplex and 0 for a degenerate one.
+
+Topology is computed exactly with integers: every facet or edge becomes an integer key of its sorted vertex
+indices, and ``np.unique`` groups equal keys.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+
+from .errors import InvalidInputError, check_number
+from .mesh import Mesh, circumspheres, facets_of, signed_measures
+from .topology import (boundary_facets, connected_components, distinct_faces, facet_table,  # noqa: F401
+                       neighbour_pairs, unique_rows)
+
+
+def _ridge_facets(n_vertices: int) -> np.ndarray:
+    """(r, 2) the two facets meeting at each (k - 2)-face of a simplex, that is the facets opposite the two
+    vertices not on it; faces (edges of a tet, vertices of a triangle) in lexicographic order."""
+    ridges = combinations(range(n_vertices), n_vertices - 2)
+    return np.array([[j for j in range(n_vertices) if j not in ridge] for ridge in ridges])
+
+
+def _check_cells(cells, name: str = "cells") -> np.ndarray:
+    array = np.asarray(cells)
+    if array.ndim != 2 or array.shape[1] not in (3, 4) or not np.issubdtype(array.dtype, np.integer):
+        raise InvalidInputError(
+            f"{name} must be an (m, 3) or (m, 4) integer array of vertex indices, "
+            f"got shape {array.shape} and dtype {array.dtype}")
+    if array.size and array.min() < 0:
+        raise InvalidInputError(f"{name} holds negative vertex indices (first at cell {int(np.argmin(array.min(1)))})")
+    return array.astype(np.int64, copy=False)
+
+
+def _check_mesh(mesh: Mesh, name: str = "mesh"):
+    points = np.asarray(mesh.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise InvalidInputError(f"{name}.points must be an (n, 2) or (n, 3) array, got shape {points.shape}")
+    cells = _check_cells(mesh.cells, f"{name}.cells")
+    if cells.shape[1] != points.shape[1] + 1:
+        raise InvalidInputError(
+            f"{name}.cells must have {points.shape[1] + 1} vertices per cell for {points.shape[1]}D points, "
+            f"got {cells.shape[1]}")
+    if cells.size and cells.max() >= len(points):
+        raise InvalidInputError(
+            f"{name}.cells refers to vertex {int(cells.max())} but there are only {len(points)} points")
+    return points, cells
+
+
+def _n_points(cells: np.ndarray) -> int:
+    return int(cells.max()) + 1 if cells.size else 0
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (faster than ``np.cross`` on small trailing axes)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def facet_normals(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Outward normals of the facets of each cell, scaled by the facet's measure.
+
+    Parameters
+    ----------
+    points : (n, k) float64
+    cells : (m, k + 1) int, positively oriented (for negatively oriented cells the normals point inwards)
+
+    Returns
+    -------
+    (m, k + 1, k) float64; row i is the normal of the facet opposite vertex i, its length the facet's area
+    (3D) or length (2D).
+    """
+    corners = points[facets_of(cells)]  # (m, k + 1, k, k)
+    first = corners[..., 1, :] - corners[..., 0, :]
+    if points.shape[1] == 2:
+        return np.stack([first[..., 1], -first[..., 0]], axis=-1)
+    return 0.5 * _cross(first, corners[..., 2, :] - corners[..., 0, :])
+
+
+def radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Normalized radius ratio Q = k r_in / R_circ of each cell (k = 2 for triangles, 3 for tetrahedra).
+
+    Parameters
+    ----------
+    points : (n, k) float64
+    cells : (m, k + 1) int
+
+    Returns
+    -------
+    (m,) float64 in [0, 1]: 1 for the regular simplex, 0 for a degenerate one.  Independent of orientation;
+    ``r_in = k |measure| / (sum of facet measures)``.
+    """
+    k = points.shape[1]
+    measure = np.abs(signed_measures(points, cells))
+    surface = np.linalg.norm(facet_normals(points, cells), axis=-1).sum(axis=1)
+    _, circumradius = circumspheres(points, cells)
+    ok = (surface > 0) & np.isfinite(circumradius)
+    q = np.zeros(len(cells))
+    q[ok] = k * k * measure[ok] / (surface[ok] * circumradius[ok])
+    return np.minimum(q, 1.0)
+
+
+def dihedral_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Interior angle between the two facets meeting at each (k - 2)-face, in degrees.
+
+    For tetrahedra these are the 6 dihedral angles, one per edge in the order (0,1), (0,2), (0,3), (1,2),
+    (1,3), (2,3).  For triangles, the 2D equivalent: the 3 interior angles at vertices 0, 1, 2 (they sum to
+    180).  NaN where a facet has zero measure (a repeated vertex); independent of orientation.
+
+    Parameters
+    ----------
+    points : (n, k) float64
+    cells : (m, k + 1) int
+
+    Returns
+    -------
+    (m, 6) float64 for tetrahedra, (m, 3) for triangles, degrees in [0, 180].
+    """
+    normals = facet_normals(points, cells)
+    pairs = _ridge_facets(cells.shape[1])
+    a, b = normals[:, pairs[:, 0]], normals[:, pairs[:, 1]]
+    if points.shape[1] == 2:
+        sine = np.abs(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
+    else:
+        sine = np.linalg.norm(_cross(a, b), axis=-1)
+    # interior angle = 180 - angle between outward normals; atan2 stays accurate near 0 and 180
+    angles = np.degrees(np.arctan2(sine, -np.einsum("mrk,mrk->mr", a, b)))
+    zero = (np.linalg.norm(a, axis=-1) == 0) | (np.linalg.norm(b, axis=-1) == 0)
+    angles[zero] = np.nan
+    return angles
+
+
+def edge_lengths(points: np.ndarray, cells: np.ndarray):
+    """The unique edges of the mesh and their lengths.
+
+    Parameters
+    ----------
+    points : (n, k) float64
+    cells : (m, k + 1) int
+
+    Returns
+    -------
+    edges : (e, 2) int64, vertex indices with ``edges[:, 0] < edges[:, 1]``, sorted
+    lengths : (e,) float64, input units
+    """
+    cells = _check_cells(cells)
+    pairs = np.array(list(combinations(range(cells.shape[1]), 2)))
+    edges, _, _ = unique_rows(cells[:, pairs].reshape(-1, 2))
+    return edges, np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
+
+
+def cell_quality(mesh: Mesh) -> dict:
+    """Per-cell quality arrays, named as the VTK cell arrays of the QualityFilter.
+
+    Returns
+    -------
+    dict of (m,) float64 arrays:
+      ``RadiusRatio``: Q in [0, 1] (see :func:`radius_ratio`);
+      ``MinDihedralAngle``, ``MaxDihedralAngle``: degrees; in 2D the smallest and largest interior angle;
+      NaN for a cell with a repeated vertex;
+      ``Volume``: signed volume (3D) or area (2D), input units^k, negative for an inverted cell.
+    """
+    points, cells = _check_mesh(mesh)
+    angles = dihedral_angles(points, cells)
+    return {
+        "RadiusRatio": radius_ratio(points, cells),
+        "MinDihedralAngle": angles.min(axis=1),
+        "MaxDihedralAngle": angles.max(axis=1),
+        "Volume": signed_measures(points, cells),
+    }
+
+
+@dataclass(frozen=True)
+class QualitySummary:
+    """Mesh-wide quality statistics (see :func:`quality_summary`); ``str()`` gives :func:`format_summary`.
+
+    Angles are in degrees (dihedral in 3D, interior in 2D), lengths and volumes in input units.
+    Standard deviations are population ones (ddof = 0); percentages are of all cells.
+    """
+
+    dim: int
+    n_points: int
+    n_cells: int
+    q_mean: float
+    q_std: float
+    q_min: float
+    q_p1: float
+    q_p5: float
+    q_p50: float
+    percent_q_below_0_1: float
+    percent_q_below_0_2: float
+    percent_q_below_0_3: float
+    angle_min: float
+    angle_max: float
+    total_volume: float
+    edge_mean: float
+    edge_std: float
+    edge_cv: float
+    edge_min: float
+    edge_max: float
+
+    def __str__(self) -> str:
+        return format_summary(self)
+
+
+def quality_summary(mesh: Mesh) -> QualitySummary:
+    """Statistics of the radius ratio Q, of the angles, of the volume and of the edge lengths of ``mesh``.
+
+    Raises :class:`InvalidInputError` for a mesh without cells.
+    """
+    points, cells = _check_mesh(mesh)
+    if len(cells) == 0:
+        raise InvalidInputError("mesh has no cells: there is no quality to summarise")
+    arrays = cell_quality(Mesh(points, cells))
+    q = arrays["RadiusRatio"]
+    p1, p5, p50 = np.percentile(q, [1, 5, 50])
+    min_angles, max_angles = arrays["MinDihedralAngle"], arrays["MaxDihedralAngle"]
+    defined = ~np.isnan(min_angles)
+    _, lengths = edge_lengths(points, cells)
+    return QualitySummary(
+        dim=points.shape[1],
+        n_points=len(points),
+        n_cells=len(cells),
+        q_mean=float(q.mean()),
+        q_std=float(q.std()),
+        q_min=float(q.min()),
+        q_p1=float(p1),
+        q_p5=float(p5),
+        q_p50=float(p50),
+        percent_q_below_0_1=100.0 * float(np.mean(q < 0.1)),
+        percent_q_below_0_2=100.0 * float(np.mean(q < 0.2)),
+        percent_q_below_0_3=100.0 * float(np.mean(q < 0.3)),
+        angle_min=float(min_angles[defined].min()) if defined.any() else float("nan"),
+        angle_max=float(max_angles[defined].max()) if defined.any() else float("nan"),
+        total_volume=float(arrays["Volume"].sum()),
+        edge_mean=float(lengths.mean()),
+        edge_std=float(lengths.std()),
+        edge_cv=float(lengths.std() / lengths.mean()) if lengths.mean() > 0 else float("nan"),
+        edge_min=float(lengths.min()),
+        edge_max=float(lengths.max()),
+    )
+
+
+def format_summary(summary: QualitySummary) -> str:
+    """A short aligned human-readable block of ``summary``, one quantity per line, for the CLI."""
+    s = summary
+    cells, angle, volume = ("tetrahedra", "dihedral angle", "volume") if s.dim == 3 else \
+        ("triangles", "interior angle", "area")
+    lines = [
+        ("mesh", f"{s.n_cells} {cells}, {s.n_points} points"),
+        ("radius ratio Q", f"mean {s.q_mean:.4f}  std {s.q_std:.4f}  min {s.q_min:.4f}"),
+        ("Q percentiles", f"1% {s.q_p1:.4f}  5% {s.q_p5:.4f}  50% {s.q_p50:.4f}"),
+        ("cells with Q <", f"0.1: {s.percent_q_below_0_1:.2f}%  0.2: {s.percent_q_below_0_2:.2f}%  "
+                           f"0.3: {s.percent_q_below_0_3:.2f}%"),
+        (angle, f"min {s.angle_min:.2f} deg  max {s.angle_max:.2f} deg"),
+        (volume, f"total {s.total_volume:.6g}"),
+        ("edge length", f"mean {s.edge_mean:.4g}  std {s.edge_std:.4g}  cv {s.edge_cv:.3f}  "
+                        f"min {s.edge_min:.4g}  max {s.edge_max:.4g}"),
+    ]
+    width = max(len(label) for label, _ in lines)
+    return "\n".join(f"{label:<{width}}  {value}" for label, value in lines)
+
+
+def quality_histogram(q: np.ndarray, bins: int = 20):
+    """Histogram of radius ratios over [0, 1].
+
+    Parameters
+    ----------
+    q : (m,) float64, values in [0, 1]
+    bins : number of equal bins (>= 1)
+
+    Returns
+    -------
+    counts : (bins,) int64
+    edges : (bins + 1,) float64, from 0 to 1
+    """
+    if isinstance(bins, bool) or int(check_number(bins, "bins", low=1)) != bins:
+        raise InvalidInputError(f"bins must be a whole number >= 1, got {bins!r}")
+    counts, edges = np.histogram(np.asarray(q, dtype=np.float64), bins=int(bins), range=(0.0, 1.0))
+    return counts.astype(np.int64), edges
+
+
+def boundary_euler_characteristic(mesh: Mesh) -> int:
+    """Euler characteristic of the boundary complex of ``mesh``.
+
+    3D: V - E + F of the boundary surface (2 per closed sphere-like surface, 0 per torus).
+    2D: V - E of the boundary curves, 0 for any set of closed loops (count them with
+    :func:`count_boundary_components`).
+    """
+    _, cells = _check_mesh(mesh)
+    facets = boundary_facets(cells)
+    return sum((-1) ** d * len(distinct_faces(facets, d + 1)) for d in range(facets.shape[1]))
+
+
+def count_boundary_components(mesh: Mesh) -> int:
+    """Number of connected pieces of the boundary: loops in 2D, closed surfaces in 3D (for a valid domain)."""
+    _, cells = _check_mesh(mesh)
+    facets = boundary_facets(cells)
+    if len(facets) == 0:
+        return 0
+    n_points = _n_points(cells)
+    edges = distinct_faces(facets, 2)
+    graph = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n_points,) * 2)
+    labels = csgraph.connected_components(graph, directed=False)[1]
+    return len(np.unique(labels[np.unique(facets)]))
+
+
+def _parity(rows: np.ndarray) -> np.ndarray:
+    """(r,) 0 for an even permutation of the sorted row, 1 for an odd one."""
+    return sum(rows[:, i] > rows[:, j] for i, j in combinations(range(rows.shape[1]), 2)) % 2
+
+
+def _found(count: int, what: str, first: str) -> str:
+    return f"{count} {what} (first: {first})"
+
+
+def _manifold_problems(facets: np.ndarray, n_points: int) -> list:
+    """Problems of the boundary ``facets`` (oriented, (b, k)) as a closed (k-1)-manifold."""
+    problems = []
+    if facets.shape[1] == 2:
+        degree = np.bincount(facets.ravel(), minlength=n_points)
+        bad = np.flatnonzero((degree != 0) & (degree != 2))
+        if len(bad):
+            problems.append(_found(len(bad), "boundary vertices not in exactly two boundary edges "
+                                   "(non-manifold boundary)", f"point {bad[0]} in {degree[bad[0]]}"))
+        return problems
+    # each boundary edge in exactly two boundary triangles
+    local = np.array([(0, 1), (1, 2), (2, 0)])
+    ends = facets[:, local].reshape(-1, 2)  # occurrence 3 t + e: edge e of triangle t
+    unique, inverse, counts = unique_rows(ends)
+    bad = np.flatnonzero(counts != 2)
+    if len(bad):
+        problems.append(_found(len(bad), "boundary edges not in exactly two boundary triangles "
+                               "(non-manifold boundary)", f"edge {tuple(unique[bad[0]].tolist())} in {counts[bad[0]]}"))
+    # each boundary vertex: its triangles form one fan.  Nodes of the graph are corners (3 t + j: vertex j of
+    # triangle t); two triangles sharing an edge join their corners at both ends of the edge.
+    corner = 3 * np.repeat(np.arange(len(facets)), 3)[:, None] + np.tile(local, (len(facets), 1))
+    swap = ends[:, 0] > ends[:, 1]
+    corner[swap] = corner[swap, ::-1]  # corner[:, 0] at the lower vertex of the edge
+    a, b = neighbour_pairs(inverse)
+    links = np.concatenate([corner[a], corner[b]], axis=1)  # (low a, high a, low b, high b)
+    graph = sparse.coo_matrix((np.ones(2 * len(a)), (np.r_[links[:, 0], links[:, 1]], np.r_[links[:, 2], links[:, 3]])),
+                              shape=(3 * len(facets),) * 2)
+    n_fans, labels = csgraph.connected_components(graph, directed=False)
+    vertex_of_fan = np.empty(n_fans, dtype=np.int64)
+    vertex_of_fan[labels] = facets.ravel()
+    fans = np.bincount(vertex_of_fan, minlength=n_points)
+    bad = np.flatnonzero(fans > 1)
+    if len(bad):
+        problems.append(_found(len(bad), "boundary vertices whose boundary triangles form more than one fan "
+                               "(non-manifold boundary, e.g. cells touching at a vertex)",
+                               f"point {bad[0]} with {fans[bad[0]]} fans"))
+    return problems
+
+
+def check_valid_domain(mesh: Mesh, volume_rtol: float = 1e-12) -> list:
+    """Problems that keep ``mesh`` from being a valid finite-element domain; an empty list means valid.
+
+    Checked: non-finite points; inverted cells (signed volume < -tol) and flat cells (|volume| <= tol), with
+    tol = ``volume_rtol`` * (longest edge of the cell)^k; duplicate cells; facets shared by more than two cells;
+    facets whose two cells lie on the same side of it (overlapping cells); a boundary that is not a closed
+    (k-1)-manifold (3D: each boundary edge in exactly two boundary triangles and the boundary triangles at each
+    vertex forming one fan; 2D: each boundary vertex in exactly two boundary edges); unused points.
+    Not checked: geometric self-intersection of cells that share no facet.
+
+    Parameters
+    ----------
+    mesh : Mesh with positively oriented cells
+    volume_rtol : relative tolerance of the volume test, >= 0
+
+    Returns
+    -------
+    list of str, one message per kind of problem, each with a count and a first example.
+    Raises :class:`InvalidInputError` if the arrays are malformed (shapes, indices out of range).
+    """
+    points, cells = _check_mesh(mesh)
+    volume_rtol = check_number(volume_rtol, "volume_rtol", low=0.0)
+    k = points.shape[1]
+    problems = []
+
+    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+    if len(bad):
+        problems.append(_found(len(bad), "points with NaN or infinite coordinates", f"point {bad[0]}"))
+
+    volume = signed_measures(points, cells)
+    corners = points[cells]
+    pairs = np.array(list(combinations(range(k + 1), 2)))
+    longest = np.linalg.norm(corners[:, pairs[:, 1]] - corners[:, pairs[:, 0]], axis=-1).max(axis=1, initial=0.0)
+    tolerance = volume_rtol * longest ** k
+    for mask, what in ((volume < -tolerance, "inverted cells (negative volume)"),
+                       (np.abs(volume) <= tolerance, f"flat cells (|volume| <= {volume_rtol:g} * longest edge^{k})")):
+        bad = np.flatnonzero(mask)
+        if len(bad):
+            problems.append(_found(len(bad), what, f"cell {bad[0]}, volume {volume[bad[0]]:.3g}"))
+
+    _, inverse, counts = unique_rows(cells)
+    bad = np.flatnonzero(counts[inverse] > 1)
+    if len(bad):
+        problems.append(_found(len(bad), "cells with the same vertices as another cell", f"cell {bad[0]}"))
+
+    facets, inverse, counts = facet_table(cells)
+    bad = np.flatnonzero(counts[inverse] > 2)
+    if len(bad):
+        problems.append(_found(len(np.unique(inverse[bad])), "facets shared by more than two cells",
+                               f"facet {tuple(np.sort(facets[bad[0]]).tolist())} in {counts[inverse[bad[0]]]} cells"))
+    a, b = neighbour_pairs(inverse)
+    parity = _parity(facets)
+    same_side = (counts[inverse[a]] == 2) & (parity[a] == parity[b])
+    if same_side.any():
+        first = a[same_side][0]
+        problems.append(_found(int(same_side.sum()), "facets with both cells on the same side (overlapping cells)",
+                               f"cells {first // (k + 1)} and {b[same_side][0] // (k + 1)}"))
+
+    problems += _manifold_problems(facets[counts[inverse] == 1], len(points))
+
+    bad = np.flatnonzero(np.bincount(cells.ravel(), minlength=len(points)) == 0)
+    if len(bad):
+        problems.append(_found(len(bad), "points used by no cell", f"point {bad[0]}"))
+    return problems

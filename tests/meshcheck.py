@@ -1,0 +1,22 @@
+"""The checks every mesh that bitemesh produces must pass, shared by the tests."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+
+def assert_valid_domain(mesh, *, euler=None, components=1, measure=None, measure_tolerance=0.02,
+                        mean_quality=None):
+    """Fail unless ``mesh`` is a valid finite-element domain with the expected topology, measure and quality."""
+    from bitemesh.core.quality import (boundary_euler_characteristic, cell_quality, check_valid_domain,
+                                       connected_components)
+    problems = check_valid_domain(mesh)
+    assert problems == [], problems
+    assert connected_components(mesh.cells).max() + 1 == components
+    if euler is not None:
+        assert boundary_euler_characteristic(mesh) == euler
+    arrays = cell_quality(mesh)
+    if measure is not None:
+        assert arrays["Volume"].sum() == pytest.approx(measure, rel=measure_tolerance)
+    if mean_quality is not None:
+        assert np.mean(arrays["RadiusRatio"]) >= mean_quality
