@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from scipy.spatial.distance import cdist
 
 
 @dataclass(frozen=True)
@@ -91,7 +92,7 @@ def die(half: float = 1.0, rounding: float = 0.25, pip: float = 0.16) -> Shape:
     def function(p):
         q = np.abs(p) - (half - rounding)
         cube = rounding - np.linalg.norm(np.maximum(q, 0), axis=1) - np.minimum(q.max(axis=1), 0)
-        dents = np.min([-ball_distance(p, c, pip) for c in centres], axis=0)
+        dents = cdist(p, centres).min(axis=1) - pip
         return np.minimum(cube, dents)
     core = 2 * (half - rounding)
     rounded_cube = core**3 + 6 * core**2 * rounding + 3 * np.pi * rounding**2 * core + 4 / 3 * np.pi * rounding**3
@@ -136,9 +137,10 @@ def sample_surface(shape: Shape, spacing: float, *, noise: float = 0.0, seed: in
     rng = np.random.default_rng(seed)
     lower, upper = np.array(shape.lower, float), np.array(shape.upper, float)
     extent = upper - lower
-    count = int(40 * np.prod(extent / spacing) ** ((shape.dim - 1) / shape.dim)) + 1000
+    count = int(60 * np.prod(extent / spacing) ** ((shape.dim - 1) / shape.dim)) + 1000
     points = lower - 0.05 * extent + rng.random((count, shape.dim)) * 1.1 * extent
-    for _ in range(30):
+    points = points[np.abs(shape.function(points)) < 2 * spacing]
+    for _ in range(12):
         gradient = shape.gradient(points)
         points = points - (shape.function(points) / np.maximum(np.sum(gradient**2, axis=1), 1e-12))[:, None] * gradient
     points = points[np.abs(shape.function(points)) < 1e-7 * np.max(extent)]

@@ -1,0 +1,80 @@
+"""Command-line options generated from the parameter dataclasses, and the progress bar."""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import fields
+
+from ..core.errors import InvalidInputError
+from ..core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from ..io import MESH_EXTENSIONS
+
+STEP_PARAMETERS = (ImplicitParameters, BitingParameters, SpuriousParameters)
+
+
+def describe(metadata: dict, default) -> str:
+    """Help text of one parameter: what it is, its unit, range and default."""
+    text = metadata["help"]
+    if metadata.get("unit"):
+        text += f" [{metadata['unit']}]"
+    if "range" in metadata:
+        low, high, low_open, high_open = metadata["range"]
+        text += f"; range {'(' if low_open else '['}{'-inf' if low is None else low}, " \
+                f"{'inf' if high is None else high}{')' if high_open else ']'}"
+    return text + (f"; default {default}" if default is not None else "")
+
+
+def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
+    """One ``--flag-name`` per field of each parameter dataclass, typed and described from its metadata."""
+    for cls in parameter_classes:
+        group = parser.add_argument_group(cls.__doc__.split(":")[0])
+        for item in fields(cls):
+            kind = str if "choices" in item.metadata else int if item.metadata["integer"] else float
+            group.add_argument(f"--{item.name.replace('_', '-')}", dest=item.name, type=kind,
+                               choices=item.metadata.get("choices"), default=item.default,
+                               help=describe(item.metadata, item.default))
+
+
+def parameters_from_args(args, parameter_classes=STEP_PARAMETERS) -> list:
+    """The parameter dataclasses filled from parsed options (each checks its ranges)."""
+    return [cls(**{item.name: getattr(args, item.name) for item in fields(cls)}) for cls in parameter_classes]
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr, shown once a run has taken more than ``delay`` seconds."""
+
+    def __init__(self, stream=sys.stderr, delay: float = 1.0, width: int = 30):
+        self.stream, self.delay, self.width = stream, delay, width
+        self.start = time.perf_counter()
+        self.shown = False
+        self.last = None
+
+    def __call__(self, fraction: float, message: str = "") -> None:
+        if not self.shown and time.perf_counter() - self.start < self.delay:
+            return
+        self.shown = True
+        filled = int(round(fraction * self.width))
+        if (filled, message) == self.last:
+            return
+        self.last = (filled, message)
+        self.stream.write(f"\r[{'#' * filled}{' ' * (self.width - filled)}] {fraction:4.0%} {message:<24}")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.shown:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def print_timings(seconds: dict, stream=sys.stdout) -> None:
+    """Seconds per step, and their total."""
+    width = max(map(len, seconds))
+    for name, value in seconds.items():
+        print(f"  {name:<{width}}  {value:7.2f} s", file=stream)
+    print(f"  {'total':<{width}}  {sum(seconds.values()):7.2f} s", file=stream)
+
+
+def check_output(path) -> None:
+    """Refuse, before any work, an output path whose extension bitemesh cannot write."""
+    if not str(path).lower().endswith(MESH_EXTENSIONS):
+        raise InvalidInputError(f"output {path} has an unsupported extension; use one of {', '.join(MESH_EXTENSIONS)}")
