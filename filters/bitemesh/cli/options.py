@@ -4,6 +4,7 @@ from __future__ import annotations
 import sys
 import time
 from dataclasses import fields
+from pathlib import Path
 
 from ..core.errors import InvalidInputError
 from ..core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
@@ -43,11 +44,14 @@ def parameters_from_args(args, parameter_classes=STEP_PARAMETERS) -> list:
 class ProgressBar:
     """A one-line progress bar on stderr, shown once a run has taken more than ``delay`` seconds."""
 
-    def __init__(self, stream=sys.stderr, delay: float = 1.0, width: int = 30):
-        self.stream, self.delay, self.width = stream, delay, width
+    def __init__(self, stream=None, delay: float = 1.0, width: int = 30):
+        # sys.stderr looked up now, not at import: redirections made after import (tests, callers) apply.
+        self.stream = sys.stderr if stream is None else stream
+        self.delay, self.width = delay, width
         self.start = time.perf_counter()
         self.shown = False
         self.last = None
+        self.length = 0  # characters of the line last drawn
 
     def __call__(self, fraction: float, message: str = "") -> None:
         if not self.shown and time.perf_counter() - self.start < self.delay:
@@ -57,7 +61,10 @@ class ProgressBar:
         if (filled, message) == self.last:
             return
         self.last = (filled, message)
-        self.stream.write(f"\r[{'#' * filled}{' ' * (self.width - filled)}] {fraction:4.0%} {message:<24}")
+        line = f"[{'#' * filled}{' ' * (self.width - filled)}] {fraction:4.0%} {message:<24}"
+        # Pad to the previous line's length: a shorter message must not leave the end of a longer one behind.
+        self.stream.write(f"\r{line:<{self.length}}")
+        self.length = len(line)
         self.stream.flush()
 
     def close(self) -> None:
@@ -66,8 +73,9 @@ class ProgressBar:
             self.stream.flush()
 
 
-def print_timings(seconds: dict, stream=sys.stdout) -> None:
-    """Seconds per step, and their total."""
+def print_timings(seconds: dict, stream=None) -> None:
+    """Seconds per step, and their total (on ``stream``, default the current sys.stdout)."""
+    stream = sys.stdout if stream is None else stream
     width = max(map(len, seconds))
     for name, value in seconds.items():
         print(f"  {name:<{width}}  {value:7.2f} s", file=stream)
@@ -78,3 +86,6 @@ def check_output(path) -> None:
     """Refuse, before any work, an output path whose extension bitemesh cannot write."""
     if not str(path).lower().endswith(MESH_EXTENSIONS):
         raise InvalidInputError(f"output {path} has an unsupported extension; use one of {', '.join(MESH_EXTENSIONS)}")
+    directory = Path(path).parent
+    if not directory.is_dir():
+        raise InvalidInputError(f"output {path}: the directory '{directory}' does not exist")

@@ -7,6 +7,9 @@ from .errors import check_number
 from .grid import ImplicitGrid
 from .mesh import circumspheres
 
+#: the circumcentre test judges the cells whose vertices all have f below SHALLOW x circumradius.
+SHALLOW = 0.1
+
 
 def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4) -> np.ndarray:
     """(m,) bool, True for a cell whose circumcentre c is outside (f(c) < 0) and far from the surface.
@@ -15,8 +18,12 @@ def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, thr
     d(c) / R_circ > ``threshold``.  The paper's text says "inferior to", but measured on a shell and a torus that
     reading keeps the spurious cells (+26 % and +37 % volume); the ">" reading used here is the one that works.
 
-    A cell whose centroid is outside (f < 0) is outside too: near a concave part of the surface the circumcentre
-    test alone keeps cells that bridge the concavity (measured: +1.3 % volume on the two-cavity shell).
+    Two refinements, measured on a sphere, a torus, a die and a two-cavity shell at 20,000 cells:
+    - a cell whose centroid is outside (f < 0) is outside too: near a concave part of the surface the circumcentre
+      test alone keeps cells that bridge the concavity (+1.3 % volume on the two-cavity shell);
+    - the circumcentre test judges only the cells whose vertices all lie within ``SHALLOW`` x R_circ of the
+      surface (the flat cells lying on it).  A cell with a deeper vertex is an ordinary boundary cell whose
+      circumcentre pokes out; removing it bared an interior node (a notch 0.6 R deep on the sphere and torus).
     """
     check_number(threshold, "threshold", low=0, high=1)
     centres, radii = circumspheres(points, cells)
@@ -24,5 +31,6 @@ def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, thr
     outside = ~finite
     value = grid.evaluate(centres[finite])
     slope = np.maximum(np.linalg.norm(grid.gradient(centres[finite]), axis=1), 1e-12)
-    outside[finite] = (value < 0) & (np.abs(value) / slope > threshold * radii[finite])
+    shallow = grid.evaluate(points)[cells].max(axis=1) < SHALLOW * radii
+    outside[finite] = (value < 0) & (np.abs(value) / slope > threshold * radii[finite]) & shallow[finite]
     return outside | (grid.evaluate(points[cells].mean(axis=1)) < 0)
