@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from .. import __version__
@@ -22,10 +23,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Run the command line; return the exit code (0 done, 1 bad input or failure, 2 usage, 130 interrupted)."""
+    """Run the command line; return the exit code (0 done, 1 bad input or failure, 2 usage, 130 interrupted,
+    141 output pipe closed)."""
     args = build_parser().parse_args(argv)
     try:
         args.run(args)
+        sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
+    except BrokenPipeError:
+        # Whoever read our output stopped (bitemesh quality m.vtu | head -1): stop quietly, as a shell tool does.
+        # Point stdout at /dev/null so that the flush at interpreter exit does not fail again.
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # stdout is not a file descriptor (captured, redirected in Python)
+            pass
+        return 141
     except (Cancelled, KeyboardInterrupt):
         print("\nbitemesh: cancelled", file=sys.stderr)
         return 130

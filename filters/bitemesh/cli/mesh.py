@@ -4,7 +4,7 @@ from __future__ import annotations
 from ..core.pipeline import run as run_pipeline
 from ..core.quality import quality_summary
 from ..io import read_points, write_mesh
-from .options import ProgressBar, check_output, add_parameter_options, parameters_from_args, print_timings
+from .options import ProgressBar, add_parameter_options, check_output, parameters_from_args, print_timings
 
 
 def add_parser(subcommands) -> None:

@@ -38,5 +38,9 @@ def save_histogram(q, path: str, bins: int, title: str) -> None:
     axes.set(xlabel="radius ratio Q = 3 r_in / R_circ", ylabel="cells", xlim=(0, 1),
              title=f"{title}: mean Q {q.mean():.3f}, std {q.std():.3f}")
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    pyplot.close(figure)
+    try:
+        figure.savefig(path, dpi=100)
+    except (OSError, ValueError) as error:  # a missing directory, an image format matplotlib cannot write
+        raise InvalidInputError(f"--histogram {path}: {getattr(error, 'strerror', None) or error}") from None
+    finally:
+        pyplot.close(figure)

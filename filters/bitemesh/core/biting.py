@@ -66,7 +66,7 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     Parameters
     ----------
     grid : the implicit function sampled on the grid I
-    radius : R, minimum distance between nodes (input units); from 2 grid spacings to half the shape's extent
+    radius : R, minimum distance between nodes (input units); from 2 grid spacings to the shape's extent
     order : ``"boundary"`` (border first, then inward) or ``"random"``
     seed : seed of the generator that breaks ties and jitters the nodes
     jitter : interior nodes move by up to ``jitter`` grid spacings per axis, so qhull never sees an exact lattice
@@ -84,8 +84,10 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
         raise InvalidInputError("the implicit function is positive nowhere on the grid (nothing is inside); "
                                 "check the normals' orientation and the grid's extent")
     extent = float(np.min(np.ptp(np.argwhere(alive), axis=0) * spacing)) + float(np.max(spacing))
-    check_number(radius, "radius", low=2 * float(np.max(spacing)), high=extent,
-                 hint="radius is R, the node spacing: from 2 grid spacings up to the shape's extent; "
+    check_number(radius, "radius", low=0, low_open=True, high=extent,
+                 hint="radius is R, the node spacing; it cannot exceed the extent of the shape")
+    check_number(radius, "radius", low=2 * float(np.max(spacing)),
+                 hint=f"the grid must resolve it: radius >= 2 x grid_spacing ({float(np.max(spacing)):g}); "
                       "lower grid_spacing for a smaller radius")
     rng = np.random.default_rng(seed)
 

@@ -14,7 +14,7 @@ import numpy as np
 from .biting import bite
 from .delaunay import delaunay
 from .domain import carve_domain
-from .errors import check_points
+from .errors import check_number, check_points
 from .grid import ImplicitGrid, sample_function
 from .implicit import fit_implicit
 from .mesh import Mesh
@@ -28,6 +28,8 @@ CELLS_PER_VOLUME = {2: 2.3, 3: 5.4}
 GRID_PER_RADIUS = 4.0
 #: nodes per axis of the coarse grid that measures the volume when R is chosen from a cell count.
 COARSE_GRID_NODES = 64
+#: the default grid has at least this many nodes along the data's longest side, whatever R.
+MIN_GRID_NODES = 40
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,12 +90,15 @@ def implicit_grid(function, lower, upper, implicit: ImplicitParameters, radius: 
     Returns the grid and R.
     """
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    size = float(np.max(upper - lower))
     if radius is None:
-        coarse = float(np.max(upper - lower)) / COARSE_GRID_NODES
+        coarse = max(size / COARSE_GRID_NODES, implicit.grid_spacing or 0.0)
         volume = sample_function(function, lower, upper, coarse, margin=2 * coarse,
                                  max_memory_mb=implicit.max_memory_mb).inside_volume()
         radius = radius_for_cells(volume, cells, len(lower))
-    spacing = implicit.grid_spacing or radius / GRID_PER_RADIUS
+    check_number(radius, "radius", low=0, low_open=True, high=size,
+                 hint="radius is R, the node spacing; it cannot exceed the size of the data's bounding box")
+    spacing = implicit.grid_spacing or min(radius / GRID_PER_RADIUS, size / MIN_GRID_NODES)
     margin = implicit.margin if implicit.margin is not None else 3 * spacing
     grid = sample_function(function, lower, upper, spacing, margin=margin, max_memory_mb=implicit.max_memory_mb,
                            progress=progress)
