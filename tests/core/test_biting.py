@@ -49,7 +49,7 @@ def test_random_order_also_covers_the_domain():
     assert cKDTree(nodes).query(inside)[0].max() <= 0.2 + 0.05
 
 
-@pytest.mark.parametrize("radius, words", [(0.0, "radius"), (-1.0, "radius"), (0.05, "2 grid spacings"),
+@pytest.mark.parametrize("radius, words", [(0.0, "radius"), (-1.0, "radius"), (0.05, "2 x grid_spacing"),
                                            (5.0, "radius"), (float("nan"), "radius")])
 def test_bad_radius_names_the_parameter_and_the_range(radius, words):
     grid = sampled(sphere(), 0.05)
