@@ -707,6 +707,22 @@ def fit_implicit(points, normals=None, *, method: str = "mpu", error_bound=None,
     return _fit(points, normals, method, error_bound, progress)
 
 
+def grid_layout(points, grid_spacing=None, margin=None):
+    """The box and spacing of the grid I that points_to_implicit samples for these points.
+
+    Returns
+    -------
+    lower, upper : (k,) corners of the points' bounding box; the grid spans [lower - margin, upper + margin]
+    spacing : float, grid_spacing or the bounding-box diagonal / 100
+    margin : float, margin or 3 x spacing
+    """
+    lower, upper, diagonal = _bounding_box(points)
+    spacing = diagonal / 100 if grid_spacing is None else check_number(grid_spacing, "grid_spacing", low=0,
+                                                                         low_open=True)
+    margin = 3 * spacing if margin is None else check_number(margin, "margin", low=0)
+    return lower, upper, spacing, margin
+
+
 def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound=None, grid_spacing=None,
                        margin=None, max_memory_mb: float = 4096, progress: ProgressCallback = None) -> ImplicitGrid:
     """Reconstruct f from scattered points (see fit_implicit) and sample it on the grid I of the paper.
@@ -724,10 +740,7 @@ def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound
     ImplicitGrid over [lower - margin, upper + margin] of the points, f > 0 inside
     """
     points, normals = _prepared(points, normals, method)
-    lower, upper, diagonal = _bounding_box(points)
-    spacing = diagonal / 100 if grid_spacing is None else check_number(grid_spacing, "grid_spacing", low=0,
-                                                                         low_open=True)
-    margin = 3 * spacing if margin is None else check_number(margin, "margin", low=0)
+    lower, upper, spacing, margin = grid_layout(points, grid_spacing, margin)
     max_memory_mb = check_number(max_memory_mb, "max_memory_mb", low=0, low_open=True)
     grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=max_memory_mb)
     function = _fit(points, normals, method, error_bound, sub_progress(progress, 0.0, 0.4))

@@ -82,3 +82,18 @@ class SpuriousParameters(Parameters):
                                  "to the surface exceeds threshold x circumradius", low=0, high=1)
     min_component: float = parameter(0.01, "drop connected parts smaller than this fraction of the largest part's "
                                      "volume", low=0, high=1)
+
+
+@dataclass(frozen=True)
+class LabelMapParameters(Parameters):
+    """PointsToImplicit on a label map: which label is the domain."""
+
+    label: Optional[int] = parameter(None, "the label of the domain; default every nonzero label", low=0,
+                                     integer=True)
+
+
+@dataclass(frozen=True)
+class QualityParameters(Parameters):
+    """QualityFilter: the radius-ratio histogram."""
+
+    bins: int = parameter(20, "bins of the radius-ratio histogram over [0, 1]", low=1, high=1000, integer=True)

@@ -1,0 +1,6 @@
+"""The bitemesh VTK filters (VTKPythonAlgorithmBase subclasses); they import only ``vtkmodules``."""
+from .filters import (BitingSampler, DelaunayTetra, MeshFromPoints, PointsToImplicit, QualityFilter,
+                      SpuriousCellFilter)
+
+__all__ = ["BitingSampler", "DelaunayTetra", "MeshFromPoints", "PointsToImplicit", "QualityFilter",
+           "SpuriousCellFilter"]

@@ -1,0 +1,137 @@
+"""numpy <-> VTK for the data the filters exchange: point sets, the implicit image, simplicial meshes.
+
+Only ``vtkmodules`` imports and API present in VTK 9.2, so that ParaView 5.11 loads the same code.
+"""
+from __future__ import annotations
+
+import numpy as np
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonCore import vtkPoints, vtkVersion
+from vtkmodules.vtkCommonDataModel import (VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkImageData, vtkPolyData,
+                                           vtkUnstructuredGrid)
+
+from ..core.errors import InvalidInputError
+from ..core.grid import ImplicitGrid
+from ..core.mesh import Mesh
+
+#: the point array of the implicit image: f > 0 inside.
+IMPLICIT_ARRAY = "Implicit"
+
+
+def point_coordinates(dataset) -> np.ndarray:
+    """(n, 3) float64 copy of the points of a vtkPointSet (empty (0, 3) when it has none)."""
+    points = dataset.GetPoints()
+    if points is None or points.GetNumberOfPoints() == 0:
+        return np.zeros((0, 3))
+    return numpy_support.vtk_to_numpy(points.GetData()).astype(np.float64, copy=True).reshape(-1, 3)
+
+
+def point_array(dataset, name: str):
+    """A copy of the named point-data array as numpy, or None."""
+    array = dataset.GetPointData().GetArray(name)
+    return None if array is None else numpy_support.vtk_to_numpy(array).copy()
+
+
+def vtk_points(coordinates: np.ndarray) -> vtkPoints:
+    """vtkPoints holding (n, 2) or (n, 3) coordinates (2D gets z = 0)."""
+    coordinates = np.asarray(coordinates, dtype=np.float64)
+    if coordinates.shape[1] == 2:
+        coordinates = np.column_stack([coordinates, np.zeros(len(coordinates))])
+    points = vtkPoints()
+    points.SetData(numpy_support.numpy_to_vtk(np.ascontiguousarray(coordinates), deep=True))
+    return points
+
+
+def nodes_to_polydata(nodes: np.ndarray) -> vtkPolyData:
+    """A vtkPolyData of (n, k) nodes, one vertex cell each (so that they render)."""
+    polydata = vtkPolyData()
+    polydata.SetPoints(vtk_points(nodes))
+    polydata.SetVerts(cell_array(np.arange(len(nodes), dtype=np.int64)[:, None]))
+    return polydata
+
+
+def cell_array(cells: np.ndarray) -> vtkCellArray:
+    """vtkCellArray of (m, j) int64 connectivity (the offsets/connectivity layout of VTK 9)."""
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    offsets = np.arange(0, cells.size + 1, cells.shape[1], dtype=np.int64)
+    array = vtkCellArray()
+    array.SetData(numpy_support.numpy_to_vtkIdTypeArray(offsets, deep=True),
+                  numpy_support.numpy_to_vtkIdTypeArray(cells.ravel(), deep=True))
+    return array
+
+
+def grid_to_image(grid: ImplicitGrid, image: vtkImageData | None = None) -> vtkImageData:
+    """The implicit grid as a vtkImageData with point scalars ``Implicit`` (2D grids get one slice in z)."""
+    image = vtkImageData() if image is None else image
+    dims = list(grid.shape) + [1] * (3 - grid.dim)
+    image.SetExtent(0, dims[0] - 1, 0, dims[1] - 1, 0, dims[2] - 1)
+    image.SetOrigin(*(list(grid.origin) + [0.0] * (3 - grid.dim)))
+    image.SetSpacing(*(list(grid.spacing) + [1.0] * (3 - grid.dim)))
+    values = numpy_support.numpy_to_vtk(np.ascontiguousarray(grid.values.ravel(order="F")), deep=True)
+    values.SetName(IMPLICIT_ARRAY)
+    image.GetPointData().SetScalars(values)
+    return image
+
+
+def image_to_grid(image: vtkImageData, name: str = IMPLICIT_ARRAY) -> ImplicitGrid:
+    """The ``Implicit`` point array of a vtkImageData as an ImplicitGrid (a one-slice image gives a 2D grid)."""
+    array = image.GetPointData().GetArray(name) if image is not None else None
+    if array is None or image.GetNumberOfPoints() == 0:
+        raise InvalidInputError(f"the implicit image is empty or has no point array '{name}'; "
+                                "connect the output of PointsToImplicit")
+    dims = image.GetDimensions()
+    dim = 2 if dims[2] == 1 else 3
+    values = numpy_support.vtk_to_numpy(array).astype(np.float64).reshape(dims, order="F")
+    return ImplicitGrid(origin=np.array(image.GetOrigin()[:dim]), spacing=np.array(image.GetSpacing()[:dim]),
+                        values=values.reshape(dims[:dim]) if dim == 2 else values)
+
+
+def mesh_to_unstructured(mesh: Mesh, grid: vtkUnstructuredGrid | None = None) -> vtkUnstructuredGrid:
+    """A vtkUnstructuredGrid of VTK_TETRA (VTK_TRIANGLE in 2D) cells with the mesh's cell data."""
+    grid = vtkUnstructuredGrid() if grid is None else grid
+    grid.SetPoints(vtk_points(mesh.points))
+    cell_type = VTK_TETRA if mesh.cells.shape[1] == 4 else VTK_TRIANGLE
+    grid.SetCells(cell_type, cell_array(mesh.cells))
+    for name, values in mesh.cell_data.items():
+        array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values), deep=True)
+        array.SetName(name)
+        grid.GetCellData().AddArray(array)
+    return grid
+
+
+def cell_types(grid: vtkUnstructuredGrid) -> np.ndarray:
+    """(m,) VTK cell type of each cell (GetCellTypesArray up to VTK 9.5, GetCellTypes from 9.6)."""
+    modern = vtkVersion.GetVTKMajorVersion() * 100 + vtkVersion.GetVTKMinorVersion() >= 906
+    array = grid.GetCellTypes() if modern else grid.GetCellTypesArray()
+    return numpy_support.vtk_to_numpy(array) if array is not None else \
+        np.array([grid.GetCellType(i) for i in range(grid.GetNumberOfCells())], dtype=np.uint8)
+
+
+def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
+    """The tetrahedra (or, without any, the triangles) of a vtkUnstructuredGrid, with their cell data, as a Mesh.
+
+    A triangle mesh whose points all have z = 0 is 2D.
+    """
+    if grid is None or grid.GetNumberOfCells() == 0:
+        raise InvalidInputError("the mesh is empty: it has no cells; connect a DelaunayTetra or SpuriousCellFilter")
+    points = point_coordinates(grid)
+    types = cell_types(grid)
+    cells = grid.GetCells()
+    offsets = numpy_support.vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
+    connectivity = numpy_support.vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
+    for cell_type, size in ((VTK_TETRA, 4), (VTK_TRIANGLE, 3)):
+        chosen = np.flatnonzero(types == cell_type)
+        if chosen.size:
+            break
+    else:
+        raise InvalidInputError(f"the mesh has no tetrahedra or triangles (cell types found: {sorted(set(types))})")
+    table = connectivity[offsets[chosen][:, None] + np.arange(size)]
+    if size == 3 and np.all(points[:, 2] == 0):
+        points = points[:, :2]
+    data = {}
+    cell_data = grid.GetCellData()
+    for index in range(cell_data.GetNumberOfArrays()):
+        array = cell_data.GetArray(index)
+        if array is not None and array.GetName():
+            data[array.GetName()] = numpy_support.vtk_to_numpy(array)[chosen].copy()
+    return Mesh(points, table, data)

@@ -1,0 +1,227 @@
+"""The five steps of the method as VTK pipeline filters, plus the whole method in one filter.
+
+Each filter is thin: convert its inputs to numpy, call the core, convert back.  Inputs are never modified.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import numpy as np
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray
+from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageData, vtkPointSet, vtkPolyData,
+                                           vtkTable, vtkUnstructuredGrid)
+from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
+
+from ..core.biting import bite
+from ..core.delaunay import delaunay
+from ..core.domain import carve_domain
+from ..core.errors import InvalidInputError, check_points
+from ..core.grid import grid_shape
+from ..core.mesh import Mesh
+from ..core.implicit import grid_layout, points_to_implicit
+from ..core.parameters import (BitingParameters, ImplicitParameters, LabelMapParameters, QualityParameters,
+                               SpuriousParameters)
+from ..core.pipeline import radius_for_cells, run
+from ..core.quality import cell_quality, quality_histogram, quality_summary
+from .base import BitemeshAlgorithm, with_parameters
+from .convert import (grid_to_image, image_to_grid, mesh_to_unstructured, nodes_to_polydata, point_array,
+                      point_coordinates, unstructured_to_mesh)
+
+
+def scattered_points(dataset):
+    """(points, normals or None) of a vtkPointSet: the ``Normals`` point array, or the point normals attribute."""
+    if not isinstance(dataset, vtkPointSet) or dataset.GetNumberOfPoints() == 0:
+        raise InvalidInputError("the input holds no points; connect scattered points (vtkPolyData) or a label map")
+    normals = dataset.GetPointData().GetNormals()
+    normals = point_array(dataset, "Normals") if normals is None else numpy_support.vtk_to_numpy(normals).copy()
+    return point_coordinates(dataset), normals
+
+
+@with_parameters(ImplicitParameters, LabelMapParameters)
+class PointsToImplicit(BitemeshAlgorithm):
+    """Scattered points (with optional ``Normals``) or a label map -> f on the grid I (vtkImageData ``Implicit``).
+
+    f > 0 inside, about the signed distance near the surface.  Points use MPU (or RBF); a vtkImageData input is a
+    label map, turned into a signed distance by SimpleITK (``Label`` chooses the domain's label).
+    """
+
+    def __init__(self):
+        super().__init__(nInputPorts=1, inputType="vtkDataSet", nOutputPorts=1, outputType="vtkImageData")
+
+    def RequestInformation(self, request, inInfo, outInfo):
+        # The grid's extent depends on the input's bounds: bring the input up to date before announcing it.
+        self.GetInputAlgorithm(0, 0).Update(self.GetInputConnection(0, 0).GetIndex())
+        source = vtkDataSet.GetData(inInfo[0])
+        try:
+            origin, spacing, shape = self.grid_geometry(source)
+        except Exception:  # noqa: BLE001 - bad input: RequestData reports it with its message
+            return 1
+        info = outInfo.GetInformationObject(0)
+        dims = list(shape) + [1] * (3 - len(shape))
+        info.Set(vtkStreamingDemandDrivenPipeline.WHOLE_EXTENT(), [0, dims[0] - 1, 0, dims[1] - 1, 0, dims[2] - 1], 6)
+        info.Set(vtkDataObject.ORIGIN(), list(origin) + [0.0] * (3 - len(origin)), 3)
+        info.Set(vtkDataObject.SPACING(), list(spacing) + [1.0] * (3 - len(spacing)), 3)
+        return 1
+
+    def grid_geometry(self, source):
+        """(origin, spacing, shape) of the grid this input will give."""
+        if isinstance(source, vtkImageData):
+            return self.label_grid(source, geometry_only=True)
+        parameters = self.parameters(ImplicitParameters)
+        points = check_points(scattered_points(source)[0])
+        lower, upper, spacing, margin = grid_layout(points, parameters.grid_spacing, parameters.margin)
+        shape = grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=parameters.max_memory_mb)
+        return lower - margin, np.full(len(lower), spacing), shape
+
+    def label_grid(self, image: vtkImageData, geometry_only: bool = False):
+        from ..labelmap import PAD_VOXELS, label_map_to_grid
+        dims = image.GetDimensions()
+        dim = 2 if dims[2] == 1 else 3
+        origin, spacing = np.array(image.GetOrigin()[:dim]), np.array(image.GetSpacing()[:dim])
+        if geometry_only:
+            return origin - PAD_VOXELS * spacing, spacing, tuple(n + 2 * PAD_VOXELS for n in dims[:dim])
+        scalars = image.GetPointData().GetScalars()
+        if scalars is None:
+            raise InvalidInputError("the label map has no point scalars (the labels)")
+        labels = numpy_support.vtk_to_numpy(scalars).reshape(dims, order="F").reshape(dims[:dim])
+        return label_map_to_grid(labels, origin, spacing, self.parameters(LabelMapParameters).label)
+
+    def execute(self, request, inInfo, outInfo):
+        source = vtkDataSet.GetData(inInfo[0])
+        if isinstance(source, vtkImageData):
+            grid = self.label_grid(source)
+        else:
+            parameters = self.parameters(ImplicitParameters)
+            points, normals = scattered_points(source)
+            grid = points_to_implicit(points, normals, method=parameters.method,
+                                      error_bound=parameters.error_bound, grid_spacing=parameters.grid_spacing,
+                                      margin=parameters.margin, max_memory_mb=parameters.max_memory_mb,
+                                      progress=self.progress)
+        grid_to_image(grid, vtkImageData.GetData(outInfo))
+
+
+@with_parameters(BitingParameters)
+class BitingSampler(BitemeshAlgorithm):
+    """f on the grid I -> mesh nodes about R apart (vtkPolyData with a vertex per node), the paper's Algorithm 1.
+
+    R is ``Radius``, or chosen for about ``Cells`` cells; the field data ``Radius`` holds the R used.
+    """
+
+    def __init__(self):
+        super().__init__(nInputPorts=1, inputType="vtkImageData", nOutputPorts=1, outputType="vtkPolyData")
+
+    def execute(self, request, inInfo, outInfo):
+        parameters = self.parameters(BitingParameters)
+        grid = image_to_grid(vtkImageData.GetData(inInfo[0]))
+        radius = parameters.radius or radius_for_cells(grid.inside_volume(), parameters.cells, grid.dim)
+        nodes = bite(grid, radius, order=parameters.order, seed=parameters.seed, progress=self.progress)
+        output = vtkPolyData.GetData(outInfo)
+        output.ShallowCopy(nodes_to_polydata(nodes))
+        output.GetFieldData().AddArray(field_array("Radius", [radius]))
+
+
+class DelaunayTetra(BitemeshAlgorithm):
+    """Nodes -> their Delaunay tetrahedra (triangles in 2D) by qhull, all positively oriented."""
+
+    def __init__(self):
+        super().__init__(nInputPorts=1, inputType="vtkPointSet", nOutputPorts=1, outputType="vtkUnstructuredGrid")
+
+    def execute(self, request, inInfo, outInfo):
+        nodes = node_coordinates(vtkPointSet.GetData(inInfo[0]))
+        mesh_to_unstructured(Mesh(nodes, delaunay(nodes)), vtkUnstructuredGrid.GetData(outInfo))
+
+
+@with_parameters(SpuriousParameters)
+class SpuriousCellFilter(BitemeshAlgorithm):
+    """All Delaunay cells (port 0) and f on the grid (port 1) -> the valid domain, unused points dropped.
+
+    A cell goes when f < 0 at its circumcentre and |f|/|grad f| there exceeds ``Threshold`` x its circumradius
+    (the paper's test, on the cells lying on the surface), or when its centroid is outside; then voids inside are
+    filled, flat boundary cells peeled, pinched edges and vertices repaired and parts below ``MinComponent``
+    dropped.
+    """
+
+    def __init__(self):
+        super().__init__(nInputPorts=2, inputType="vtkDataObject", nOutputPorts=1, outputType="vtkUnstructuredGrid")
+
+    def FillInputPortInformation(self, port, info):
+        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid" if port == 0 else "vtkImageData")
+        return 1
+
+    def execute(self, request, inInfo, outInfo):
+        mesh = unstructured_to_mesh(vtkUnstructuredGrid.GetData(inInfo[0]))
+        grid = image_to_grid(vtkImageData.GetData(inInfo[1]))
+        if grid.dim != mesh.dim:
+            raise InvalidInputError(f"the mesh is {mesh.dim}D but the implicit image is {grid.dim}D")
+        domain = carve_domain(grid, mesh.points, mesh.cells, self.parameters(SpuriousParameters), self.progress)
+        mesh_to_unstructured(domain, vtkUnstructuredGrid.GetData(outInfo))
+
+
+@with_parameters(QualityParameters)
+class QualityFilter(BitemeshAlgorithm):
+    """Mesh -> the same mesh with cell arrays RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and a
+    field-data summary (port 0), and the radius-ratio histogram as a vtkTable (port 1)."""
+
+    def __init__(self):
+        super().__init__(nInputPorts=1, inputType="vtkUnstructuredGrid", nOutputPorts=2,
+                         outputType="vtkUnstructuredGrid")
+
+    def FillOutputPortInformation(self, port, info):
+        info.Set(vtkDataObject.DATA_TYPE_NAME(), "vtkUnstructuredGrid" if port == 0 else "vtkTable")
+        return 1
+
+    def execute(self, request, inInfo, outInfo):
+        source = vtkUnstructuredGrid.GetData(inInfo[0])
+        mesh = unstructured_to_mesh(source)
+        output = vtkUnstructuredGrid.GetData(outInfo, 0)
+        output.ShallowCopy(mesh_to_unstructured(mesh.with_cell_data(**cell_quality(mesh))))
+        summary = quality_summary(mesh)
+        for name, value in asdict(summary).items():
+            output.GetFieldData().AddArray(field_array(name, [value]))
+        counts, edges = quality_histogram(output_array(output, "RadiusRatio"), self.parameters(QualityParameters).bins)
+        table = vtkTable.GetData(outInfo, 1)
+        table.Initialize()
+        table.AddColumn(field_array("BinStart", edges[:-1]))
+        table.AddColumn(field_array("BinEnd", edges[1:]))
+        table.AddColumn(field_array("Count", counts, integer=True))
+
+
+@with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters)
+class MeshFromPoints(BitemeshAlgorithm):
+    """The whole method in one filter: scattered points -> a valid mesh with its quality arrays.
+
+    As ``bitemesh.run``: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by default.
+    """
+
+    def __init__(self):
+        super().__init__(nInputPorts=1, inputType="vtkPointSet", nOutputPorts=1, outputType="vtkUnstructuredGrid")
+
+    def execute(self, request, inInfo, outInfo):
+        points, normals = scattered_points(vtkPointSet.GetData(inInfo[0]))
+        result = run(points, normals, self.parameters(ImplicitParameters), self.parameters(BitingParameters),
+                     self.parameters(SpuriousParameters), progress=self.progress)
+        output = vtkUnstructuredGrid.GetData(outInfo)
+        mesh_to_unstructured(result.mesh, output)
+        output.GetFieldData().AddArray(field_array("Radius", [result.radius]))
+
+
+def node_coordinates(dataset) -> np.ndarray:
+    """(n, k) node coordinates of a vtkPointSet; nodes with z = 0 everywhere are 2D."""
+    points = point_coordinates(dataset)
+    if len(points) == 0:
+        raise InvalidInputError("the input holds no nodes; connect a BitingSampler")
+    return points[:, :2] if np.all(points[:, 2] == 0) else points
+
+
+def field_array(name: str, values, integer: bool = False):
+    """A named one-component VTK array of ``values``."""
+    array = (vtkIntArray if integer else vtkDoubleArray)()
+    array.SetName(name)
+    for value in values:
+        array.InsertNextValue(value)
+    return array
+
+
+def output_array(dataset, name: str) -> np.ndarray:
+    return numpy_support.vtk_to_numpy(dataset.GetCellData().GetArray(name))
