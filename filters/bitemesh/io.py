@@ -284,6 +284,10 @@ def _read_vtk_points(path: Path):
     if normals is None:
         with _vtk_silenced():
             normals = _normals_from_polygons(dataset)
+        if normals is not None:
+            # a surface's points that no polygon uses (duplicates, strays) have no normal: leave them out
+            used = np.any(normals != 0, axis=1)
+            coordinates, normals = coordinates[used], normals[used]
     if normals is not None:
         normals = _unit_rows(np.where(np.isfinite(normals), normals, 0.0))
     return coordinates, normals

@@ -461,3 +461,18 @@ def test_bad_mesh_files(tmp_path, capfd, extension):
     assert str(garbage) in str(caught.value)
     assert_vtk_silent(capfd)
 
+
+
+def test_surface_points_that_no_polygon_uses_are_left_out(tmp_path):
+    """Like the Stanford bunny's OBJ (1,113 unused duplicate vertices): they have no normal, so they go."""
+    path = tmp_path / "stray.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 5 5 5\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    points, normals = read_points(path)
+    assert len(points) == 4 and not np.any(np.all(points == 5, axis=1))
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+    assert outward_fraction(points - points.mean(axis=0), normals) == 1.0
+
+
+def test_the_stanford_bunny_reads_with_a_normal_for_every_point(shared_data):
+    points, normals = read_points(shared_data / "stanford_bunny" / "stanford-bunny.obj")
+    assert len(points) == 34834 and np.allclose(np.linalg.norm(normals, axis=1), 1.0)
