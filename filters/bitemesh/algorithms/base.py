@@ -11,6 +11,7 @@ from dataclasses import fields
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.vtkCommonCore import vtkCommand, vtkOutputWindow
 from vtkmodules.vtkCommonDataModel import vtkDataObject
+from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
 from ..core.errors import BitemeshError, Cancelled
 
@@ -60,6 +61,7 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
         VTKPythonAlgorithmBase.__init__(self, **ports)
         self._values = {f.name: f.default for dataclass in self.parameter_classes for f in fields(dataclass)}
         self.last_error = None
+        self._failed_run = None  # what the last failed run saw: (filter MTime, input data MTimes)
 
     def SetInputData(self, *arguments):
         """``SetInputData(data)`` or ``SetInputData(port, data)``, as VTK's typed algorithms offer."""
@@ -74,21 +76,59 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
         """The core's progress callback: VTK progress, and an abort request becomes Cancelled."""
         self.SetProgressText(message)
         self.UpdateProgress(fraction)
+        self.check_abort()
+
+    def check_abort(self) -> None:
+        """Raise Cancelled if an observer asked this filter to abort (``SetAbortExecute(1)``)."""
         if self.GetAbortExecute():
             raise Cancelled(f"{type(self).__name__} was aborted")
 
+    def RequestUpdateExtent(self, request, inInfo, outInfo):
+        """Every step needs its image inputs whole: ask for their whole extent.
+
+        VTK's default copies the output's update extent to image inputs; a label map's extent is not that of the
+        padded grid PointsToImplicit announces, and an image on SpuriousCellFilter's port 1 may differ from the
+        grid that was there before, so the default request falls outside the input and VTK reports errors.
+        """
+        whole = vtkStreamingDemandDrivenPipeline.WHOLE_EXTENT()
+        update = vtkStreamingDemandDrivenPipeline.UPDATE_EXTENT()
+        for port in range(self.GetNumberOfInputPorts()):
+            for connection in range(inInfo[port].GetNumberOfInformationObjects()):
+                info = inInfo[port].GetInformationObject(connection)
+                if info.Has(whole):
+                    info.Set(update, info.Get(whole), 6)
+        return 1
+
     def RequestData(self, request, inInfo, outInfo):
-        self.last_error = None
+        run = self.run_key(inInfo)
+        if self.last_error is not None and run == self._failed_run:
+            # the executive asks again for the same failed run (an image output with two consumers, such as
+            # PointsToImplicit's, looks out of date when empty): it has been reported, do not run it again
+            self.clear_outputs(outInfo)
+            return 1
+        self.last_error = self._failed_run = None
         if self.upstream_error() is not None:  # reported where it happened; pass on an empty output quietly
             self.clear_outputs(outInfo)
             return 1
         try:
+            self.check_abort()  # an abort asked at the executive's first progress event, or left set (VTK >= 9.4)
             self.execute(request, inInfo, outInfo)
+            self.check_abort()  # an abort asked while a step that reports no progress ran
         except Exception as error:  # noqa: BLE001 - every error must reach the user with its message
             self.last_error = error
+            self._failed_run = run  # rerunning needs a change: a parameter, an input, Modified(), SetAbortExecute(0)
             self.clear_outputs(outInfo)
             self.report_error(error)
         return 1
+
+    def run_key(self, inInfo):
+        """What a run depends on: this filter's MTime and the MTime of every input data object."""
+        inputs = []
+        for port in range(self.GetNumberOfInputPorts()):
+            for connection in range(inInfo[port].GetNumberOfInformationObjects()):
+                data = inInfo[port].GetInformationObject(connection).Get(vtkDataObject.DATA_OBJECT())
+                inputs.append(None if data is None else data.GetMTime())
+        return self.GetMTime(), tuple(inputs)
 
     def clear_outputs(self, outInfo) -> None:
         """Leave no half-built output behind."""
@@ -101,6 +141,9 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
         """Send the error's message to VTK's error output, as vtkErrorMacro does (observers first)."""
         kind = "" if isinstance(error, BitemeshError) else f"{type(error).__name__}: "
         message = f"{type(self).__name__}: {kind}{error}"
+        if isinstance(error, Cancelled):
+            vtkOutputWindow.GetInstance().DisplayWarningText(f"Warning: {type(self).__name__}: cancelled\n")
+            return
         if self.HasObserver(vtkCommand.ErrorEvent):
             self.InvokeEvent(vtkCommand.ErrorEvent, message)
         else:

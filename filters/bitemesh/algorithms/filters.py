@@ -30,12 +30,18 @@ from .convert import (grid_to_image, image_to_grid, mesh_to_unstructured, nodes_
 
 
 def scattered_points(dataset):
-    """(points, normals or None) of a vtkPointSet: the ``Normals`` point array, or the point normals attribute."""
+    """(points, normals or None) of a vtkPointSet: the ``Normals`` point array, or the point normals attribute.
+
+    Points with z = 0 everywhere are 2D (a contour in the xy plane): both come back with two columns.
+    """
     if not isinstance(dataset, vtkPointSet) or dataset.GetNumberOfPoints() == 0:
         raise InvalidInputError("the input holds no points; connect scattered points (vtkPolyData) or a label map")
     normals = dataset.GetPointData().GetNormals()
     normals = point_array(dataset, "Normals") if normals is None else numpy_support.vtk_to_numpy(normals).copy()
-    return point_coordinates(dataset), normals
+    points = planar_as_2d(point_coordinates(dataset))
+    if normals is not None and normals.ndim == 2 and normals.shape[1] > points.shape[1]:
+        normals = normals[:, :points.shape[1]]
+    return points, normals
 
 
 @with_parameters(ImplicitParameters, LabelMapParameters)
@@ -206,12 +212,17 @@ class MeshFromPoints(BitemeshAlgorithm):
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))
 
 
+def planar_as_2d(points: np.ndarray) -> np.ndarray:
+    """(n, 2) when every z is 0 (a 2D point set, as VTK stores it), else the (n, 3) points unchanged."""
+    return points[:, :2] if len(points) and np.all(points[:, 2] == 0) else points
+
+
 def node_coordinates(dataset) -> np.ndarray:
     """(n, k) node coordinates of a vtkPointSet; nodes with z = 0 everywhere are 2D."""
     points = point_coordinates(dataset)
     if len(points) == 0:
         raise InvalidInputError("the input holds no nodes; connect a BitingSampler")
-    return points[:, :2] if np.all(points[:, 2] == 0) else points
+    return planar_as_2d(points)
 
 
 def field_array(name: str, values, integer: bool = False):
