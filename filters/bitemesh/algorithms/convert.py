@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import vtkPoints, vtkVersion
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray, vtkPoints, vtkVersion
 from vtkmodules.vtkCommonDataModel import (VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkImageData, vtkPolyData,
                                            vtkUnstructuredGrid)
 
@@ -40,6 +40,15 @@ def vtk_points(coordinates: np.ndarray) -> vtkPoints:
     points = vtkPoints()
     points.SetData(numpy_support.numpy_to_vtk(np.ascontiguousarray(coordinates), deep=True))
     return points
+
+
+def field_array(name: str, values, integer: bool = False):
+    """A named one-component VTK array of ``values``."""
+    array = (vtkIntArray if integer else vtkDoubleArray)()
+    array.SetName(name)
+    for value in values:
+        array.InsertNextValue(value)
+    return array
 
 
 def nodes_to_polydata(nodes: np.ndarray) -> vtkPolyData:

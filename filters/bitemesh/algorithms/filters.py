@@ -8,7 +8,6 @@ from dataclasses import asdict
 
 import numpy as np
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray
 from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageData, vtkPointSet, vtkPolyData,
                                            vtkTable, vtkUnstructuredGrid)
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
@@ -25,8 +24,8 @@ from ..core.parameters import (BitingParameters, ImplicitParameters, LabelMapPar
 from ..core.pipeline import radius_for_cells, run
 from ..core.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
-from .convert import (grid_to_image, image_to_grid, mesh_to_unstructured, nodes_to_polydata, point_array,
-                      point_coordinates, unstructured_to_mesh)
+from .convert import (field_array, grid_to_image, image_to_grid, mesh_to_unstructured, nodes_to_polydata,
+                      point_array, point_coordinates, unstructured_to_mesh)
 
 
 def scattered_points(dataset):
@@ -223,15 +222,6 @@ def node_coordinates(dataset) -> np.ndarray:
     if len(points) == 0:
         raise InvalidInputError("the input holds no nodes; connect a BitingSampler")
     return planar_as_2d(points)
-
-
-def field_array(name: str, values, integer: bool = False):
-    """A named one-component VTK array of ``values``."""
-    array = (vtkIntArray if integer else vtkDoubleArray)()
-    array.SetName(name)
-    for value in values:
-        array.InsertNextValue(value)
-    return array
 
 
 def output_array(dataset, name: str) -> np.ndarray:

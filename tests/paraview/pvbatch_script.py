@@ -1,0 +1,368 @@
+"""What tests/paraview/test_pvbatch.py runs inside pvbatch (ParaView's Python with its VTK 9.2, Debian's numpy/scipy).
+
+    pvbatch pvbatch_script.py --plugin filters/bitemesh/paraview_plugin.py --points sphere.csv --out DIR
+        [--cells 3000] [--radius 0.15] [--grid-spacing 0.03] [--seed 0]
+
+Loads the plugin, reads the scattered points as a ParaView user would (CSV Reader, Table To Points), meshes them
+with "Volume Mesh From Points" and with the five-filter chain, and compares each with the plain VTK filters and
+``bitemesh.run`` on the same points and parameters in this same process (they must be equal, bit for bit).  Writes
+``DIR/one_shot.vtu``, ``DIR/chain.vtu`` and ``DIR/results.json``: every check by name with ``ok`` and a detail, and
+the facts the test compares again in its own Python.  No check stops the script: the test reports each one.
+"""
+from __future__ import annotations
+
+import inspect
+
+# ParaView 5.11 imports inspect.getargspec (gone in Python 3.11) when it loads a Python plugin.
+if not hasattr(inspect, "getargspec"):
+    inspect.getargspec = inspect.getfullargspec
+
+import argparse
+import json
+import math
+import sys
+import time
+import traceback
+from dataclasses import fields
+from pathlib import Path
+
+import bitemesh
+import numpy as np
+from bitemesh import algorithms
+from bitemesh.algorithms.convert import nodes_to_polydata, unstructured_to_mesh
+from bitemesh.core.mesh import signed_measures
+from bitemesh.core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from bitemesh.core.quality import boundary_euler_characteristic, check_valid_domain, connected_components
+from paraview import servermanager, simple
+from paraview.simple import CSVReader, LoadPlugin, ProgrammableFilter, SaveData, TableToPoints, TrivialProducer
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonDataModel import vtkImageData
+
+SPHERE_VOLUME = 4.0 / 3.0 * math.pi
+#: the README's Programmable Filter script (Output Data Set Type: vtkUnstructuredGrid); CELLS is substituted.
+PROGRAMMABLE_SCRIPT = """
+import bitemesh
+from bitemesh.algorithms.convert import mesh_to_unstructured
+from vtkmodules.util.numpy_support import vtk_to_numpy
+
+points = vtk_to_numpy(self.GetInput().GetPoints().GetData())     # (n, 3): the input's points
+mesh = bitemesh.mesh_from_points(points, cells=CELLS)             # any parameter of bitemesh.mesh_from_points
+self.GetOutput().ShallowCopy(mesh_to_unstructured(mesh))
+"""
+
+checks: dict = {}
+facts: dict = {"seconds": {}}
+
+
+def check(name: str, ok, detail="") -> bool:
+    """Record one named check (never raise: the test reports every check)."""
+    checks[name] = {"ok": bool(ok), "detail": str(detail)}
+    print(f"{'ok  ' if ok else 'FAIL'} {name}: {detail}", flush=True)
+    return bool(ok)
+
+
+def guarded(name: str):
+    """Run a block of checks; an exception becomes a failed check named after the block."""
+    def decorate(function):
+        def run(*args, **kwargs):
+            try:
+                return function(*args, **kwargs)
+            except Exception:  # noqa: BLE001 - reported as a failed check with its traceback
+                check(name, False, traceback.format_exc())
+                return None
+        return run
+    return decorate
+
+
+def updated(proxy, port: int = 0):
+    """The VTK output of a proxy (builtin session: the algorithm itself), updated.
+
+    (Not named ``output``: a Programmable Filter runs its script in ``__main__`` and then deletes the names
+    ``inputs``, ``output``, ``request`` and ``myarg`` there.)
+    """
+    proxy.UpdatePipeline()
+    return proxy.GetClientSideObject().GetOutputDataObject(port)
+
+
+def same_mesh(name: str, mesh, reference) -> bool:
+    """Same number of points and cells, same coordinates and connectivity, bit for bit."""
+    shapes = (mesh.points.shape, mesh.cells.shape), (reference.points.shape, reference.cells.shape)
+    equal = shapes[0] == shapes[1] and np.array_equal(mesh.points, reference.points) and \
+        np.array_equal(mesh.cells, reference.cells)
+    detail = f"{len(mesh.points)} points, {len(mesh.cells)} cells vs {len(reference.points)}, {len(reference.cells)}"
+    if shapes[0] == shapes[1] and not equal:
+        detail += f"; largest coordinate difference {np.abs(mesh.points - reference.points).max():.3g}"
+    return check(name, equal, detail)
+
+
+def valid_sphere(name: str, mesh) -> None:
+    """A valid domain: no problem found, one component, boundary Euler characteristic 2, volume within 3 %."""
+    problems = check_valid_domain(mesh)
+    check(f"{name}: valid domain", problems == [], problems or "no problem found")
+    components = int(connected_components(mesh.cells).max()) + 1
+    check(f"{name}: one component", components == 1, f"{components} components")
+    euler = boundary_euler_characteristic(mesh)
+    check(f"{name}: boundary euler 2", euler == 2, f"euler {euler}")
+    volume = float(signed_measures(mesh.points, mesh.cells).sum())
+    check(f"{name}: volume within 3 %", abs(volume / SPHERE_VOLUME - 1) < 0.03,
+          f"{volume:.4f} vs {SPHERE_VOLUME:.4f} ({100 * (volume / SPHERE_VOLUME - 1):+.2f} %)")
+    check(f"{name}: quality arrays", {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume"}
+          <= set(mesh.cell_data), sorted(mesh.cell_data))
+
+
+def timed(name: str, proxy, port: int = 0):
+    clock = time.perf_counter()
+    data = updated(proxy, port)
+    facts["seconds"][name] = round(time.perf_counter() - clock, 3)
+    return data
+
+
+@guarded("environment")
+def environment(plugin: Path) -> None:
+    import scipy
+    import vtkmodules
+    from vtkmodules.vtkCommonCore import vtkVersion
+    facts["versions"] = {"python": sys.version.split()[0], "numpy": np.__version__, "scipy": scipy.__version__,
+                         "vtk": vtkVersion.GetVTKVersion(),
+                         "paraview": servermanager.vtkSMProxyManager.GetParaViewSourceVersion()}
+    # the pip wheel lives in a site-packages folder; ParaView's VTK in its own (Debian: dist-packages)
+    check("ParaView's own VTK (no pip vtk wheel)", "site-packages" not in vtkmodules.__file__, vtkmodules.__file__)
+    check("bitemesh from the clone", Path(bitemesh.__file__).resolve().parent == plugin.resolve().parent,
+          bitemesh.__file__)
+
+
+@guarded("properties follow the parameter dataclasses")
+def properties(proxies: dict) -> None:
+    """Every field of each filter's dataclasses is a property with its default, range or choices, and help."""
+    problems = []
+    for class_name, proxy in proxies.items():
+        for item in (f for dataclass in getattr(algorithms, class_name).parameter_classes for f in fields(dataclass)):
+            name = "".join(part.capitalize() for part in item.name.split("_"))
+            prop = proxy.GetProperty(name)
+            if prop is None:
+                problems.append(f"{class_name}.{name} missing")
+                continue
+            meta = item.metadata
+            default = prop.GetElement(0)  # a new proxy holds the defaults
+            help_text = prop.GetDocumentation().GetDescription() if prop.GetDocumentation() else ""
+            if meta["help"] not in " ".join(help_text.split()):
+                problems.append(f"{class_name}.{name}: help {help_text!r}")
+            if "choices" in meta:
+                domain = prop.GetDomain("list")
+                strings = [domain.GetString(i) for i in range(domain.GetNumberOfStrings())] if domain else None
+                if strings != list(meta["choices"]) or default != item.default:
+                    problems.append(f"{class_name}.{name}: choices {strings}, default {default}")
+                continue
+            low, high, low_open, _ = meta["range"]
+            domain = prop.GetDomain("range")
+            minimum = domain.GetMinimum(0) if domain and domain.GetMinimumExists(0) else None
+            maximum = domain.GetMaximum(0) if domain and domain.GetMaximumExists(0) else None
+            if item.default is None:  # optional: the automatic value (0, or -1 where 0 is valid) and the words
+                automatic = 0 if (low == 0 and low_open) else -1
+                if default != automatic or minimum != automatic or f"{automatic} means automatic" not in help_text:
+                    problems.append(f"{class_name}.{name}: automatic {default}, min {minimum}")
+            elif default != item.default or minimum != low:
+                problems.append(f"{class_name}.{name}: default {default} vs {item.default}, min {minimum} vs {low}")
+            expected_max = None if high is None or not math.isfinite(high) else min(high, 2**31 - 1)
+            if maximum != expected_max:
+                problems.append(f"{class_name}.{name}: max {maximum} vs {expected_max}")
+            if meta["unit"] and f"[{meta['unit']}]" not in help_text:
+                problems.append(f"{class_name}.{name}: no unit in help")
+    check("properties follow the parameter dataclasses", not problems, problems or "every field checked")
+
+
+@guarded("one-shot filter")
+def one_shot(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
+    proxy = simple.VolumeMeshFromPoints(Input=points_proxy, Cells=args.cells, Seed=args.seed)
+    grid = timed("Volume Mesh From Points", proxy)
+    mesh = unstructured_to_mesh(grid)
+    valid_sphere("one-shot", mesh)
+    SaveData(str(out / "one_shot.vtu"), proxy=proxy)
+
+    clock = time.perf_counter()
+    result = bitemesh.run(xyz, None, ImplicitParameters(), BitingParameters(cells=args.cells, seed=args.seed),
+                          SpuriousParameters())
+    facts["seconds"]["bitemesh.run (same process)"] = round(time.perf_counter() - clock, 3)
+    same_mesh("one-shot = bitemesh.run", mesh, result.mesh)
+    radius = grid.GetFieldData().GetArray("Radius").GetValue(0)
+    check("one-shot field data Radius = run's R", radius == result.radius, f"{radius} vs {result.radius}")
+    for key, values in result.mesh.cell_data.items():
+        check(f"one-shot cell data {key} = run's", np.array_equal(mesh.cell_data.get(key), values), key)
+
+    vtk_filter = algorithms.MeshFromPoints()
+    vtk_filter.SetInputData(nodes_to_polydata(xyz))
+    vtk_filter.SetCells(args.cells)
+    vtk_filter.SetSeed(args.seed)
+    same_mesh("one-shot = plain VTK MeshFromPoints", mesh, unstructured_to_mesh(vtk_filter.update()))
+    facts["one_shot"] = {"points": len(mesh.points), "cells": len(mesh.cells), "radius": radius,
+                         "file": "one_shot.vtu"}
+
+
+@guarded("five-filter chain")
+def chain(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
+    margin = 3 * args.grid_spacing
+    implicit = simple.PointsToImplicit(Input=points_proxy, GridSpacing=args.grid_spacing, Margin=margin)
+    nodes = simple.BitingSampler(Input=implicit, Radius=args.radius, Seed=args.seed)
+    tetra = simple.DelaunayTetra(Input=nodes)
+    domain = simple.SpuriousCellFilter(Mesh=tetra, Implicit=implicit)
+    quality = simple.QualityFilter(Input=domain, Bins=10)
+    clock = time.perf_counter()
+    grid = updated(quality, 0)
+    facts["seconds"]["five-filter chain"] = round(time.perf_counter() - clock, 3)
+    mesh = unstructured_to_mesh(grid)
+    valid_sphere("chain", mesh)
+    SaveData(str(out / "chain.vtu"), proxy=simple.OutputPort(quality, 0))
+
+    image = updated(implicit)
+    check("chain: implicit image has the grid spacing", np.allclose(image.GetSpacing(), args.grid_spacing),
+          image.GetSpacing())
+    names = [quality.GetOutputPortName(port) for port in range(quality.GetNumberOfOutputPorts())]
+    check("chain: Quality Filter's output ports are Mesh and Histogram", names == ["Mesh", "Histogram"], names)
+    table = updated(quality, 1)
+    counts = numpy_support.vtk_to_numpy(table.GetColumnByName("Count")) if table.GetColumnByName("Count") else []
+    check("chain: histogram table on port 1 (10 bins, every cell counted)",
+          table.IsA("vtkTable") and len(counts) == 10 and int(np.sum(counts)) == len(mesh.cells),
+          f"{table.GetClassName()}, {len(counts)} rows, {int(np.sum(counts))} cells")
+
+    # the same steps as plain VTK filters (ParaView's VTK, outside any proxy)
+    source = nodes_to_polydata(xyz)
+    f1 = algorithms.PointsToImplicit()
+    f1.SetInputData(source)
+    f1.SetGridSpacing(args.grid_spacing)
+    f1.SetMargin(margin)
+    f2 = algorithms.BitingSampler()
+    f2.SetInputConnection(f1.GetOutputPort())
+    f2.SetRadius(args.radius)
+    f2.SetSeed(args.seed)
+    f3 = algorithms.DelaunayTetra()
+    f3.SetInputConnection(f2.GetOutputPort())
+    f4 = algorithms.SpuriousCellFilter()
+    f4.SetInputConnection(0, f3.GetOutputPort())
+    f4.SetInputConnection(1, f1.GetOutputPort())
+    f5 = algorithms.QualityFilter()
+    f5.SetInputConnection(f4.GetOutputPort())
+    plain = unstructured_to_mesh(f5.update())
+    same_mesh("chain = plain VTK filters", mesh, plain)
+    for key in plain.cell_data:
+        check(f"chain cell data {key} = plain VTK's", np.array_equal(mesh.cell_data.get(key), plain.cell_data[key]),
+              key)
+    result = bitemesh.run(xyz, None, ImplicitParameters(grid_spacing=args.grid_spacing, margin=margin),
+                          BitingParameters(radius=args.radius, seed=args.seed), SpuriousParameters())
+    same_mesh("chain = bitemesh.run with the same radius, grid spacing and margin", mesh, result.mesh)
+    facts["chain"] = {"points": len(mesh.points), "cells": len(mesh.cells), "file": "chain.vtu"}
+
+
+@guarded("bad parameter")
+def bad_parameter(points_proxy, args) -> None:
+    """A negative radius: an error naming radius, an empty output, no crash; the proxy works once fixed."""
+    proxy = simple.VolumeMeshFromPoints(Input=points_proxy, Radius=-1.0, Seed=args.seed)
+    grid = updated(proxy)
+    error = proxy.GetClientSideObject().last_error
+    check("negative radius: error names radius", error is not None and "radius" in str(error), repr(error))
+    check("negative radius: empty output", grid.GetNumberOfCells() == 0, f"{grid.GetNumberOfCells()} cells")
+    proxy.Radius = 0.0  # automatic again
+    proxy.Cells = 500
+    grid = updated(proxy)
+    check("negative radius then automatic: a mesh again",
+          grid.GetNumberOfCells() > 0 and proxy.GetClientSideObject().last_error is None,
+          f"{grid.GetNumberOfCells()} cells")
+
+    implicit = simple.PointsToImplicit(Input=points_proxy, GridSpacing=0.05)
+    nodes = simple.BitingSampler(Input=implicit, Radius=-2.0)
+    tetra = simple.DelaunayTetra(Input=nodes)
+    domain = simple.SpuriousCellFilter(Mesh=tetra, Implicit=implicit)
+    grid = updated(domain)
+    sampler, cells_filter = nodes.GetClientSideObject(), domain.GetClientSideObject()
+    quiet = [proxy.GetClientSideObject().last_error for proxy in (tetra, domain)]
+    check("negative radius in the chain: one error, from BitingSampler; the filters below pass an empty mesh",
+          "radius" in str(sampler.last_error) and quiet == [None, None] and grid.GetNumberOfCells() == 0 and
+          cells_filter.upstream_error() is sampler.last_error, f"{sampler.last_error!r}; below: {quiet}")
+    print("bad-parameter checks done", flush=True)
+
+
+@guarded("programmable filter")
+def programmable(points_proxy, xyz: np.ndarray, args) -> None:
+    """The README's Programmable Filter script gives bitemesh.mesh_from_points's mesh."""
+    cells = 1000
+    proxy = ProgrammableFilter(Input=points_proxy, OutputDataSetType="vtkUnstructuredGrid",
+                               Script=PROGRAMMABLE_SCRIPT.replace("CELLS", str(cells)))
+    mesh = unstructured_to_mesh(updated(proxy))
+    same_mesh("Programmable Filter = bitemesh.mesh_from_points", mesh, bitemesh.mesh_from_points(xyz, cells=cells))
+
+
+@guarded("label map")
+def label_map() -> None:
+    """A label map: meshed where ParaView's Python has SimpleITK, else an error that says SimpleITK is needed."""
+    image = vtkImageData()
+    image.SetDimensions(12, 12, 12)
+    ijk = np.indices((12, 12, 12)).reshape(3, -1, order="F").T
+    labels = (np.linalg.norm(ijk - 5.5, axis=1) < 4).astype(np.uint8)
+    array = numpy_support.numpy_to_vtk(labels, deep=True)
+    array.SetName("labels")
+    image.GetPointData().SetScalars(array)
+    producer = TrivialProducer()
+    producer.GetClientSideObject().SetOutput(image)
+    proxy = simple.PointsToImplicit(Input=producer)
+    result = updated(proxy)
+    error = proxy.GetClientSideObject().last_error
+    try:
+        import SimpleITK  # noqa: F401
+        check("label map meshed (SimpleITK present)", error is None and result.GetNumberOfPoints() > 0, repr(error))
+        facts["simpleitk"] = True
+    except ImportError:
+        check("label map without SimpleITK: clear error", error is not None and "SimpleITK" in str(error),
+              repr(error))
+        facts["simpleitk"] = False
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--plugin", type=Path, required=True)
+    parser.add_argument("--points", type=Path, required=True)
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--cells", type=int, default=3000)
+    parser.add_argument("--radius", type=float, default=0.15)
+    parser.add_argument("--grid-spacing", type=float, default=0.03)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    clock = time.perf_counter()
+    try:
+        LoadPlugin(str(args.plugin))  # adds the filters to paraview.simple
+        check("plugin loads", True, args.plugin)
+    except Exception:  # noqa: BLE001
+        check("plugin loads", False, traceback.format_exc())
+    facts["seconds"]["load plugin"] = round(time.perf_counter() - clock, 3)
+    environment(args.plugin)
+
+    if checks["plugin loads"]["ok"]:
+        names = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
+                 "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
+                 "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter"}
+        missing = [label for label in names.values() if not hasattr(simple, label)]
+        check("six filters in paraview.simple", not missing, missing or sorted(names.values()))
+
+        reader = CSVReader(FileName=[str(args.points)])
+        points_proxy = TableToPoints(Input=reader, XColumn="x", YColumn="y", ZColumn="z")
+        xyz = numpy_support.vtk_to_numpy(updated(points_proxy).GetPoints().GetData()).astype(np.float64)
+        check("points read by ParaView = the file's",
+              np.array_equal(xyz, np.loadtxt(args.points, delimiter=",", skiprows=1)), f"{len(xyz)} points")
+
+        manager = servermanager.vtkSMProxyManager.GetProxyManager().GetActiveSessionProxyManager()
+        properties({class_name: manager.NewProxy("filters", f"Bitemesh{class_name}") for class_name in names})
+        one_shot(points_proxy, xyz, args, args.out)
+        chain(points_proxy, xyz, args, args.out)
+        bad_parameter(points_proxy, args)
+        programmable(points_proxy, xyz, args)
+        label_map()
+
+    facts["seconds"]["pvbatch script"] = round(time.perf_counter() - clock, 3)
+    (args.out / "results.json").write_text(json.dumps({"checks": checks, "facts": facts}, indent=1, default=str))
+    failed = [name for name, result in checks.items() if not result["ok"]]
+    print(f"{len(checks) - len(failed)} checks passed, {len(failed)} failed", flush=True)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,160 @@
+"""The ParaView plugin, headless in pvbatch: the same mesh from the same points as the VTK filters and bitemesh.run.
+
+pvbatch runs ``pvbatch_script.py`` beside this file once per session (about 15 s): ParaView 5.11's own Python and
+VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH`` holding only the clone's ``filters/`` (the pip ``vtk``
+wheel of this virtual environment would crash it).  The script records every check by name in ``results.json``;
+the tests here report them and check again, in this Python, the meshes it wrote.  Skipped where pvbatch is absent
+(on CI, ``.ci/run`` installs Debian's ``paraview python3-paraview python3-numpy python3-scipy``).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bitemesh.core.parameters import BitingParameters, ImplicitParameters
+from bitemesh.core.pipeline import run
+from bitemesh.core.shapes import sample_surface, sphere
+
+from tests.meshcheck import assert_valid_domain
+
+HERE = Path(__file__).resolve().parent
+FILTERS = HERE.parents[1] / "filters"
+PLUGIN = FILTERS / "bitemesh" / "paraview_plugin.py"
+PVBATCH = shutil.which("pvbatch")
+#: the parameters the script uses (its defaults, passed explicitly)
+CELLS, RADIUS, GRID_SPACING, SEED = 3000, 0.15, 0.03, 0
+SPHERE_VOLUME = 4.0 / 3.0 * math.pi
+TIMEOUT_SECONDS = 600
+
+pytestmark = pytest.mark.skipif(
+    PVBATCH is None, reason="pvbatch is absent: apt-get install paraview python3-paraview python3-numpy "
+    "python3-scipy (Debian's ParaView 5.11; .ci/run installs them)")
+
+
+def pvbatch_environment() -> dict:
+    """This process's environment without anything that would point ParaView's Python at this virtual environment."""
+    environment = {key: value for key, value in os.environ.items()
+                   if key not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV", "PYTHONSTARTUP", "PYTHONSAFEPATH")}
+    venv_bin = str(Path(sys.prefix) / "bin")
+    environment["PATH"] = os.pathsep.join(part for part in environment.get("PATH", "").split(os.pathsep)
+                                          if part != venv_bin)
+    environment["PYTHONPATH"] = str(FILTERS)
+    environment["PYTHONNOUSERSITE"] = "1"  # a pip vtk in ~/.local would be found too
+    return environment
+
+
+@pytest.fixture(scope="module")
+def points() -> np.ndarray:
+    """(4232, 3) noisy scattered points on the unit sphere, no normals."""
+    xyz, _ = sample_surface(sphere(), 0.06, noise=0.002, seed=1)
+    return xyz
+
+
+@pytest.fixture(scope="module")
+def pvbatch_run(tmp_path_factory, points):
+    """Run the script once in pvbatch; its results, output folder and console output."""
+    folder = tmp_path_factory.mktemp("pvbatch")
+    csv = folder / "sphere.csv"
+    np.savetxt(csv, points, delimiter=",", header="x,y,z", comments="", fmt="%.17g")  # exact round trip
+    command = [PVBATCH, str(HERE / "pvbatch_script.py"), "--plugin", str(PLUGIN), "--points", str(csv),
+               "--out", str(folder), "--cells", str(CELLS), "--radius", str(RADIUS),
+               "--grid-spacing", str(GRID_SPACING), "--seed", str(SEED)]
+    completed = subprocess.run(command, check=False, capture_output=True, text=True, timeout=TIMEOUT_SECONDS,
+                               env=pvbatch_environment(), cwd=folder, stdin=subprocess.DEVNULL)
+    console = f"$ {' '.join(command)}\n--- stdout ---\n{completed.stdout}\n--- stderr ---\n{completed.stderr}"
+    results_file = folder / "results.json"
+    if not results_file.exists():
+        pytest.fail(f"pvbatch exited with {completed.returncode} and wrote no results.json\n{console}")
+    results = json.loads(results_file.read_text())
+    return {"results": results, "folder": folder, "console": console, "returncode": completed.returncode,
+            "stderr": completed.stderr}
+
+
+def assert_checks(pvbatch_run, *prefixes):
+    """Every check of the script whose name starts with one of ``prefixes`` ran and passed."""
+    checks = pvbatch_run["results"]["checks"]
+    chosen = {name: result for name, result in checks.items() if name.startswith(prefixes)}
+    assert chosen, f"no check named {prefixes} ran\n{pvbatch_run['console']}"
+    failed = {name: result["detail"] for name, result in chosen.items() if not result["ok"]}
+    assert not failed, f"{failed}\n{pvbatch_run['console']}"
+
+
+def read_back(pvbatch_run, key):
+    """The mesh the script wrote as .vtu, read with bitemesh's reader in this Python."""
+    from bitemesh.io import read_mesh
+    return read_mesh(pvbatch_run["folder"] / pvbatch_run["results"]["facts"][key]["file"])
+
+
+def test_pvbatch_loads_the_plugin_and_every_check_passes(pvbatch_run):
+    checks = pvbatch_run["results"]["checks"]
+    failed = sorted(name for name, result in checks.items() if not result["ok"])
+    assert pvbatch_run["returncode"] == 0 and not failed, f"failed: {failed}\n{pvbatch_run['console']}"
+    assert_checks(pvbatch_run, "plugin loads", "six filters", "ParaView's own VTK", "bitemesh from the clone",
+                  "points read by ParaView")
+
+
+def test_properties_are_generated_from_the_parameter_dataclasses(pvbatch_run):
+    assert_checks(pvbatch_run, "properties follow the parameter dataclasses")
+
+
+@pytest.mark.parametrize("key", ["one_shot", "chain"], ids=["Volume Mesh From Points", "five-filter chain"])
+def test_the_paraview_mesh_is_a_valid_sphere(pvbatch_run, key):
+    assert_checks(pvbatch_run, "one-shot:" if key == "one_shot" else "chain:")
+    mesh = read_back(pvbatch_run, key)
+    assert_valid_domain(mesh, euler=2, components=1, measure=SPHERE_VOLUME, measure_tolerance=0.03)
+    facts = pvbatch_run["results"]["facts"][key]
+    assert (len(mesh.points), len(mesh.cells)) == (facts["points"], facts["cells"])
+
+
+def test_one_shot_filter_gives_the_mesh_of_bitemesh_run_and_the_vtk_filter_in_pvbatch(pvbatch_run):
+    """Bit for bit, in ParaView's Python: proxy, plain VTK filter and bitemesh.run on the same points."""
+    assert_checks(pvbatch_run, "one-shot = ", "one-shot field data", "one-shot cell data")
+
+
+def test_five_filter_chain_gives_the_mesh_of_the_vtk_filters_and_run_in_pvbatch(pvbatch_run):
+    assert_checks(pvbatch_run, "chain = ", "chain cell data", "chain: histogram", "chain: implicit image")
+
+
+@pytest.mark.parametrize("key", ["one_shot", "chain"], ids=["Volume Mesh From Points", "five-filter chain"])
+def test_the_paraview_mesh_is_the_mesh_of_bitemesh_run_here(pvbatch_run, points, key):
+    """This Python's numpy, scipy and LAPACK differ from Debian's (the sphere: numpy 2 here, 1.24 there): the same
+    points and cells, the coordinates equal to rounding (measured: 9e-16)."""
+    if key == "one_shot":
+        expected = run(points, None, ImplicitParameters(), BitingParameters(cells=CELLS, seed=SEED)).mesh
+    else:
+        expected = run(points, None, ImplicitParameters(grid_spacing=GRID_SPACING, margin=3 * GRID_SPACING),
+                       BitingParameters(radius=RADIUS, seed=SEED)).mesh
+    mesh = read_back(pvbatch_run, key)
+    assert mesh.points.shape == expected.points.shape and mesh.cells.shape == expected.cells.shape
+    assert np.array_equal(mesh.cells, expected.cells)
+    np.testing.assert_allclose(mesh.points, expected.points, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mesh.cell_data["Volume"], expected.cell_data["Volume"], rtol=1e-9, atol=1e-15)
+
+
+def test_a_negative_radius_is_a_paraview_error_naming_radius_without_a_crash(pvbatch_run):
+    assert_checks(pvbatch_run, "negative radius")
+    stderr = pvbatch_run["stderr"]
+    assert "MeshFromPoints: radius must be in (0, inf], got -1.0" in stderr
+    assert "BitingSampler: radius must be in (0, inf], got -2.0" in stderr
+    assert "DelaunayTetra:" not in stderr and "SpuriousCellFilter:" not in stderr  # no echo of the root cause
+
+
+def test_the_readme_programmable_filter_script_meshes_the_points(pvbatch_run):
+    assert_checks(pvbatch_run, "Programmable Filter")
+
+
+def test_a_label_map_without_simpleitk_is_a_clear_error(pvbatch_run):
+    assert_checks(pvbatch_run, "label map")
+
+
+def test_pvbatch_time_is_reported(pvbatch_run):
+    seconds = pvbatch_run["results"]["facts"]["seconds"]
+    assert seconds["pvbatch script"] < TIMEOUT_SECONDS
+    print(f"pvbatch seconds: {seconds}; versions: {pvbatch_run['results']['facts'].get('versions')}")
