@@ -19,10 +19,13 @@ from .progress import ProgressCallback, report
 from .spurious import outside_cells
 from .topology import connected_components, facet_table, non_manifold_faces
 
-#: rounds of repair before giving up.
+#: rounds of repair before giving up, and the first rounds in which a pinch may be mended by filling.
 MAX_REPAIR_ROUNDS = 30
+FILL_ROUNDS = 5
 #: cells with a radius ratio below this are flat.
 FLAT_QUALITY = 0.02
+#: cells with a radius ratio below this have no volume to speak of (a finite-element solver cannot use them).
+DEGENERATE = 1e-6
 
 
 def enclosed_inside_voids(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -57,17 +60,22 @@ def drop_small_components(points: np.ndarray, cells: np.ndarray, keep: np.ndarra
 
 def peel_flat_boundary_cells(points: np.ndarray, cells: np.ndarray, keep: np.ndarray,
                              flat_quality: float = FLAT_QUALITY) -> np.ndarray:
-    """``keep`` without the nearly flat cells that touch the boundary, layer by layer.
+    """``keep`` without the nearly flat cells that lie on the boundary, layer by layer.
 
     Nodes projected onto a planar part of the surface are coplanar, and qhull joins four of them into a flat cell
-    that lies on the surface: it carries no volume, and removing it leaves the boundary where it was.
+    that lies on the surface (two or more facets on the boundary): it carries no volume, and removing it leaves
+    the boundary where it was.  A flat cell with a single boundary facet is a slit into the domain: removing it
+    would pinch the boundary, and the pinch repair would then cut a notch; such a cell goes only when it has no
+    volume at all (``DEGENERATE``).
     """
-    flat = radius_ratio(points, cells) < flat_quality
+    quality = radius_ratio(points, cells)
+    flat = quality < flat_quality
+    degenerate = quality < DEGENERATE
     result = keep.copy()
     for _ in range(MAX_REPAIR_ROUNDS):
         _, inverse, counts = facet_table(cells[result])
-        on_boundary = (counts[inverse.reshape(-1, cells.shape[1])] == 1).any(axis=1)
-        peel = np.flatnonzero(result)[on_boundary & flat[result]]
+        on_boundary = (counts[inverse.reshape(-1, cells.shape[1])] == 1).sum(axis=1)
+        peel = np.flatnonzero(result)[((on_boundary >= 2) & flat[result]) | ((on_boundary == 1) & degenerate[result])]
         if len(peel) == 0:
             break
         result[peel] = False
@@ -80,24 +88,30 @@ def vertex_incidence(n_points: int, cells: np.ndarray) -> sparse.csr_matrix:
                              shape=(n_points, len(cells)))
 
 
-def unpinch(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, faces: list) -> np.ndarray:
+def unpinch(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, faces: list, *, fill: bool) -> np.ndarray:
     """``keep`` mended around each face where the domain is not a manifold.
 
     The kept cells around a face fall into fans (two share a facet, of k vertices, that then holds the face).
-    With several fans, all but the one of largest volume go; with one (a vertex whose link is an annulus), all
-    go.  Only ever removing cells, the repair cannot cycle.
+    Either every fan but the one of largest volume goes (with a single fan, a vertex whose link is an annulus,
+    all go), or, with ``fill``, the missing Delaunay cells around the face come in, which makes it a manifold
+    point: whichever changes less volume.  Flat cells never come in (the peel would take them out again).
     """
     incidence = vertex_incidence(len(points), cells)
     volume = signed_measures(points, cells)
+    flat = radius_ratio(points, cells) < FLAT_QUALITY
     result = keep.copy()
     for face in (f for group in faces for f in group):
         around = np.flatnonzero(incidence[face].sum(axis=0).A1 == len(face))
-        members = around[keep[around]]
+        members, gap = around[keep[around]], around[~keep[around]]
         local = incidence[:, members]
         shared = (sparse.csr_matrix(local.T) @ local).toarray()
         n_fans, labels = csgraph.connected_components(shared >= cells.shape[1] - 1, directed=False)
         largest = np.argmax(np.bincount(labels, weights=volume[members])) if n_fans > 1 else -1
-        result[members[labels != largest]] = False
+        removed = members[labels != largest]
+        if fill and not flat[gap].any() and volume[gap].sum() < volume[removed].sum():
+            result[gap] = True
+        else:
+            result[removed] = False
     return result
 
 
@@ -127,7 +141,8 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
         pinched = non_manifold_faces(cells[keep], len(points))
         if not pinched:
             break
-        keep = unpinch(points, cells, keep, pinched)
+        # filling first, then only removing: the rounds that only remove cannot cycle
+        keep = unpinch(points, cells, keep, pinched, fill=round_ < FILL_ROUNDS)
     else:
         raise MeshingError(f"the boundary is still not a manifold after {MAX_REPAIR_ROUNDS} rounds of repair; "
                            "try a smaller radius or a finer grid_spacing")
