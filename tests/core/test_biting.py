@@ -67,3 +67,13 @@ def test_nothing_inside_is_a_clear_error():
 def test_bad_order_names_the_choices():
     with pytest.raises(InvalidInputError, match="order must be one of"):
         bite(sampled(sphere(), 0.05), 0.2, order="spiral")
+
+
+def test_sampling_exactly_only_near_the_surface_keeps_f_there_and_its_sign_everywhere():
+    shape = torus()
+    exact = sample_function(shape.function, shape.lower, shape.upper, 0.03, margin=0.1)
+    banded = sample_function(shape.function, shape.lower, shape.upper, 0.03, margin=0.1, exact_within=0.09)
+    near = np.abs(exact.values) < 0.075
+    assert np.array_equal(exact.values[near], banded.values[near])
+    assert np.array_equal(exact.values > 0, banded.values > 0)
+    assert np.abs(exact.values - banded.values).max() < 2 * 0.03  # interpolation error of the coarse grid

@@ -259,7 +259,10 @@ def test_fit_implicit_returns_the_function_that_points_to_implicit_samples():
     assert isinstance(f, MPUImplicit) and len(f.points) == 1000
     grid = points_to_implicit(points, normals, grid_spacing=0.1)
     nodes = grid.node_coordinates(np.arange(grid.values.size))
-    assert np.array_equal(grid.values.ravel(), fit_implicit(points, normals)(nodes))
+    exact = fit_implicit(points, normals)(nodes)
+    near = np.abs(exact) < 0.25  # sampled exactly within EXACT_WITHIN grid spacings of f = 0, interpolated beyond
+    assert np.array_equal(grid.values.ravel()[near], exact[near])
+    assert np.array_equal(grid.values.ravel() > 0, exact > 0)
     contours, contour_normals = annulus_contours()
     assert isinstance(fit_implicit(contours, contour_normals, method="rbf"), RBFImplicit)
 

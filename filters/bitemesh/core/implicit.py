@@ -22,7 +22,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .errors import InvalidInputError, check_choice, check_number, check_points
-from .grid import ImplicitGrid, grid_shape, sample_function
+from .grid import EXACT_WITHIN, ImplicitGrid, grid_shape, sample_function
 from .progress import ProgressCallback, report, sub_progress
 
 logger = logging.getLogger("bitemesh")
@@ -745,4 +745,4 @@ def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound
     grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=max_memory_mb)
     function = _fit(points, normals, method, error_bound, sub_progress(progress, 0.0, 0.4))
     return sample_function(function, lower, upper, spacing, margin=margin, max_memory_mb=max_memory_mb,
-                           progress=sub_progress(progress, 0.4, 1.0))
+                           exact_within=EXACT_WITHIN * spacing, progress=sub_progress(progress, 0.4, 1.0))

@@ -15,7 +15,7 @@ from .biting import bite
 from .delaunay import delaunay
 from .domain import carve_domain
 from .errors import check_number, check_points
-from .grid import ImplicitGrid, sample_function
+from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
 from .implicit import fit_implicit
 from .mesh import Mesh
 from .parameters import BitingParameters, ImplicitParameters, SpuriousParameters
@@ -101,7 +101,7 @@ def implicit_grid(function, lower, upper, implicit: ImplicitParameters, radius: 
     spacing = implicit.grid_spacing or min(radius / GRID_PER_RADIUS, size / MIN_GRID_NODES)
     margin = implicit.margin if implicit.margin is not None else 3 * spacing
     grid = sample_function(function, lower, upper, spacing, margin=margin, max_memory_mb=implicit.max_memory_mb,
-                           progress=progress)
+                           exact_within=EXACT_WITHIN * spacing, progress=progress)
     return grid, radius
 
 
