@@ -260,8 +260,8 @@ def test_fit_implicit_returns_the_function_that_points_to_implicit_samples():
     grid = points_to_implicit(points, normals, grid_spacing=0.1)
     nodes = grid.node_coordinates(np.arange(grid.values.size))
     exact = fit_implicit(points, normals)(nodes)
-    near = np.abs(exact) < 0.25  # sampled exactly within EXACT_WITHIN grid spacings of f = 0, interpolated beyond
-    assert np.array_equal(grid.values.ravel()[near], exact[near])
+    near = np.abs(exact) < 0.2  # sampled exactly near f = 0 (EXACT_WITHIN grid spacings), interpolated beyond
+    np.testing.assert_allclose(grid.values.ravel()[near], exact[near], rtol=0, atol=1e-12)
     assert np.array_equal(grid.values.ravel() > 0, exact > 0)
     contours, contour_normals = annulus_contours()
     assert isinstance(fit_implicit(contours, contour_normals, method="rbf"), RBFImplicit)
