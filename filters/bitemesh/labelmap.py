@@ -1,36 +1,273 @@
-"""A label map to the implicit grid: signed distance by SimpleITK, with the zero level between voxel centres."""
+"""Label maps: read them (NRRD, NIfTI, MetaImage through SimpleITK), turn the chosen labels into a signed distance
+on a grid and mesh it, with the mesh placed in the image's physical space.
+
+Frames
+------
+index : the voxel index (i, j, k); ``labels[i, j, k]`` (axis 0 is i, the fastest axis of the file, as in ITK).
+local : the index frame scaled by the voxel size, ``index * spacing``; the grid I and the mesher work here, so
+        the grid is axis-aligned whatever the image's direction.
+physical : ``origin + direction @ (index * spacing)``, ITK's LPS (mm) for a file; RAS on request, which is
+        ``diag(-1, -1, 1)`` of LPS.  Slicer's segments give their IJK-to-RAS matrix, and land in RAS.
+
+Sub-voxel accuracy.  The signed distance (f > 0 inside) is the mean of SimpleITK's Maurer distances of the mask and
+of its complement, so that f = 0 halfway between an inside and an outside voxel centre: a staircase, off the true
+surface by 0.18 voxel RMS, and, once interpolated multilinearly, inward by about h^2 / 12 per unit curvature
+(a convex shape of 5 to 10 voxels radius loses 1 to 4 % of its volume).  f is therefore filtered with
+``G - (sigma^2 / 2 + 1 / 12) Laplacian G``, G a Gaussian of ``smoothing`` voxels (default 1): the Gaussian averages
+the staircase along the surface, the sigma^2 / 2 term cancels its second moment (a quadratic function, so a
+sphere's distance, passes unchanged) and the 1 / 12 term the interpolation's mean bias.  Measured on an ellipsoid
+(semi-axes 10, 8, 6 mm) at voxel sizes 2 to 0.25 mm, isotropic and 0.8 : 1 : 1.6: the error of f on the true
+surface drops from 0.14-0.19 to 0.08-0.10 voxel RMS, its mean from -0.01..-0.06 to 0.000..-0.015 voxel, and the
+volume of {f > 0} from -0.03..-3.9 % to within 0.1 % (-0.7 % at 2 mm voxels), so that the mesh loses no more than a
+mesh of the analytic shape does.  Every voxel centre stays on its side of f = 0; a rod or plate one voxel thin
+survives but thinner than the staircase makes it (``smoothing=0`` keeps the plain distance).
+"""
 from __future__ import annotations
+
+import numbers
+import re
+import time
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from .core.errors import InvalidInputError
-from .core.grid import ImplicitGrid
+from .core.errors import InvalidInputError, check_number
+from .core.grid import ImplicitGrid, sample_function
+from .core.mesh import Mesh
+from .core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from .core.pipeline import GRID_PER_RADIUS, MeshingResult, mesh_from_grid, radius_for_cells
+from .core.progress import ProgressCallback, report, sub_progress
+from .core.quality import cell_quality
 
 #: voxels of background added on every side, so that a label touching the image border still closes.
 PAD_VOXELS = 2
+#: the file extensions read_label_map accepts (lower case; ``.nii.gz`` is one extension).
+LABEL_MAP_EXTENSIONS = (".nrrd", ".nhdr", ".nii", ".nii.gz", ".mha", ".mhd")
+#: default width (standard deviation, in voxels) of the filter that takes the staircase out of the distance.
+SMOOTHING_VOXELS = 1.0
+#: mean of (f - its multilinear interpolant) over a cell, in units of f'' h^2 (a 1D segment: h^2 / 12).
+INTERPOLATION_BIAS = 1.0 / 12.0
+#: after the filter, |f| at a voxel centre is at least this fraction of its plain distance (see _remove_staircase).
+CENTRE_FLOOR = 0.1
+#: bytes per voxel that the distance computation holds at once (mask, two distance maps, f and its filtering).
+DISTANCE_BYTES_PER_VOXEL = 48
 
 
-def label_map_to_grid(labels: np.ndarray, origin, spacing, label: int | None = None) -> ImplicitGrid:
-    """f > 0 inside the chosen label, about the signed distance to its boundary (input units).
+# --------------------------------------------------------------------------------------------- the label map
+
+
+@dataclass(frozen=True, eq=False)
+class LabelMap:
+    """An integer image with its geometry (ITK conventions).
+
+    Attributes
+    ----------
+    labels : (n_i, n_j, n_k) integer array (or (n_i, n_j) for a 2D image), indexed [i, j, k]; 0 is background
+    origin : (k,) float64, physical position of voxel (0, 0, 0) (mm, LPS for a file)
+    spacing : (k,) float64, voxel size along i, j, k (mm, > 0)
+    direction : (k, k) float64, column d is the physical direction of index axis d (ITK's direction matrix)
+
+    ``physical = origin + direction @ (index * spacing)``; see :meth:`index_to_physical`.
+    """
+
+    labels: np.ndarray
+    origin: np.ndarray = None
+    spacing: np.ndarray = None
+    direction: np.ndarray = None
+
+    def __post_init__(self):
+        labels = np.asarray(self.labels)
+        if labels.ndim not in (2, 3):
+            raise InvalidInputError(f"labels must be a 2D or 3D array, got shape {labels.shape}")
+        if labels.dtype == bool:
+            labels = labels.astype(np.uint8)
+        if not np.issubdtype(labels.dtype, np.integer):
+            raise InvalidInputError(f"labels must be an integer array (one label per voxel), got dtype "
+                                    f"{labels.dtype}; see read_label_map for float images")
+        k = labels.ndim
+        origin = np.zeros(k) if self.origin is None else np.asarray(self.origin, dtype=np.float64).reshape(-1)
+        spacing = np.ones(k) if self.spacing is None else np.asarray(self.spacing, dtype=np.float64).reshape(-1)
+        direction = np.eye(k) if self.direction is None else np.asarray(self.direction, dtype=np.float64)
+        if origin.shape != (k,) or not np.isfinite(origin).all():
+            raise InvalidInputError(f"origin must be {k} finite numbers, got {self.origin!r}")
+        if spacing.shape != (k,) or not (np.isfinite(spacing).all() and (spacing > 0).all()):
+            raise InvalidInputError(f"spacing must be {k} positive numbers, got {self.spacing!r}")
+        if direction.shape != (k, k) or not np.isfinite(direction).all() \
+                or abs(np.linalg.det(direction)) < 1e-6:
+            raise InvalidInputError(f"direction must be an invertible {k} x {k} matrix, got {self.direction!r}")
+        for name, value in (("labels", labels), ("origin", origin), ("spacing", spacing),
+                            ("direction", direction)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def dim(self) -> int:
+        return self.labels.ndim
+
+    def index_to_physical(self, ras: bool = False) -> np.ndarray:
+        """(k + 1, k + 1) homogeneous matrix from the voxel index to physical space (LPS, or RAS when ``ras``)."""
+        return index_to_physical_matrix(self.origin, self.spacing, self.direction, ras=ras)
+
+    def present_labels(self) -> np.ndarray:
+        """The sorted nonzero labels that occur in the map."""
+        present = np.unique(self.labels)
+        return present[present != 0]
+
+
+def index_to_physical_matrix(origin, spacing, direction, *, ras: bool = False) -> np.ndarray:
+    """(k + 1, k + 1) matrix ``[direction @ diag(spacing) | origin]``, optionally followed by LPS -> RAS."""
+    origin, spacing = np.asarray(origin, float), np.asarray(spacing, float)
+    k = len(origin)
+    matrix = np.eye(k + 1)
+    matrix[:k, :k] = np.asarray(direction, float) * spacing[None, :]
+    matrix[:k, k] = origin
+    if ras:
+        flip = np.eye(k + 1)
+        flip[0, 0] = flip[1, 1] = -1.0
+        matrix = flip @ matrix
+    return matrix
+
+
+def read_label_map(path) -> LabelMap:
+    """Read a label map (``.nrrd``, ``.nhdr``, ``.nii``, ``.nii.gz``, ``.mha``, ``.mhd``) with SimpleITK.
+
+    Integer images are taken as they are.  A float image is accepted when every voxel holds a whole number (a
+    label map saved as float, as some tools do) and refused otherwise: a probability map or an intensity image
+    has no labels, and a threshold chosen here would be a guess; threshold it first.
+
+    Raises
+    ------
+    InvalidInputError
+        missing or unreadable file, unknown extension, vector (multi-component) or 4D image, a float image with
+        fractional values, NaN or infinite values, or a map in which every voxel is 0.
+    """
+    path = Path(path)
+    name = path.name.lower()
+    if not any(name.endswith(extension) for extension in LABEL_MAP_EXTENSIONS):
+        raise InvalidInputError(f"cannot read a label map from '{path}': unknown extension; supported extensions: "
+                                f"{', '.join(LABEL_MAP_EXTENSIONS)}")
+    if not path.exists():
+        raise InvalidInputError(f"cannot read a label map from '{path}': the file does not exist")
+    if not path.is_file():
+        raise InvalidInputError(f"cannot read a label map from '{path}': it is not a regular file")
+    sitk = _simpleitk()
+    try:
+        image = sitk.ReadImage(str(path))
+    except RuntimeError as error:
+        detail = " ".join(re.split(r"(?:sitk|itk)::ERROR:", str(error))[-1].split())
+        detail = re.sub(r"^\w+\(0x[0-9a-fA-F]+\):\s*", "", detail)   # ITK's "NrrdImageIO(0x55...): "
+        detail = detail if len(detail) <= 240 else detail[:240] + " ..."
+        raise InvalidInputError(f"cannot read a label map from '{path}': SimpleITK could not read it ({detail})") \
+            from None
+    if image.GetNumberOfComponentsPerPixel() != 1:
+        raise InvalidInputError(f"'{path}' is a vector image ({image.GetNumberOfComponentsPerPixel()} components "
+                                "per voxel); a label map has one integer label per voxel")
+    dim = image.GetDimension()
+    if dim not in (2, 3):
+        raise InvalidInputError(f"'{path}' is a {dim}D image; a label map must be 2D or 3D")
+    values = sitk.GetArrayViewFromImage(image)   # indexed [k, j, i]
+    if not np.issubdtype(values.dtype, np.integer):
+        values = _whole_numbers(values, path)
+    labels = np.array(values).T                  # [i, j, k], i fastest in memory as in the file
+    label_map = LabelMap(labels=labels, origin=np.array(image.GetOrigin()), spacing=np.array(image.GetSpacing()),
+                         direction=np.array(image.GetDirection()).reshape(dim, dim))
+    if not labels.any():
+        raise InvalidInputError(f"the label map '{path}' is empty: every voxel is 0")
+    return label_map
+
+
+def _whole_numbers(values: np.ndarray, path) -> np.ndarray:
+    """A float image's values as integers, or an error when they are not whole numbers."""
+    if not np.isfinite(values).all():
+        raise InvalidInputError(f"'{path}' holds NaN or infinite values; it is not a label map")
+    fraction = values != np.round(values)
+    if fraction.any():
+        where = np.unravel_index(int(np.argmax(fraction)), values.shape)[::-1]
+        raise InvalidInputError(
+            f"'{path}' is a {values.dtype} image with non-integer values (e.g. {float(values[where[::-1]]):.4g} at "
+            f"voxel {tuple(int(i) for i in where)}): it is not a label map; threshold it into labels first "
+            "(e.g. SimpleITK: sitk.BinaryThreshold(image, lowerThreshold=0.5))")
+    if values.size and (values.min() < np.iinfo(np.int32).min or values.max() > np.iinfo(np.int32).max):
+        raise InvalidInputError(f"'{path}' holds values beyond the 32-bit integer range; it is not a label map")
+    return values.astype(np.int32)
+
+
+def _simpleitk():
+    try:
+        import SimpleITK
+    except ImportError:
+        raise InvalidInputError("label maps need SimpleITK (pip install SimpleITK)") from None
+    return SimpleITK
+
+
+# --------------------------------------------------------------------------------------------- labels -> f
+
+
+def label_mask(labels: np.ndarray, label=None):
+    """The domain's voxels: (mask, labels meshed).
+
+    Parameters
+    ----------
+    labels : integer array of any shape
+    label : None (every nonzero voxel), one int, or an iterable of ints (their union)
+
+    Returns
+    -------
+    mask : bool array like ``labels``; chosen : tuple of the labels taken (empty for None)
+    """
+    labels = np.asarray(labels)
+    if label is None:
+        mask = labels != 0
+        if not mask.any():
+            raise InvalidInputError("the label map is empty: every voxel is 0")
+        return mask, ()
+    wanted = (label,) if isinstance(label, (numbers.Integral, np.integer)) else tuple(label) \
+        if not isinstance(label, (str, bytes, float)) else (label,)
+    for value in wanted:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)):
+            raise InvalidInputError(f"labels must be whole numbers, got {label!r}")
+    if not wanted:
+        raise InvalidInputError("labels is an empty set; give one label or more, or None for every nonzero voxel")
+    chosen = tuple(sorted({int(value) for value in wanted}))
+    present = np.unique(labels)
+    absent = [value for value in chosen if value not in present]
+    if absent:
+        shown = present[present != 0]
+        listed = ", ".join(map(str, shown[:30].tolist())) + (f", ... ({len(shown)} labels)" if len(shown) > 30 else "")
+        raise InvalidInputError(
+            f"label{'s' if len(absent) > 1 else ''} {', '.join(map(str, absent))} "
+            f"{'are' if len(absent) > 1 else 'is'} absent from the label map; labels present: "
+            f"{listed or 'none (every voxel is 0)'}")
+    return np.isin(labels, chosen), chosen
+
+
+def label_map_to_grid(labels: np.ndarray, origin, spacing, label=None, *,
+                      smoothing: float = SMOOTHING_VOXELS) -> ImplicitGrid:
+    """f > 0 inside the chosen labels, about the signed distance to their boundary (input units).
 
     Parameters
     ----------
     labels : (n_x, n_y[, n_z]) integer array, indexed [i, j(, k)] with axis 0 along x
     origin : (k,) position of voxel (0, 0(, 0)); spacing : (k,) voxel size (input units)
-    label : the domain's label; default every nonzero voxel
+    label : the domain: one label, a set of labels (their union), or None for every nonzero voxel
+    smoothing : standard deviation (voxels) of the filter that removes the staircase; 0 keeps the plain distance
 
-    The distance is the mean of SimpleITK's signed Maurer distances of the mask and of its complement, so f = 0
-    lies halfway between an inside and an outside voxel centre (the surface of the voxelised shape).
+    Returns
+    -------
+    ImplicitGrid on the voxel centres, with PAD_VOXELS of background added on every side.
+
+    f is the mean of SimpleITK's signed Maurer distances of the mask and of its complement (f = 0 halfway between
+    an inside and an outside voxel centre), filtered with ``G - (sigma^2 / 2 + 1 / 12) Laplacian G`` where G is a
+    Gaussian of ``smoothing`` voxels (see the module's docstring for why and for the measured accuracy).  Every
+    voxel centre keeps its side: inside voxels keep f > 0, so that thin structures are not filtered away.
     """
-    import SimpleITK as sitk
-
-    labels = np.asarray(labels)
-    mask = labels != 0 if label is None else labels == label
-    if not mask.any():
-        present = np.unique(labels)[:20].tolist()
-        raise InvalidInputError(f"label {label} is absent from the label map (labels present: {present})"
-                                if label is not None else "the label map is empty: every voxel is 0")
-    mask = np.pad(mask, PAD_VOXELS)
+    sitk = _simpleitk()
+    mask, _ = label_mask(labels, label)
+    smoothing = check_number(smoothing, "smoothing", low=0, high=10, hint="in voxels; 1 is the default, 0 is off")
+    # The filter reaches int(4 sigma + 0.5) voxels (scipy's truncate = 4): pad that much more background, so that
+    # it sees true distances to the end, and crop it off afterwards.
+    extra = _filter_padding(smoothing)
+    mask = np.pad(mask, PAD_VOXELS + extra)
     spacing = np.asarray(spacing, dtype=np.float64)
 
     def signed_distance(region: np.ndarray) -> np.ndarray:
@@ -41,5 +278,178 @@ def label_map_to_grid(labels: np.ndarray, origin, spacing, label: int | None = N
         return sitk.GetArrayFromImage(distance).T.astype(np.float64)
 
     values = 0.5 * (signed_distance(~mask) - signed_distance(mask))
+    if smoothing > 0:
+        inner = (slice(extra, -extra),) * mask.ndim
+        values = np.ascontiguousarray(_remove_staircase(values, mask, smoothing)[inner])
     return ImplicitGrid(origin=np.asarray(origin, dtype=np.float64) - PAD_VOXELS * spacing, spacing=spacing,
                         values=values)
+
+
+def _filter_padding(smoothing: float) -> int:
+    """Voxels of background the filter of width ``smoothing`` needs beyond PAD_VOXELS (0 without filter)."""
+    return int(4 * smoothing + 0.5) + 1 if smoothing > 0 else 0
+
+
+def _remove_staircase(values: np.ndarray, mask: np.ndarray, sigma: float) -> np.ndarray:
+    """(G - (sigma^2 / 2 + 1 / 12) Laplacian G) * values, sigma in voxels along every axis (Laplacian in voxel
+    units); voxel centres keep their side."""
+    from scipy import ndimage
+    smooth = ndimage.gaussian_filter(values, sigma, mode="nearest")
+    # sigma_x^2 d2/dx^2 = sigma^2 d2/di^2 (sigma in voxels, derivative per voxel).  The extra 1/12 cancels the
+    # mean bias of multilinear interpolation between voxel centres (f - L averages -f'' h^2 / 12 over a cell),
+    # which moves the zero level of a convex shape's distance inward by about h^2 / (12 r) per curved direction.
+    weight = 0.5 * sigma**2 + INTERPOLATION_BIAS
+    for axis in range(values.ndim):
+        order = [0] * values.ndim
+        order[axis] = 2
+        smooth -= weight * ndimage.gaussian_filter(values, sigma, order=order, mode="nearest")
+    # The voxel centres are data: inside ones stay inside, outside ones outside.  The floor (a tenth of the plain
+    # distance, so 0.05 voxel at the border) keeps f = 0 off the centres of a one-voxel-thin structure.
+    floor = CENTRE_FLOOR * np.abs(values)
+    return np.where(mask, np.maximum(smooth, floor), np.minimum(smooth, -floor))
+
+
+# --------------------------------------------------------------------------------------------- meshing
+
+
+@dataclass(frozen=True, eq=False)
+class LabelMapMeshingResult(MeshingResult):
+    """A :class:`MeshingResult` whose mesh and nodes are in physical space.
+
+    Attributes (beyond MeshingResult's)
+    -----------------------------------
+    to_physical : (k + 1, k + 1) float64, homogeneous map from the frame of ``implicit`` (the index frame scaled
+        by the voxel size) to the frame of ``mesh`` and ``nodes`` (LPS, RAS or Slicer's world)
+    labels : the labels meshed (empty: every nonzero label)
+    """
+
+    to_physical: np.ndarray = None
+    labels: tuple = ()
+
+
+def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
+                    implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
+                    spurious: SpuriousParameters | None = None,
+                    smoothing: float = SMOOTHING_VOXELS, progress: ProgressCallback = None,
+                    seconds: dict | None = None) -> LabelMapMeshingResult:
+    """Mesh the chosen labels of a voxel array and place the mesh with a homogeneous index-to-physical matrix.
+
+    The one path from voxels to a mesh, shared by :func:`label_map_mesh` (files) and the Slicer module (segments).
+
+    Parameters
+    ----------
+    labels_ijk : (n_i, n_j, n_k) (or (n_i, n_j)) integer array indexed [i, j, k]
+    ijk_to_physical : (k + 1, k + 1) float64, voxel index -> physical point (spacing included: its columns have
+        the voxel sizes as lengths), e.g. ITK's ``[direction @ diag(spacing) | origin]`` or Slicer's IJK-to-RAS
+    labels : None (every nonzero voxel), one int, or a set of ints (their union)
+    implicit : ImplicitParameters or None (defaults); its grid_spacing (the grid I; default R / 4, or the voxels
+        when their largest size is between R / 8 and R / 4) and max_memory_mb are used; method, error_bound and
+        margin do not apply to label maps
+    biting, spurious : BitingParameters and SpuriousParameters, as for
+        :func:`~bitemesh.core.pipeline.mesh_from_grid`; None: the defaults
+    smoothing : see :func:`label_map_to_grid`
+
+    Returns
+    -------
+    LabelMapMeshingResult: mesh (positively oriented cells, quality arrays) and nodes in physical space; implicit
+    in the local frame (index x spacing), which ``to_physical`` maps to physical space.
+
+    The grid I is axis-aligned in the local frame; the mesh is made there and then mapped to physical space, so
+    the image's direction costs nothing.  A reflection (direction with negative determinant) would turn every
+    cell inside out: two vertices of each cell are swapped back.
+    """
+    seconds = {} if seconds is None else seconds
+    implicit = ImplicitParameters() if implicit is None else implicit
+    biting = BitingParameters() if biting is None else biting
+    spurious = SpuriousParameters() if spurious is None else spurious
+    clock = time.perf_counter()
+    labels_ijk = np.asarray(labels_ijk)
+    dim = labels_ijk.ndim
+    matrix = np.asarray(ijk_to_physical, dtype=np.float64)
+    if dim not in (2, 3) or matrix.shape != (dim + 1, dim + 1) or not np.isfinite(matrix).all():
+        raise InvalidInputError(f"ijk_to_physical must be a finite {dim + 1} x {dim + 1} matrix for a {dim}D label "
+                                f"array, got shape {matrix.shape}")
+    spacing = np.linalg.norm(matrix[:dim, :dim], axis=0)
+    if not (spacing > 0).all() or abs(np.linalg.det(matrix[:dim, :dim] / spacing)) < 1e-6:
+        raise InvalidInputError("ijk_to_physical: its linear part must be invertible (voxel sizes > 0)")
+    mask, chosen = label_mask(labels_ijk, labels)
+
+    # Crop to the domain's bounding box: the distance and the grid need not cover empty image.
+    box = [np.flatnonzero(mask.any(axis=tuple(a for a in range(dim) if a != axis))) for axis in range(dim)]
+    first = np.array([b[0] for b in box])
+    mask = mask[tuple(slice(b[0], b[-1] + 1) for b in box)]
+    smoothing = check_number(smoothing, "smoothing", low=0, high=10, hint="in voxels; 1 is the default, 0 is off")
+    padding = 2 * (PAD_VOXELS + _filter_padding(smoothing))
+    needed_mb = np.prod(np.array(mask.shape, float) + padding) * DISTANCE_BYTES_PER_VOXEL / 2**20
+    if needed_mb > implicit.max_memory_mb:
+        raise InvalidInputError(
+            f"the labels span {' x '.join(map(str, mask.shape))} voxels; their signed distance needs about "
+            f"{needed_mb:.0f} MiB, more than max_memory_mb = {implicit.max_memory_mb:g}; raise max_memory_mb or "
+            "resample the label map to coarser voxels")
+
+    report(progress, 0.05, "signed distance of the labels")
+    grid = label_map_to_grid(mask, first * spacing, spacing, smoothing=smoothing)
+    radius = biting.radius or radius_for_cells(grid.inside_volume(), biting.cells, dim)
+    size = float(np.max(grid.upper - grid.origin))
+    check_number(radius, "radius", low=0, low_open=True, high=size,
+                 hint="radius is R, the node spacing; it cannot exceed the size of the labels' bounding box")
+    # The grid I: the voxel grid when its spacing is between R / 8 and R / 4, else resampled to R / 4 (or to
+    # grid_spacing when given): coarser voxels cannot carry R, finer ones only cost time and memory.
+    target = implicit.grid_spacing or radius / GRID_PER_RADIUS
+    if implicit.grid_spacing is not None or not target / 2 <= np.max(spacing) <= target:
+        report(progress, 0.1, f"resampling the distance on a {target:.3g} grid")
+        grid = sample_function(grid.evaluate, grid.origin, grid.upper, target,
+                               max_memory_mb=implicit.max_memory_mb, progress=sub_progress(progress, 0.1, 0.3))
+    seconds["distance"] = seconds.get("distance", 0.0) + time.perf_counter() - clock
+    fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
+    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 1.0), seconds)
+
+    # Local frame (index x spacing) -> physical: the unit columns of the matrix, then its translation.
+    to_physical = np.eye(dim + 1)
+    to_physical[:dim, :dim] = matrix[:dim, :dim] / spacing[None, :]
+    to_physical[:dim, dim] = matrix[:dim, dim]
+    linear, shift = to_physical[:dim, :dim], to_physical[:dim, dim]
+    mesh = result.mesh
+    cells = mesh.cells
+    if np.linalg.det(linear) < 0:   # a reflection: swap two vertices of every cell to keep them positive
+        cells = cells.copy()
+        cells[:, [0, 1]] = cells[:, [1, 0]]
+    mesh = Mesh(mesh.points @ linear.T + shift, cells, dict(mesh.cell_data))
+    if not np.allclose(linear.T @ linear, np.eye(dim), atol=1e-9):   # not a rotation: lengths and angles change
+        mesh = mesh.with_cell_data(**cell_quality(mesh))
+    return LabelMapMeshingResult(mesh=mesh, implicit=result.implicit, nodes=result.nodes @ linear.T + shift,
+                                 radius=result.radius, seconds=seconds, to_physical=to_physical, labels=chosen)
+
+
+def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spacing=None, ras=False,
+                   order="boundary", seed=0, threshold=0.4, min_component=0.01, max_memory_mb=4096.0,
+                   smoothing=SMOOTHING_VOXELS, progress: ProgressCallback = None) -> LabelMapMeshingResult:
+    """A valid tetrahedral (triangular for a 2D image) mesh of labels of a label map, in its physical space.
+
+    Parameters
+    ----------
+    label_map : LabelMap, or the path of a file that :func:`read_label_map` reads
+    labels : None (every nonzero voxel), one int, or a set of ints (the union of those labels)
+    radius : R, node spacing (mm); default: chosen for about ``cells`` cells
+    cells : the number of cells to aim for when radius is not given
+    grid_spacing : spacing of the grid I (mm); default R / 4 (the voxels themselves when between R / 8 and R / 4)
+    ras : False: points in ITK's LPS (the file's physical space); True: in RAS (x and y negated), as in Slicer
+    order, seed : BitingParameters; threshold, min_component : SpuriousParameters; max_memory_mb : the memory the
+        distance and the grid may take
+    smoothing : standard deviation (voxels) of the staircase filter (see :func:`label_map_to_grid`); 0 is off
+    progress : callable(fraction, message), optional
+
+    Returns
+    -------
+    LabelMapMeshingResult; ``.mesh`` has cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
+    """
+    if isinstance(label_map, (str, Path)):
+        label_map = read_label_map(label_map)
+    elif not isinstance(label_map, LabelMap):
+        raise InvalidInputError(f"label_map must be a LabelMap or a file path, got {type(label_map).__name__}")
+    implicit = ImplicitParameters(grid_spacing=grid_spacing, max_memory_mb=max_memory_mb)
+    biting = BitingParameters(radius=radius, cells=cells, order=order, seed=seed)
+    spurious = SpuriousParameters(threshold=threshold, min_component=min_component)
+    return mesh_label_grid(label_map.labels, label_map.index_to_physical(ras=ras), labels=labels,
+                           implicit=implicit, biting=biting, spurious=spurious, smoothing=smoothing,
+                           progress=progress)

@@ -14,7 +14,7 @@ from .errors import MeshingError
 from .grid import ImplicitGrid
 from .mesh import Mesh, signed_measures
 from .parameters import SpuriousParameters
-from .quality import radius_ratio
+from .quality import check_valid_domain, radius_ratio
 from .progress import ProgressCallback, report
 from .spurious import outside_cells
 from .topology import connected_components, facet_table, non_manifold_faces
@@ -147,7 +147,12 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
         raise MeshingError(f"the boundary is still not a manifold after {MAX_REPAIR_ROUNDS} rounds of repair; "
                            "try a smaller radius or a finer grid_spacing")
     report(progress, 1.0, "repairing the boundary")
-    return compact(points, cells[keep])
+    mesh = compact(points, cells[keep])
+    problems = check_valid_domain(mesh)
+    if problems:
+        raise MeshingError(f"the mesh is not a valid domain: {problems[0]}; try a smaller radius or a finer "
+                           "grid_spacing")
+    return mesh
 
 
 def compact(points: np.ndarray, cells: np.ndarray) -> Mesh:

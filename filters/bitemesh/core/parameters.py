@@ -97,3 +97,17 @@ class QualityParameters(Parameters):
     """QualityFilter: the radius-ratio histogram."""
 
     bins: int = parameter(20, "bins of the radius-ratio histogram over [0, 1]", low=1, high=1000, integer=True)
+
+
+@dataclass(frozen=True)
+class OptimizeParameters(Parameters):
+    """MeshOptimizer: relax the nodes, remove the slivers, keep the boundary on f = 0."""
+
+    iterations: int = parameter(30, "the most relaxation (ODT smoothing and Delaunay) iterations; the relaxation stops "
+                                "earlier once the mean radius ratio stops rising; 0 skips it", low=0, high=1000,
+                                integer=True)
+    min_dihedral: float = parameter(20.0, "the sliver removal goes on, for a bounded number of rounds, until no cell "
+                                    "has a smaller dihedral angle (interior angle in 2D)", unit="degrees", low=0,
+                                    high=60, high_open=True)
+    min_quality: float = parameter(0.3, "the sliver removal also goes on until no cell has a smaller radius ratio Q",
+                                   low=0, high=1, high_open=True)

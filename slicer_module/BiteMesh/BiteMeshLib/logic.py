@@ -484,44 +484,27 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
     # --- a segmentation ----------------------------------------------------------------------------------------------
 
     def _meshSegment(self, node, segmentId, implicit, biting, spurious, progress):
-        """Mesh one segment: signed distance of its binary labelmap, biting, Delaunay, carving; then to world."""
-        from bitemesh.core.grid import sample_function
+        """Mesh one segment: its binary labelmap through bitemesh.labelmap.mesh_label_grid (the path the bitemesh
+        command takes for label map files), which meshes in the voxel frame and places the mesh with the labelmap's
+        IJK-to-RAS matrix; then the segmentation's parent transforms carry it to world."""
         from bitemesh.core.mesh import Mesh, signed_measures
-        from bitemesh.core.parameters import BitingParameters
-        from bitemesh.core.pipeline import GRID_PER_RADIUS, mesh_from_grid, radius_for_cells
-        from bitemesh.core.progress import report, sub_progress
         from bitemesh.core.quality import cell_quality
-        from bitemesh.labelmap import label_map_to_grid
+        from bitemesh.labelmap import mesh_label_grid
 
-        seconds = {}
-        clock = time.perf_counter()
-        labels, spacing, ijk0, ijkToWorld = segmentLabelmap(node, segmentId)
-        report(progress, 0.05, "signed distance of the segment")
-        grid = label_map_to_grid(labels, ijk0 * spacing, spacing)
-        radius = biting.radius or radius_for_cells(grid.inside_volume(), biting.cells, 3)
-        # The grid I: the voxel grid when its spacing is between R / 8 and R / 4, else resampled to R / 4 (or to
-        # grid_spacing when given): coarser voxels cannot carry R, finer ones only cost time and memory.
-        target = implicit.grid_spacing or radius / GRID_PER_RADIUS
-        if implicit.grid_spacing is not None or not target / 2 <= np.max(spacing) <= target:
-            report(progress, 0.1, f"resampling the distance on a {target:.3g} mm grid")
-            grid = sample_function(grid.evaluate, grid.origin, grid.upper, target,
-                                   max_memory_mb=implicit.max_memory_mb, progress=sub_progress(progress, 0.1, 0.3))
-        seconds["distance"] = time.perf_counter() - clock
-        fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-        result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 1.0), seconds)
-
-        # Voxel frame (mm, axes along IJK) -> world: the unit directions of IJK-to-RAS, its origin, the parents.
-        direction = ijkToWorld[:3, :3] / spacing[None, :]
-        points = result.mesh.points @ direction.T + ijkToWorld[:3, 3]
+        labels, _, ijk0, ijkToWorld = segmentLabelmap(node, segmentId)
+        firstVoxel = np.eye(4)
+        firstVoxel[:3, 3] = ijk0   # labels[0, 0, 0] is voxel ijk0 of the labelmap's frame
+        result = mesh_label_grid(labels, ijkToWorld @ firstVoxel, implicit=implicit, biting=biting,
+                                 spurious=spurious, progress=progress)
         transform = _toWorld(node)
-        if transform is not None:
-            points = transformPoints(transform, points)
+        if transform is None:
+            return result.mesh, result.radius, result.seconds
+        points = transformPoints(transform, result.mesh.points)
         cells = result.mesh.cells.copy()
-        mesh = Mesh(points, cells)
-        if np.sum(signed_measures(points, cells)) < 0:   # a reflection (IJK-to-RAS with determinant < 0)
+        if np.sum(signed_measures(points, cells)) < 0:   # a parent transform that reflects
             cells[:, [1, 2]] = cells[:, [2, 1]]
-            mesh = Mesh(points, cells)
-        return mesh.with_cell_data(**cell_quality(mesh)), result.radius, seconds
+        mesh = Mesh(points, cells)
+        return mesh.with_cell_data(**cell_quality(mesh)), result.radius, result.seconds
 
     # --- outputs -----------------------------------------------------------------------------------------------------
 
