@@ -599,3 +599,32 @@ def test_closed_output_pipe_is_quiet(reference):
     process.wait(timeout=120)
     assert_no_traceback(err)
     assert "Exception ignored" not in err and process.returncode in (0, 141)
+
+
+def test_optimize_flag_gives_a_valid_mesh_without_slivers(inputs, tmp_path, capsys):
+    from bitemesh.core.quality import quality_summary
+    output = tmp_path / "optimized.vtu"
+    assert cli.main(["mesh", str(inputs["xyz+normals"]), "-o", str(output), "--cells", "3000", "--optimize"]) == 0
+    mesh = read_mesh(output)
+    assert_valid_domain(mesh, euler=2, components=1)
+    summary = quality_summary(mesh)
+    assert summary.q_mean >= 0.88 and summary.angle_min >= 15 and summary.q_min >= 0.2
+    assert "optimize" in capsys.readouterr().out
+
+
+def test_a_label_map_file_is_meshed_in_its_physical_space(tmp_path, capsys):
+    import SimpleITK as sitk
+    grid = np.stack(np.meshgrid(*[np.arange(40)] * 3, indexing="ij"))
+    ball = (np.linalg.norm(grid - 19.5, axis=0) <= 15).astype(np.uint8)
+    image = sitk.GetImageFromArray(ball.T.copy())
+    image.SetSpacing((0.5, 0.5, 0.5))
+    image.SetOrigin((10.0, -5.0, 3.0))
+    path = tmp_path / "ball.nrrd"
+    sitk.WriteImage(image, str(path))
+    output = tmp_path / "ball.vtu"
+    assert cli.main(["mesh", str(path), "-o", str(output), "--cells", "3000"]) == 0
+    mesh = read_mesh(output)
+    assert_valid_domain(mesh, euler=2, components=1, measure=4 / 3 * np.pi * 7.5**3, measure_tolerance=0.03)
+    np.testing.assert_allclose(mesh.points.mean(axis=0), [10 + 9.75, -5 + 9.75, 3 + 9.75], atol=0.3)
+    assert cli.main(["mesh", str(path), "-o", str(output), "--label", "7"]) == 1
+    assert "label" in capsys.readouterr().err

@@ -6,6 +6,7 @@ from ..core.pipeline import run as run_pipeline
 from ..core.quality import quality_summary
 from ..core.shapes import die, sample_surface
 from ..io import write_mesh
+from .mesh import add_optimize_options, optimize_parameters
 from .options import ProgressBar, check_output, print_timings
 
 
@@ -15,6 +16,7 @@ def add_parser(subcommands) -> None:
                                                 "spherical pips) as noisy scattered points and mesh it.")
     parser.add_argument("-o", "--output", default="die.vtu", help="the mesh to write; default die.vtu")
     parser.add_argument("--cells", type=int, default=10000, help="cells to aim for; default 10000")
+    add_optimize_options(parser)
     parser.set_defaults(run=run)
 
 
@@ -26,7 +28,7 @@ def run(args) -> None:
     bar = ProgressBar()
     try:
         result = run_pipeline(points, normals, ImplicitParameters(), BitingParameters(cells=args.cells),
-                              progress=bar)
+                              progress=bar, optimize=optimize_parameters(args))
     finally:
         bar.close()
     write_mesh(result.mesh, args.output)

@@ -1,30 +1,53 @@
-"""``bitemesh mesh INPUT -o OUTPUT``: scattered points to a tetrahedral mesh."""
+"""``bitemesh mesh INPUT -o OUTPUT``: scattered points, or a label map, to a tetrahedral mesh."""
 from __future__ import annotations
 
+from ..core.errors import InvalidInputError
+from ..core.parameters import OptimizeParameters
 from ..core.pipeline import run as run_pipeline
 from ..core.quality import quality_summary
 from ..io import read_points, write_mesh
+from ..labelmap import LABEL_MAP_EXTENSIONS
 from .options import ProgressBar, add_parameter_options, check_output, parameters_from_args, print_timings
 
 
 def add_parser(subcommands) -> None:
     parser = subcommands.add_parser(
-        "mesh", help="mesh scattered points",
+        "mesh", help="mesh scattered points or a label map",
         description="Mesh the shape sampled by scattered points: .xyz/.csv/.txt (x y z [nx ny nz]) or "
-                    ".vtp/.vtk/.ply/.obj/.stl (points, and normals where present). Writes .vtu/.vtk, .msh "
+                    ".vtp/.vtk/.ply/.obj/.stl (points, and normals where present); or the labels of a label map "
+                    "(.nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, meshed in its physical LPS space). Writes .vtu/.vtk, .msh "
                     "(gmsh), .inp (Abaqus) or .mesh (MEDIT).")
-    parser.add_argument("input", help="the scattered points")
+    parser.add_argument("input", help="the scattered points, or a label map")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_parameter_options(parser)
+    add_optimize_options(parser)
+    labels = parser.add_argument_group("label maps")
+    labels.add_argument("--label", type=int, action="append", metavar="N",
+                        help="a label of the domain (repeat for a union); default every nonzero label")
+    labels.add_argument("--ras", action="store_true", help="write the mesh in RAS (3D Slicer) instead of LPS (ITK)")
     parser.set_defaults(run=run)
+
+
+def add_optimize_options(parser) -> None:
+    """``--optimize`` and the MeshOptimizer's parameters."""
+    parser.add_argument("--optimize", action="store_true",
+                        help="also run the MeshOptimizer: relax the nodes and remove the slivers, boundary kept on "
+                             "the surface")
+    add_parameter_options(parser, (OptimizeParameters,))
+
+
+def optimize_parameters(args):
+    """The MeshOptimizer's parameters, or None without ``--optimize``."""
+    return parameters_from_args(args, (OptimizeParameters,))[0] if args.optimize else None
 
 
 def run(args) -> None:
     check_output(args.output)
-    points, normals = read_points(args.input)
     bar = ProgressBar()
     try:
-        result = run_pipeline(points, normals, *parameters_from_args(args), progress=bar)
+        result = mesh_label_map(args, bar) if args.input.lower().endswith(LABEL_MAP_EXTENSIONS) else \
+            run_pipeline(*read_points(args.input), *parameters_from_args(args), progress=bar,
+                         optimize=optimize_parameters(args))
     finally:
         bar.close()
     write_mesh(result.mesh, args.output)
@@ -32,3 +55,14 @@ def run(args) -> None:
     print(quality_summary(result.mesh))
     print("time per step:")
     print_timings(result.seconds)
+
+
+def mesh_label_map(args, progress):
+    from ..labelmap import label_map_mesh
+    if args.optimize:
+        raise InvalidInputError("--optimize is not available for label maps yet; mesh without it")
+    implicit, biting, spurious = parameters_from_args(args)
+    return label_map_mesh(args.input, labels=set(args.label) if args.label else None, radius=biting.radius,
+                          cells=biting.cells, grid_spacing=implicit.grid_spacing, ras=args.ras, order=biting.order,
+                          seed=biting.seed, threshold=spurious.threshold, min_component=spurious.min_component,
+                          max_memory_mb=implicit.max_memory_mb, progress=progress)

@@ -18,7 +18,8 @@ from .errors import check_number, check_points
 from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
 from .implicit import fit_implicit
 from .mesh import Mesh
-from .parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from .optimize import optimize_mesh
+from .parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
 from .progress import ProgressCallback, report, sub_progress
 from .quality import cell_quality
 
@@ -66,17 +67,25 @@ def timed(seconds: dict, name: str):
 
 
 def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: SpuriousParameters = SpuriousParameters(),
-                   progress: ProgressCallback = None, seconds: dict | None = None) -> MeshingResult:
-    """Mesh {f > 0} of a sampled implicit function; R is ``biting.radius`` or chosen for ``biting.cells`` cells."""
+                   progress: ProgressCallback = None, seconds: dict | None = None,
+                   optimize: OptimizeParameters | None = None) -> MeshingResult:
+    """Mesh {f > 0} of a sampled implicit function; R is ``biting.radius`` or chosen for ``biting.cells`` cells.
+
+    With ``optimize``, the MeshOptimizer step (relaxation, sliver removal) runs on the valid domain.
+    """
     seconds = {} if seconds is None else seconds
     radius = biting.radius or radius_for_cells(grid.inside_volume(), biting.cells, grid.dim)
+    carved = 0.9 if optimize is None else 0.6
     with timed(seconds, "biting"):
         nodes = bite(grid, radius, order=biting.order, seed=biting.seed, progress=sub_progress(progress, 0, 0.3))
     with timed(seconds, "delaunay"):
         cells = delaunay(nodes)
     report(progress, 0.45, "delaunay")
     with timed(seconds, "spurious cells"):
-        mesh = carve_domain(grid, nodes, cells, spurious, progress=sub_progress(progress, 0.45, 0.9))
+        mesh = carve_domain(grid, nodes, cells, spurious, progress=sub_progress(progress, 0.45, carved))
+    if optimize is not None:
+        with timed(seconds, "optimize"):
+            mesh = optimize_mesh(grid, mesh, optimize, progress=sub_progress(progress, carved, 0.97))
     with timed(seconds, "quality"):
         mesh = mesh.with_cell_data(**cell_quality(mesh))
     report(progress, 1.0, "quality")
@@ -107,8 +116,9 @@ def implicit_grid(function, lower, upper, implicit: ImplicitParameters, radius: 
 
 def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
         biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
-        progress: ProgressCallback = None) -> MeshingResult:
-    """Every step of the method on scattered points, with the parameters of each step."""
+        progress: ProgressCallback = None, optimize: OptimizeParameters | None = None) -> MeshingResult:
+    """Every step of the method on scattered points, with the parameters of each step (``optimize``: None skips
+    the MeshOptimizer)."""
     points = check_points(points)
     seconds = {}
     with timed(seconds, "implicit fit"):
@@ -118,12 +128,12 @@ def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(
         grid, radius = implicit_grid(function, points.min(axis=0), points.max(axis=0), implicit, biting.radius,
                                      biting.cells, progress=sub_progress(progress, 0.3, 0.5))
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-    return mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.5, 1.0), seconds)
+    return mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.5, 1.0), seconds, optimize)
 
 
 def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="mpu", error_bound=None,
                      grid_spacing=None, margin=None, max_memory_mb=4096.0, threshold=0.4, min_component=0.01,
-                     order="boundary", seed=0, progress: ProgressCallback = None) -> Mesh:
+                     order="boundary", seed=0, optimize=False, progress: ProgressCallback = None) -> Mesh:
     """A valid tetrahedral (triangular in 2D) mesh of the shape sampled by scattered points.
 
     Parameters
@@ -131,6 +141,7 @@ def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="
     points : (n, 3) or (n, 2) float64, samples of the surface (input units)
     normals : (n, k) float64 outward normals, or None to estimate them
     radius : R, node spacing (input units); default: chosen for about ``cells`` cells
+    optimize : also run the MeshOptimizer (relaxation, sliver removal) with its default parameters
     The other parameters are those of :class:`ImplicitParameters`, :class:`BitingParameters` and
     :class:`SpuriousParameters`, with the same names.
 
@@ -142,4 +153,5 @@ def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="
                ImplicitParameters(method=method, error_bound=error_bound, grid_spacing=grid_spacing, margin=margin,
                                   max_memory_mb=max_memory_mb),
                BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
-               SpuriousParameters(threshold=threshold, min_component=min_component), progress).mesh
+               SpuriousParameters(threshold=threshold, min_component=min_component), progress,
+               OptimizeParameters() if optimize else None).mesh
