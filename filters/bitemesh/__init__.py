@@ -8,8 +8,8 @@ from .core.pipeline import mesh_from_points, run
 from .core.quality import quality_summary
 
 __version__ = "0.1.0"
-FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFilter", "QualityFilter",
-           "MeshFromPoints")
+FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFilter", "MeshOptimizer",
+           "QualityFilter", "MeshFromPoints")
 __all__ = ["BitemeshError", "Cancelled", "InvalidInputError", "Mesh", "MeshingError", "mesh_from_points",
            "quality_summary", "run", *FILTERS]
 

@@ -73,6 +73,7 @@ FILTERS = {
     "BitingSampler": ("Biting Sampler", ("Input",), ("Nodes",)),
     "DelaunayTetra": ("Delaunay Tetra", ("Input",), ("Mesh",)),
     "SpuriousCellFilter": ("Spurious Cell Filter", ("Mesh", "Implicit"), ("Mesh",)),
+    "MeshOptimizer": ("Mesh Optimizer", ("Mesh", "Implicit"), ("Mesh",)),
     "QualityFilter": ("Quality Filter", ("Input",), ("Mesh", "Histogram")),
 }
 

@@ -24,6 +24,7 @@ from bitemesh.core.biting import bite
 from bitemesh.core.delaunay import delaunay
 from bitemesh.core.domain import carve_domain
 from bitemesh.core.errors import Cancelled, InvalidInputError
+from bitemesh.core.mesh import Mesh
 from bitemesh.core.implicit import points_to_implicit
 from bitemesh.core.parameters import SpuriousParameters
 from bitemesh.core.pipeline import radius_for_cells
@@ -599,3 +600,19 @@ def test_the_algorithms_use_only_vtk_9_2_api():
     for path in ALGORITHMS.glob("*.py"):
         called |= set(re.findall(r"\.([A-Z][A-Za-z0-9_]*)\(", path.read_text()))
     assert called - VTK_9_2_API == set(), "check these in VTK 9.2, then list them in VTK_9_2_API"
+
+
+def test_the_mesh_optimizer_filter_equals_the_core_and_one_shot_optimize_equals_run(small_chain):
+    from bitemesh import MeshFromPoints, MeshOptimizer
+    from bitemesh.core.optimize import optimize_mesh
+    from bitemesh.core.parameters import OptimizeParameters
+    pipeline = small_chain
+    optimizer = MeshOptimizer()
+    optimizer.SetInputConnection(0, pipeline.filters[3].GetOutputPort())
+    optimizer.SetInputConnection(1, pipeline.filters[0].GetOutputPort())
+    optimized = unstructured_to_mesh(optimizer.update())
+    carved = unstructured_to_mesh(pipeline.filters[3].GetOutputDataObject(0))
+    grid = image_to_grid(pipeline.filters[0].GetOutputDataObject(0))
+    expected = optimize_mesh(grid, Mesh(carved.points, carved.cells), OptimizeParameters())
+    assert np.array_equal(optimized.points, expected.points) and np.array_equal(optimized.cells, expected.cells)
+    assert_valid_domain(optimized, euler=2, components=1, mean_quality=0.85)

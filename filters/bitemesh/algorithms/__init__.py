@@ -1,6 +1,6 @@
 """The bitemesh VTK filters (VTKPythonAlgorithmBase subclasses); they import only ``vtkmodules``."""
-from .filters import (BitingSampler, DelaunayTetra, MeshFromPoints, PointsToImplicit, QualityFilter,
-                      SpuriousCellFilter)
+from .filters import (BitingSampler, DelaunayTetra, MeshFromPoints, MeshOptimizer, PointsToImplicit,
+                      QualityFilter, SpuriousCellFilter)
 
-__all__ = ["BitingSampler", "DelaunayTetra", "MeshFromPoints", "PointsToImplicit", "QualityFilter",
-           "SpuriousCellFilter"]
+__all__ = ["BitingSampler", "DelaunayTetra", "MeshFromPoints", "MeshOptimizer", "PointsToImplicit",
+           "QualityFilter", "SpuriousCellFilter"]

@@ -19,8 +19,9 @@ from ..core.errors import InvalidInputError, check_points
 from ..core.grid import grid_shape
 from ..core.mesh import Mesh
 from ..core.implicit import grid_layout, points_to_implicit
-from ..core.parameters import (BitingParameters, ImplicitParameters, LabelMapParameters, QualityParameters,
-                               SpuriousParameters)
+from ..core.optimize import optimize_mesh
+from ..core.parameters import (BitingParameters, ImplicitParameters, LabelMapParameters, OptimizeParameters,
+                               OptimizeSwitch, QualityParameters, SpuriousParameters)
 from ..core.pipeline import radius_for_cells, run
 from ..core.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
@@ -192,11 +193,31 @@ class QualityFilter(BitemeshAlgorithm):
         table.AddColumn(field_array("Count", counts, integer=True))
 
 
-@with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters)
+@with_parameters(OptimizeParameters)
+class MeshOptimizer(BitemeshAlgorithm):
+    """A valid mesh (port 0) and f on the grid (port 1) -> the mesh relaxed, without slivers, boundary on f = 0."""
+
+    def __init__(self):
+        super().__init__(nInputPorts=2, inputType="vtkDataObject", nOutputPorts=1, outputType="vtkUnstructuredGrid")
+
+    def FillInputPortInformation(self, port, info):
+        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid" if port == 0 else "vtkImageData")
+        return 1
+
+    def execute(self, request, inInfo, outInfo):
+        mesh = unstructured_to_mesh(vtkUnstructuredGrid.GetData(inInfo[0]))
+        grid = image_to_grid(vtkImageData.GetData(inInfo[1]))
+        optimized = optimize_mesh(grid, Mesh(mesh.points, mesh.cells), self.parameters(OptimizeParameters),
+                                  self.progress)
+        mesh_to_unstructured(optimized, vtkUnstructuredGrid.GetData(outInfo))
+
+
+@with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeSwitch, OptimizeParameters)
 class MeshFromPoints(BitemeshAlgorithm):
     """The whole method in one filter: scattered points -> a valid mesh with its quality arrays.
 
-    As ``bitemesh.run``: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by default.
+    As ``bitemesh.run``: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by default;
+    ``SetOptimize(1)`` also runs the MeshOptimizer.
     """
 
     def __init__(self):
@@ -204,8 +225,9 @@ class MeshFromPoints(BitemeshAlgorithm):
 
     def execute(self, request, inInfo, outInfo):
         points, normals = scattered_points(vtkPointSet.GetData(inInfo[0]))
+        optimize = self.parameters(OptimizeParameters) if self.parameters(OptimizeSwitch).optimize else None
         result = run(points, normals, self.parameters(ImplicitParameters), self.parameters(BitingParameters),
-                     self.parameters(SpuriousParameters), progress=self.progress)
+                     self.parameters(SpuriousParameters), progress=self.progress, optimize=optimize)
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(result.mesh, output)
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))

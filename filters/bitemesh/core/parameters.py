@@ -111,3 +111,11 @@ class OptimizeParameters(Parameters):
                                     high=60, high_open=True)
     min_quality: float = parameter(0.3, "the sliver removal also goes on until no cell has a smaller radius ratio Q",
                                    low=0, high=1, high_open=True)
+
+
+@dataclass(frozen=True)
+class OptimizeSwitch(Parameters):
+    """MeshFromPoints: whether the MeshOptimizer runs after the valid domain."""
+
+    optimize: int = parameter(0, "1 also runs the MeshOptimizer (relaxation, sliver removal), 0 skips it", low=0,
+                              high=1, integer=True)
