@@ -602,7 +602,7 @@ def test_the_algorithms_use_only_vtk_9_2_api():
     assert called - VTK_9_2_API == set(), "check these in VTK 9.2, then list them in VTK_9_2_API"
 
 
-def test_the_mesh_optimizer_filter_equals_the_core_and_one_shot_optimize_equals_run(small_chain):
+def test_the_mesh_optimizer_filter_equals_the_core_and_one_shot_optimize_equals_run(small_chain, sphere_samples):
     from bitemesh import MeshFromPoints, MeshOptimizer
     from bitemesh.core.optimize import optimize_mesh
     from bitemesh.core.parameters import OptimizeParameters
@@ -616,3 +616,13 @@ def test_the_mesh_optimizer_filter_equals_the_core_and_one_shot_optimize_equals_
     expected = optimize_mesh(grid, Mesh(carved.points, carved.cells), OptimizeParameters())
     assert np.array_equal(optimized.points, expected.points) and np.array_equal(optimized.cells, expected.cells)
     assert_valid_domain(optimized, euler=2, components=1, mean_quality=0.85)
+    points, normals = sphere_samples
+    one_shot = MeshFromPoints()
+    one_shot.SetInputData(polydata(points, normals))
+    one_shot.SetCells(1000)
+    one_shot.SetOptimize(1)
+    from bitemesh.core.parameters import BitingParameters, ImplicitParameters
+    from bitemesh.core.pipeline import run
+    result = run(points, normals, ImplicitParameters(), BitingParameters(cells=1000), SpuriousParameters(),
+                 optimize=OptimizeParameters())
+    assert np.array_equal(unstructured_to_mesh(one_shot.update()).cells, result.mesh.cells)
