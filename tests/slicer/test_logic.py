@@ -404,8 +404,9 @@ def test_progress_goes_from_0_to_1(scene, logic):
 def test_parameter_specs_follow_the_core_dataclasses():
     specs = {spec.name: spec for spec in bitemesh_logic.parameterSpecs()}
     assert list(specs) == list(bitemesh_logic.PARAMETERS)
+    from bitemesh.core.parameters import OptimizeSwitch
     classes = {cls.__name__: cls for cls in (ImplicitParameters, BitingParameters, SpuriousParameters,
-                                             QualityParameters)}
+                                             QualityParameters, OptimizeSwitch)}
     for name, (dataclass_name, field_name) in bitemesh_logic.PARAMETERS.items():
         item = {f.name: f for f in fields(classes[dataclass_name])}[field_name]
         spec = specs[name]
@@ -594,3 +595,16 @@ def test_module_file_builds_its_parameter_node_class():
     assert completed.returncode == 0, completed.stderr
     names = ast.literal_eval(completed.stdout.strip().splitlines()[-1])
     assert set(names) == set(bitemesh_logic.PARAMETERS) | {"inputNode", "contours", "segmentId", "outputModel"}
+
+
+def test_optimize_runs_the_mesh_optimizer_like_bitemesh_run(scene, logic):
+    from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
+    from bitemesh.core.pipeline import run
+    points = sphere_points()
+    model = output_model(scene)
+    result = logic.process(point_list(scene, points), model, cells=2000, optimize=1)
+    mesh = mesh_of(model)
+    assert_valid_domain(mesh, euler=2, components=1, mean_quality=0.85)
+    expected = run(points, None, ImplicitParameters(), BitingParameters(cells=2000), SpuriousParameters(),
+                   optimize=OptimizeParameters()).mesh
+    assert result.summary.q_mean >= 0.85 and len(mesh.cells) == len(expected.cells)

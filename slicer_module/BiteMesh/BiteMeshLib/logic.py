@@ -142,6 +142,7 @@ PARAMETERS = {
     "seed": ("BitingParameters", "seed"),
     "maxMemoryMb": ("ImplicitParameters", "max_memory_mb"),
     "bins": ("QualityParameters", "bins"),
+    "optimize": ("OptimizeSwitch", "optimize"),
 }
 #: keywords of :meth:`BiteMeshLogic.process` beyond the panel's (no "automatic" sentinel fits them).
 EXTRA_KEYWORDS = {"margin": ("ImplicitParameters", "margin")}
@@ -302,11 +303,14 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         biting = core.BitingParameters(**settings["BitingParameters"])
         spurious = core.SpuriousParameters(**settings["SpuriousParameters"])
         quality = core.QualityParameters(**settings["QualityParameters"])
+        optimize = core.OptimizeParameters() if core.OptimizeSwitch(**settings["OptimizeSwitch"]).optimize else None
 
         report(progress, 0.0, "reading the input")
         if any(node.IsA("vtkMRMLSegmentationNode") for node in nodes):
             if len(nodes) > 1:
                 raise InvalidInputError("a segmentation must be the only input; mesh one segmentation at a time")
+            if optimize is not None:
+                raise InvalidInputError("optimize is not available for segmentations yet; mesh without it")
             if segmentId is not None and not isinstance(segmentId, str):
                 raise InvalidInputError(f"segmentId must be a segment ID string, got {segmentId!r}")
             mesh, radius, seconds = self._meshSegment(nodes[0], segmentId, implicit, biting, spurious,
@@ -314,7 +318,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         else:
             points, normals = self._scatteredPoints(nodes, implicit.method)
             report(progress, 0.02, f"meshing {len(points)} points")
-            result = bitemesh.run(points, normals, implicit, biting, spurious, sub_progress(progress, 0.02, 0.95))
+            result = bitemesh.run(points, normals, implicit, biting, spurious, sub_progress(progress, 0.02, 0.95),
+                                  optimize=optimize)
             mesh, radius, seconds = result.mesh, result.radius, dict(result.seconds)
 
         report(progress, 0.95, "writing the mesh")
@@ -367,7 +372,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         if unknown:
             raise InvalidInputError(f"unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
         split = {name: {} for name in ("ImplicitParameters", "BitingParameters", "SpuriousParameters",
-                                       "QualityParameters")}
+                                       "QualityParameters", "OptimizeSwitch")}
         split["ImplicitParameters"]["method"] = method
         for name, value in parameters.items():
             split[known[name]][name] = value
