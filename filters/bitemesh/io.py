@@ -414,6 +414,305 @@ def _max_cell_dimension(dataset) -> int:
     return max(dimensions)
 
 
+# --------------------------------------------------------------------------------------------- labelled points
+
+LABELLED_TEXT_EXTENSIONS = (".txt", ".csv", ".tsv")
+LABELLED_VTK_EXTENSIONS = (".vtp", ".vtk", ".vtu")
+LABELLED_EXTENSIONS = LABELLED_TEXT_EXTENSIONS + LABELLED_VTK_EXTENSIONS
+#: header names (lower case) of the label column, first match wins; a GPFile's is "contour type".
+LABEL_COLUMNS = ("label", "labels", "contour type", "contour_type", "contourtype", "type", "region", "surface")
+#: header names (lower case) of the optional slice column; a GPFile's is "frameID".
+SLICE_COLUMNS = ("frameid", "frame_id", "slice", "sliceid", "slice_id", "slice id")
+#: point-data array names (lower case) of the label and the optional slice in VTK files.
+LABEL_ARRAYS = ("label", "labels")
+SLICE_ARRAYS = ("slice", "sliceid", "slice_id", "frameid")
+
+
+def read_labelled_points(path, *, slices: bool = False):
+    """Read contour points with a label per point: a biv-me GPFile, a CSV table, or a VTK file with a Label array.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.txt``, ``.csv``, ``.tsv``: a table, one point per row, fields separated by tabs (a biv-me GPFile:
+        header ``x y z contour type frameID weight time frame``), commas, semicolons or spaces.  With a header row,
+        the columns are found by name: ``x``, ``y``, ``z`` (else the first three), the label (``label``,
+        ``contour type``, ``type``, ``region`` or ``surface``; else the fourth column) and, optionally, the slice
+        (``frameID`` or ``slice``).  Without a header: ``x y z label [slice]``.  Labels are strings or integers;
+        ``#`` starts a comment line.
+        ``.vtp``, ``.vtk``, ``.vtu``: the points of the dataset and its point-data array ``Label`` (integer or
+        string), and optionally ``Slice`` or ``FrameID``.
+    slices : bool
+        Also return the slice id of each point.
+
+    Returns
+    -------
+    points : (n, 3) float64, input units
+    labels : (n,) str array (integer labels as their decimal text, "1")
+    slice_ids : (n,) int64, only with ``slices=True``; None when the file has no slice column or array
+
+    Raises
+    ------
+    InvalidInputError
+        Missing, empty or unreadable file, unknown extension, no label column or array, a malformed row (the
+        message names the file and the line), an empty label, or no points.
+    """
+    path = _existing_file(path, "labelled points", LABELLED_EXTENSIONS)
+    if path.suffix.lower() in LABELLED_TEXT_EXTENSIONS:
+        points, labels, slice_ids = _read_labelled_table(path)
+    else:
+        points, labels, slice_ids = _read_labelled_vtk(path)
+    labels = _label_text(labels)
+    empty = labels == ""
+    if empty.any():
+        raise InvalidInputError(f"cannot read labelled points from '{path}': {int(empty.sum())} points have an "
+                                f"empty label (first: point {int(np.argmax(empty))})")
+    return (points, labels, slice_ids) if slices else (points, labels)
+
+
+def looks_labelled(path) -> bool:
+    """True when ``path`` holds labelled points for :func:`read_labelled_points`: a table whose header names a
+    label column (a GPFile's ``contour type``) or whose first row's fourth field is not a number, or a VTK file
+    with a ``Label`` point array.  False for anything else, including unreadable files (let the reader say why)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    try:
+        if suffix in LABELLED_TEXT_EXTENSIONS:
+            with open(path, encoding="utf-8-sig", errors="replace") as stream:
+                first = next((line for line in stream if line.strip() and not line.lstrip().startswith("#")), "")
+            delimiter = next((mark for mark in ("\t", ",", ";") if mark in first), None)
+            fields = _split_fields(first, delimiter)
+            if len(fields) >= 3 and not all(_is_number(field) for field in fields[:3]):
+                return any(field.lower() in LABEL_COLUMNS for field in fields)
+            return len(fields) >= 4 and not _is_number(fields[3])
+        if suffix in LABELLED_VTK_EXTENSIONS:
+            with _vtk_silenced():
+                reader = _vtk_reader(path)
+                reader.GetExecutive().Update()
+                dataset = reader.GetOutputDataObject(0)
+            return dataset is not None and hasattr(dataset, "GetPointData") and \
+                _point_data_array(dataset, LABEL_ARRAYS) is not None
+    except (OSError, InvalidInputError):
+        return False
+    return False
+
+
+def _label_text(labels) -> np.ndarray:
+    """Labels as a str array; numbers that are whole ("2", "2.0", 2) become their integer text ("2")."""
+    text = np.array([str(label).strip() for label in np.asarray(labels).tolist()], dtype=object)
+    try:
+        values = np.array([float(label) for label in text])
+    except ValueError:
+        return text.astype(str)
+    if np.isfinite(values).all() and np.all(values == np.round(values)):
+        return np.array([str(int(value)) for value in values], dtype=str)
+    return text.astype(str)
+
+
+def _split_fields(line: str, delimiter):
+    return [field.strip() for field in (line.split(delimiter) if delimiter else line.split())]
+
+
+def _read_labelled_table(path: Path):
+    try:
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
+    except OSError as error:
+        raise InvalidInputError(f"cannot read labelled points from '{path}': {error.strerror or error}") from None
+    lines = [(number, line) for number, line in enumerate(text.splitlines(), start=1)
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise InvalidInputError(f"cannot read labelled points from '{path}': the file has no rows")
+    first = lines[0][1]
+    delimiter = next((mark for mark in ("\t", ",", ";") if mark in first), None)
+    fields = _split_fields(first, delimiter)
+    header = len(fields) >= 3 and not all(_is_number(field) for field in fields[:3])
+    if header:
+        names = [field.lower() for field in fields]
+        coordinates = [names.index(axis) if axis in names else axis_number for axis_number, axis in
+                       enumerate("xyz")]
+        label_column = next((names.index(name) for name in LABEL_COLUMNS if name in names), None)
+        if label_column is None:
+            label_column = 3 if len(names) > 3 and 3 not in coordinates else None
+        if label_column is None:
+            raise InvalidInputError(
+                f"cannot read labelled points from '{path}': the header {fields} names no label column; name it "
+                f"one of {', '.join(LABEL_COLUMNS)}")
+        slice_column = next((names.index(name) for name in SLICE_COLUMNS if name in names), None)
+        width = len(fields)
+        rows = lines[1:]
+    else:
+        width = len(fields)
+        if width < 4:
+            raise InvalidInputError(
+                f"cannot read labelled points from '{path}': line {lines[0][0]} has {width} fields; a labelled "
+                "point needs x y z label [slice] (or a header naming the columns)")
+        coordinates, label_column, slice_column = [0, 1, 2], 3, (4 if width > 4 else None)
+        rows = lines
+    if not rows:
+        raise InvalidInputError(f"cannot read labelled points from '{path}': the file has a header but no points")
+    points = np.empty((len(rows), 3))
+    labels = []
+    slice_ids = np.empty(len(rows), dtype=np.int64) if slice_column is not None else None
+    for row, (number, line) in enumerate(rows):
+        values = _split_fields(line, delimiter)
+        if len(values) < width:
+            raise InvalidInputError(
+                f"cannot read labelled points from '{path}': line {number} has {len(values)} fields, the "
+                f"{'header' if header else 'first row'} has {width}")
+        try:
+            points[row] = [float(values[column]) for column in coordinates]
+        except ValueError:
+            bad = next(values[column] for column in coordinates if not _is_number(values[column]))
+            raise InvalidInputError(
+                f"cannot read labelled points from '{path}': line {number} has the coordinate {bad!r}, not a "
+                "number") from None
+        labels.append(values[label_column])
+        if slice_ids is not None:
+            try:
+                slice_ids[row] = int(float(values[slice_column]))
+            except ValueError:
+                raise InvalidInputError(
+                    f"cannot read labelled points from '{path}': line {number} has the slice id "
+                    f"{values[slice_column]!r}, not an integer") from None
+    points = check_points(points, f"points of '{path}'", dims=(3,))
+    return points, labels, slice_ids
+
+
+def _point_data_array(dataset, names):
+    """The first point-data array (data or string array) whose lower-case name is in ``names``, as numpy."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    data = dataset.GetPointData()
+    for index in range(data.GetNumberOfArrays()):
+        array = data.GetAbstractArray(index)
+        if (array.GetName() or "").lower() not in names:
+            continue
+        if array.GetNumberOfComponents() != 1:
+            continue
+        if array.IsA("vtkStringArray"):
+            return np.array([array.GetValue(i) for i in range(array.GetNumberOfTuples())], dtype=str)
+        return np.array(vtk_to_numpy(array)).reshape(-1)
+    return None
+
+
+def _read_labelled_vtk(path: Path):
+    with _vtk_silenced():
+        reader = _vtk_reader(path)
+        succeeded = reader.GetExecutive().Update()
+        dataset = reader.GetOutputDataObject(0)
+    if not succeeded or reader.GetErrorCode() or dataset is None or not hasattr(dataset, "GetPoints") \
+            or dataset.GetPoints() is None or dataset.GetNumberOfPoints() == 0:
+        raise InvalidInputError(
+            f"cannot read labelled points from '{path}': the {reader.GetClassName()} read no points; is the file "
+            "truncated, or not of the format its extension says?")
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    points = check_points(np.array(vtk_to_numpy(dataset.GetPoints().GetData()), dtype=np.float64).reshape(-1, 3),
+                          f"points of '{path}'", dims=(3,))
+    labels = _point_data_array(dataset, LABEL_ARRAYS)
+    if labels is None:
+        data = dataset.GetPointData()
+        present = [data.GetArrayName(i) for i in range(data.GetNumberOfArrays())]
+        raise InvalidInputError(
+            f"cannot read labelled points from '{path}': it has no one-component point array named 'Label' "
+            f"(point arrays present: {', '.join(map(str, present)) or 'none'})")
+    if labels.dtype.kind == "f" and not (np.isfinite(labels).all() and np.all(labels == np.round(labels))):
+        raise InvalidInputError(f"cannot read labelled points from '{path}': the Label array holds non-integer "
+                                "numbers; labels are integers or strings")
+    slice_ids = _point_data_array(dataset, SLICE_ARRAYS)
+    if slice_ids is not None:
+        if slice_ids.dtype.kind not in "iuf" or not np.all(np.isfinite(slice_ids.astype(float))):
+            raise InvalidInputError(f"cannot read labelled points from '{path}': the slice array must hold integers")
+        slice_ids = slice_ids.astype(np.int64)
+    return points, labels, slice_ids
+
+
+#: the keys a labelled-domain config file may hold, with the type each value must have.
+LABELLED_CONFIG_KEYS = {"domain": "str", "surfaces": "{name: [labels]}", "base_plane":
+                        "'auto', 'valves', 'none', null or {point: [x, y, z], normal: [x, y, z]}",
+                        "base_offset": "number", "outlets": "{surface: [valve labels]}", "min_wall": "number",
+                        "kernel": "str", "offset": "number"}
+
+
+def read_labelled_config(path) -> dict:
+    """Read a small JSON or TOML file that says which domain to mesh from labelled contours.
+
+    Example (JSON)::
+
+        {"surfaces": {"EPI": ["SAX_LV_EPICARDIAL", "LAX_LV_EPICARDIAL"], "LV_ENDO": ["SAX_LV_ENDOCARDIAL"]},
+         "domain": "EPI - LV_ENDO", "base_plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}, "min_wall": 2.0}
+
+    Keys (all optional): see :data:`LABELLED_CONFIG_KEYS`; they are the keyword arguments of
+    :func:`bitemesh.core.labelled.labelled_implicit` and ``run_labelled``.
+
+    Returns
+    -------
+    dict of those keyword arguments, ``base_plane`` as None, a string or a (point, normal) pair
+
+    Raises
+    ------
+    InvalidInputError
+        Missing or unreadable file, a syntax error (with the parser's message), an unknown key (the message lists
+        the known ones) or a value of the wrong type.
+    """
+    path = _existing_file(path, "a labelled-domain config", (".json", ".toml"))
+    try:
+        text = path.read_text(encoding="utf-8")
+        if path.suffix.lower() == ".json":
+            import json
+            config = json.loads(text)
+        else:
+            try:
+                import tomllib
+            except ImportError:   # Python < 3.11
+                raise InvalidInputError(f"cannot read '{path}': TOML needs Python 3.11 or later; use JSON") from None
+            config = tomllib.loads(text)
+    except InvalidInputError:
+        raise
+    except (OSError, ValueError) as error:
+        raise InvalidInputError(f"cannot read a labelled-domain config from '{path}': {error}") from None
+    if not isinstance(config, dict):
+        raise InvalidInputError(f"'{path}' must hold a table (an object) of settings, got {type(config).__name__}")
+    unknown = sorted(set(config) - set(LABELLED_CONFIG_KEYS))
+    if unknown:
+        raise InvalidInputError(f"'{path}': unknown key(s) {', '.join(unknown)}; known keys: "
+                                f"{', '.join(LABELLED_CONFIG_KEYS)}")
+
+    def fail(key):
+        raise InvalidInputError(f"'{path}': {key} must be {LABELLED_CONFIG_KEYS[key]}, got {config[key]!r}")
+
+    def label_lists(key):
+        value = config[key]
+        if not isinstance(value, dict) or not all(
+                isinstance(members, (str, int)) or (isinstance(members, list) and members
+                                                    and all(isinstance(m, (str, int)) for m in members))
+                for members in value.values()):
+            fail(key)
+        return {str(name): [str(m) for m in (members if isinstance(members, list) else [members])]
+                for name, members in value.items()}
+
+    result = {}
+    for key, value in config.items():
+        if key in ("domain", "kernel"):
+            if not isinstance(value, str):
+                fail(key)
+            result[key] = value
+        elif key in ("base_offset", "min_wall", "offset"):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                fail(key)
+            result[key] = float(value)
+        elif key in ("surfaces", "outlets"):
+            result[key] = label_lists(key)
+        else:   # base_plane
+            if value is None or value in ("auto", "valves", "none"):
+                result[key] = None if value in (None, "none") else value
+            elif isinstance(value, dict) and set(value) == {"point", "normal"}:
+                result[key] = (value["point"], value["normal"])
+            else:
+                fail(key)
+    return result
+
+
 # --------------------------------------------------------------------------------------------- meshes
 
 

@@ -1,0 +1,1176 @@
+"""Labelled contour points -> one implicit function per surface -> a domain by CSG, closed at the base by a plane.
+
+The input is sparse contours (short- and long-axis slices of a cardiac MR study, 8 to 18 mm apart), each point with
+a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...).  The steps:
+
+1. Labels -> surfaces (:data:`BIVME_SURFACES` for biv-me labels; otherwise each label is a surface).
+2. Slices: the points' slice ids (a GPFile's ``frameID``) or, without them, the planes found by
+   :func:`infer_slices`.
+3. In-plane normals (:func:`contour_normals`): per surface and slice, the points are ordered into polylines (the
+   longest path of their minimum spanning tree, cut at gaps), the polylines chained into one loop (a U-shaped
+   long-axis contour is closed across its open end), and each point's normal is perpendicular to the polyline in
+   the slice, pointing out of the loop's region.
+4. One implicit per surface (:func:`fit_contour_rbf`): a polyharmonic RBF (Carr et al., SIGGRAPH 2001) that is 0
+   on the points and +/- delta at off-surface points p -/+ delta n.  The biharmonic kernel phi(r) = r with
+   delta = 4 mm was chosen by the measurements of ``benchmarks/bivme.py`` (against the triharmonic r^3, the thin
+   plate r^2 log r and MPU): it passes through the points and bends least between slices, with the fewest
+   spurious bubbles where short- and long-axis contours disagree.  A cavity also gets a point inside it at the
+   centre of each of its valves (:data:`BIVME_OUTLETS`), so that it opens through the base instead of closing in
+   a dome just above the last short-axis slice.  Each RBF is sampled once on a fine grid, exactly near its zero
+   level (:class:`SampledSurface`), so the domain is cheap to evaluate on the grid I.
+5. The domain: a CSG expression (:func:`parse_domain`) of the surfaces, ``-`` difference, ``+`` union, ``&``
+   intersection, by min/max of the implicit values (:func:`evaluate_domain`; a difference keeps a thinnest wall
+   where two surfaces interpolated independently would cross), cut by a base plane (:func:`fit_base_plane`).
+
+The septum: biv-me's ``*_RV_SEPTUM`` points lie on the right-ventricular face of the interventricular septum.  They
+bound the RV cavity (with the free wall, in ``RV_ENDO``) and, seen from the LV, they are the outer face of the LV
+wall (in ``LV_EPI`` with the LV epicardial points, for LV-only domains such as ``LV_EPI - LV_ENDO``).  The
+biventricular epicardium ``EPI`` does not use them: the septum is inside it.  (biv-me's LV epicardial contours
+stop at the RV insertion points; a full LV epicardial ring would put points of ``EPI`` inside the heart.)
+
+Convention as in :mod:`bitemesh.core.grid`: f > 0 inside, about the signed distance (input units) near f = 0.
+"""
+from __future__ import annotations
+
+import re
+import warnings
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+
+import numpy as np
+from scipy import linalg, ndimage, sparse
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+from scipy.spatial.distance import pdist, squareform
+
+from .errors import InvalidInputError, check_choice, check_number, check_points
+from .grid import sample_function
+from .mesh import Mesh
+from .parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from .pipeline import COARSE_GRID_NODES, MeshingResult, implicit_grid, mesh_from_grid, radius_for_cells, timed
+from .progress import ProgressCallback, report, sub_progress
+from .topology import boundary_facets
+
+#: biv-me guide-point labels -> the surfaces they sample (see the module docstring for the septum).  biv-me splits
+#: the RV endocardium into free wall and septum (older exports: RV_ENDOCARDIAL; the outflow tract: OUTLET_* and
+#: SAX_RV_OUTLET), and its LV epicardial contours stop at the RV insertions (the septum's RV face is RV_SEPTUM).
+BIVME_SURFACES = {
+    "EPI": ("SAX_LV_EPICARDIAL", "LAX_LV_EPICARDIAL", "SAX_RV_EPICARDIAL", "LAX_RV_EPICARDIAL",
+            "OUTLET_RV_EPICARDIAL", "SAX_EPICARDIAL", "LAX_EPICARDIAL"),
+    "LV_ENDO": ("SAX_LV_ENDOCARDIAL", "LAX_LV_ENDOCARDIAL"),
+    "RV_ENDO": ("SAX_RV_FREEWALL", "LAX_RV_FREEWALL", "SAX_RV_SEPTUM", "LAX_RV_SEPTUM", "SAX_RV_ENDOCARDIAL",
+                "LAX_RV_ENDOCARDIAL", "SAX_RV_OUTLET", "OUTLET_RV_FREEWALL", "OUTLET_RV_SEPTUM"),
+    "LV_EPI": ("SAX_LV_EPICARDIAL", "LAX_LV_EPICARDIAL", "SAX_RV_SEPTUM", "LAX_RV_SEPTUM"),
+}
+#: the valve annulus points a base plane is fitted to.
+BIVME_VALVES = ("MITRAL_VALVE", "AORTA_VALVE", "TRICUSPID_VALVE", "PULMONARY_VALVE")
+#: the valves through which each cavity opens: each valve's centre is a point inside the cavity, at the valve's
+#: radius from its wall, so that the cavity reaches through the base instead of closing in a dome below it; the
+#: epicardium holds the valves too, a wall's thickness beyond their rims (:data:`OUTLET_WALL`).
+BIVME_OUTLETS = {"LV_ENDO": ("MITRAL_VALVE", "AORTA_VALVE"), "RV_ENDO": ("TRICUSPID_VALVE", "PULMONARY_VALVE"),
+                 "EPI": BIVME_VALVES, "LV_EPI": ("MITRAL_VALVE", "AORTA_VALVE")}
+#: an epicardium's valve constraint: the valve's radius plus this (input units), about a wall's thickness.
+OUTLET_WALL = {"EPI": 5.0, "LV_EPI": 5.0}
+#: points that must lie below the base plane (they orient it).
+BIVME_APEX = ("APEX_POINT", "APEX_EPI_POINT", "APEX_ENDO_POINT")
+#: every label biv-me writes (RV_INSERT marks where the RV wall meets the septum, *_PHANTOM are generated valve
+#: points, *_EXTENT mark the long-axis extent; bitemesh does not use them).
+BIVME_LABELS = frozenset(
+    {label for labels in BIVME_SURFACES.values() for label in labels} | set(BIVME_VALVES) | set(BIVME_APEX)
+    | {"RV_INSERT", "LAX_LA", "LAX_RA", "LAX_LV_EXTENT", "LAX_RV_EXTENT", "LAX_LA_EXTENT", "LAX_RA_EXTENT",
+       "MITRAL_PHANTOM", "TRICUSPID_PHANTOM", "AORTA_PHANTOM", "PULMONARY_PHANTOM", "EXCLUDED"})
+#: the two-cavity myocardium, the default domain for biv-me labels.
+BIVME_DEFAULT_DOMAIN = "EPI - LV_ENDO - RV_ENDO"
+#: the name the base plane takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
+BASE = "BASE"
+
+#: RBF kernels phi(r) (with a linear polynomial); "linear" (biharmonic) is the default (see benchmarks/bivme.py).
+KERNELS = ("linear", "cubic", "thin_plate")
+#: a polyline breaks where its points are more than this x the median spacing apart.
+GAP_FACTOR = 3.0
+#: a contour loop encloses nothing when 4 pi area / perimeter^2 is below this.
+MIN_ROUNDNESS = 0.005
+#: a slice's contour of more points than this is ordered from a nearest-neighbour graph instead of all pairs.
+_DENSE_POINTS = 1500
+#: infer_slices counts the points of each candidate plane among at most this many points.
+_PLANE_SAMPLE = 4000
+#: kernel entries per chunk when the RBF is evaluated: cache-sized (64 k entries are 8 times faster than 4 M).
+_CHUNK_ENTRIES = 1 << 16
+
+
+# --- labels and slices -------------------------------------------------------------------------------------------
+
+def _as_labels(labels, count: int) -> np.ndarray:
+    labels = np.asarray(labels)
+    if labels.ndim != 1 or len(labels) != count:
+        raise InvalidInputError(f"labels must hold one label per point ({count}), got shape {labels.shape}")
+    if labels.dtype.kind == "f":
+        if not np.all(np.isfinite(labels)) or np.any(labels != np.round(labels)):
+            raise InvalidInputError("labels must be whole numbers or strings; got non-integer floats")
+        labels = labels.astype(np.int64)
+    return np.array([str(label).strip() for label in labels.tolist()], dtype=object).astype(str)
+
+
+def is_bivme(labels) -> bool:
+    """True when any label is one of biv-me's guide-point labels."""
+    return bool(set(np.unique(np.asarray(labels).astype(str)).tolist()) & BIVME_LABELS)
+
+
+def default_surfaces(labels) -> dict:
+    """The surfaces of these labels: :data:`BIVME_SURFACES` for biv-me labels, else one surface per label."""
+    labels = np.asarray(labels).astype(str)
+    if is_bivme(labels):
+        return dict(BIVME_SURFACES)
+    return {label: (label,) for label in np.unique(labels).tolist()}
+
+
+def infer_slices(points, *, tolerance=None, min_points: int = 8, seed: int = 0, trials: int = 400) -> np.ndarray:
+    """Group contour points into the planes (image slices) they were drawn on, by sequential RANSAC.
+
+    Each round samples ``trials`` triangles of nearby points (a point and two of its 30 nearest neighbours, so that
+    the three are usually on one contour), takes the plane that holds the most points within ``tolerance``, refits
+    it to those points by least squares and removes them.  Rounds stop when no plane holds ``min_points`` points
+    that are not all on one line.  A point on the line where two slices cross goes to the larger slice.
+
+    Parameters
+    ----------
+    points : (n, 3) float64, input units
+    tolerance : float, input units, largest distance of a point from its plane; default 1e-3 x the bounding-box
+        diagonal (contours are drawn on image planes, so their points are coplanar to rounding)
+    min_points : int, fewest points a slice holds
+    seed : int, seed of the sampling (the same points and seed give the same slices)
+
+    Returns
+    -------
+    (n,) int64 slice ids 0, 1, ... (largest slice first); -1 for points on no plane
+    """
+    points = check_points(points, dims=(3,))
+    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+    tolerance = 1e-3 * diagonal if tolerance is None else check_number(tolerance, "tolerance", low=0,
+                                                                          low_open=True)
+    min_points = int(check_number(min_points, "min_points", low=3))
+    rng = np.random.default_rng(seed)
+    slices = np.full(len(points), -1, dtype=np.int64)
+    remaining = np.arange(len(points))
+    for number in range(len(points)):
+        if len(remaining) < min_points:
+            break
+        subset = points[remaining]
+        k = min(30, len(subset) - 1)
+        _, near = cKDTree(subset).query(subset, k=k + 1)
+        first = rng.integers(0, len(subset), trials)
+        second, third = near[first, rng.integers(1, k + 1, trials)], near[first, rng.integers(1, k + 1, trials)]
+        a, b, c = subset[first], subset[second], subset[third]
+        normal = np.cross(b - a, c - a)
+        area = np.linalg.norm(normal, axis=1)
+        longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - a, axis=1),
+                          np.linalg.norm(c - b, axis=1)], axis=0)
+        good = area > 0.05 * longest ** 2   # not a sliver: the plane is well defined
+        if not good.any():
+            break
+        normal, a = normal[good] / area[good, None], a[good]
+        sample = subset if len(subset) <= _PLANE_SAMPLE else subset[rng.choice(len(subset), _PLANE_SAMPLE, False)]
+        counts = (np.abs(np.einsum("td,nd->tn", normal, sample) - np.einsum("td,td->t", normal, a)[:, None])
+                  < tolerance).sum(axis=1)
+        best = int(np.argmax(counts))
+        inliers = np.abs((subset - a[best]) @ normal[best]) < tolerance
+        for _ in range(2):   # least-squares refit on the inliers, then recount
+            centre = subset[inliers].mean(axis=0)
+            _, spread, axes = np.linalg.svd(subset[inliers] - centre, full_matrices=False)
+            inliers = np.abs((subset - centre) @ axes[2]) < tolerance
+        if inliers.sum() < min_points or spread[1] <= 1e-6 * spread[0]:
+            break
+        slices[remaining[inliers]] = number
+        remaining = remaining[~inliers]
+    return slices
+
+
+@dataclass(frozen=True)
+class SlicePlane:
+    """A slice: its centre, unit normal and two in-plane unit axes (right-handed: axes[0] x axes[1] = normal)."""
+
+    centre: np.ndarray
+    normal: np.ndarray
+    axes: np.ndarray
+
+    def project(self, points) -> np.ndarray:
+        """(m, 2) in-plane coordinates of (m, 3) points."""
+        return (np.asarray(points) - self.centre) @ self.axes.T
+
+
+def slice_planes(points, slices) -> dict:
+    """Slice id -> :class:`SlicePlane` fitted (least squares) to the points of each slice id >= 0.
+
+    A slice whose points lie on one line has no plane and is left out.
+    """
+    points = check_points(points, dims=(3,))
+    slices = np.asarray(slices)
+    planes = {}
+    for number in np.unique(slices[slices >= 0]).tolist():
+        members = points[slices == number]
+        if len(members) < 3:
+            continue
+        centre = members.mean(axis=0)
+        _, spread, axes = np.linalg.svd(members - centre, full_matrices=False)
+        if spread[1] <= 1e-6 * spread[0]:
+            continue
+        normal = np.cross(axes[0], axes[1])
+        planes[number] = SlicePlane(centre, normal / np.linalg.norm(normal), axes[:2].copy())
+    return planes
+
+
+# --- contours and their in-plane normals ---------------------------------------------------------------------------
+
+def _tree_path(tree, start: int):
+    """Farthest node from ``start`` along the (symmetric, weighted) tree, and the predecessor array."""
+    distance, predecessors = csgraph.dijkstra(tree, directed=False, indices=start, return_predecessors=True)
+    reachable = np.isfinite(distance)
+    farthest = int(np.flatnonzero(reachable)[np.argmax(distance[reachable])])
+    return farthest, predecessors
+
+
+def _polylines(q: np.ndarray, gap_factor: float):
+    """Order 2D points into polylines: the longest paths of the pieces of their minimum spanning tree.
+
+    The tree (of all pairs, or of the 16 nearest neighbours of each point when there are more than
+    :data:`_DENSE_POINTS`) is cut at edges longer than ``gap_factor`` x its median edge.  Returns a list of index
+    arrays (path order), the piece label of each point, and the median edge length.
+    """
+    count = len(q)
+    if count <= _DENSE_POINTS:
+        rows, cols = np.triu_indices(count, 1)
+        weights = pdist(q)
+    else:
+        distance, near = cKDTree(q).query(q, k=17)
+        rows, cols, weights = np.repeat(np.arange(count), 16), near[:, 1:].ravel(), distance[:, 1:].ravel()
+    scale = float(weights.max()) if len(weights) else 1.0
+    graph = sparse.csr_matrix((weights + 1e-12 * scale, (rows, cols)), shape=(count, count))   # no zero weight
+    tree = csgraph.minimum_spanning_tree(graph).tocoo()
+    spacing = float(np.median(tree.data)) if tree.nnz else 0.0
+    keep = tree.data <= gap_factor * spacing
+    forest = sparse.csr_matrix((tree.data[keep], (tree.row[keep], tree.col[keep])), shape=(count, count))
+    forest = forest + forest.T
+    pieces, piece = csgraph.connected_components(forest, directed=False)
+    paths = []
+    for number in range(pieces):
+        members = np.flatnonzero(piece == number)
+        if len(members) == 1:
+            paths.append(members)
+            continue
+        a, _ = _tree_path(forest, int(members[0]))
+        b, predecessors = _tree_path(forest, a)
+        path = [b]
+        while path[-1] != a:
+            path.append(int(predecessors[path[-1]]))
+        paths.append(np.array(path[::-1]))
+    return paths, piece, spacing
+
+
+def _signed_area(polygon: np.ndarray) -> float:
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _perimeter(polygon: np.ndarray) -> float:
+    return float(np.linalg.norm(polygon - np.roll(polygon, -1, axis=0), axis=1).sum())
+
+
+def _inside_polygon(point: np.ndarray, polygon: np.ndarray) -> bool:
+    """Even-odd rule."""
+    x, y = polygon[:, 0], polygon[:, 1]
+    x2, y2 = np.roll(x, -1), np.roll(y, -1)
+    crosses = (y > point[1]) != (y2 > point[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        at = x + (point[1] - y) * (x2 - x) / (y2 - y)
+    return bool(np.count_nonzero(crosses & (point[0] < at)) % 2)
+
+
+def _loops(q: np.ndarray, paths, spacing: float, gap_factor: float):
+    """Group polylines into closed loops: a polyline whose ends meet is a loop; the open ones are chained, nearest
+    end to nearest end, into one loop (closed across the remaining gap, e.g. a valve)."""
+    closed, open_ = [], []
+    for path in paths:
+        if len(path) < 2:
+            continue
+        meets = len(path) > 3 and np.linalg.norm(q[path[0]] - q[path[-1]]) <= gap_factor * spacing
+        (closed if meets else open_).append(path)
+    if open_:
+        open_.sort(key=len, reverse=True)
+        chain = [open_.pop(0)]
+        while open_:
+            end = q[chain[-1][-1]]
+            starts = np.array([np.linalg.norm(q[p[0]] - end) for p in open_])
+            ends = np.array([np.linalg.norm(q[p[-1]] - end) for p in open_])
+            best = int(np.argmin(np.minimum(starts, ends)))
+            piece = open_.pop(best)
+            chain.append(piece if starts[best] <= ends[best] else piece[::-1])
+        closed.append(chain)
+    return [loop if isinstance(loop, list) else [loop] for loop in closed]
+
+
+def _tangents(xy: np.ndarray, closed: bool, jump: float) -> np.ndarray:
+    """(m, 2) tangents of a polyline, each over +/- 2 points (contours traced on the pixel grid make neighbours alone
+    swing with its steps), never across a step longer than ``jump`` and 1.5 x the steps beside it (where the path
+    cuts across a side branch); 0 for a point with no neighbour on its side of such steps."""
+    count = len(xy)
+    length = np.linalg.norm(np.diff(np.vstack([xy, xy[:1]]), axis=0), axis=1)   # step i: from i to i + 1
+    if not closed:
+        length[-1] = 0.0
+    # a long step: longer than `jump` and than 1.5 x both steps beside it (so a change of spacing is no jump)
+    beside = np.maximum(np.roll(length, 1), np.roll(length, -1))
+    steps = (length > jump) & (length > 1.5 * beside)
+    if closed and not steps.any():
+        return np.roll(xy, -2, axis=0) - np.roll(xy, 2, axis=0)
+    # open (or a loop cut after a long step, rotated to start there): segments between long steps
+    start = (int(np.flatnonzero(steps)[0]) + 1) % count if closed else 0
+    order = np.roll(np.arange(count), -start)
+    line = xy[order]
+    segment = np.r_[0, np.cumsum(steps[order][:-1])]
+    index = np.arange(count)
+    ahead, behind = index.copy(), index.copy()
+    for shift in (1, 2):
+        forward, backward = np.minimum(index + shift, count - 1), np.maximum(index - shift, 0)
+        ahead = np.where(segment[forward] == segment, forward, ahead)
+        behind = np.where(segment[backward] == segment, backward, behind)
+    tangent = np.empty_like(xy)
+    tangent[order] = line[ahead] - line[behind]
+    return tangent
+
+
+def _normals_2d(q: np.ndarray, gap_factor: float, where: str) -> np.ndarray:
+    """(m, 2) outward in-plane unit normals of the points of one region in one slice (NaN where undefined)."""
+    normals = np.full(q.shape, np.nan)
+    if len(q) < 3:
+        return normals
+    paths, piece, spacing = _polylines(q, gap_factor)
+    loops = _loops(q, paths, spacing, gap_factor)
+    polygons = [q[np.concatenate(loop)] for loop in loops]
+    for loop, polygon in zip(loops, polygons):
+        area = _signed_area(polygon)
+        perimeter = _perimeter(polygon)
+        if 4 * np.pi * abs(area) < MIN_ROUNDNESS * perimeter ** 2:
+            raise InvalidInputError(
+                f"the contour of {where} encloses no area: its {len(polygon)} points lie along a line or a curve "
+                f"that does not bend around a region (4 pi area / perimeter^2 = "
+                f"{4 * np.pi * abs(area) / max(perimeter ** 2, 1e-300):.2g} < {MIN_ROUNDNESS}); "
+                "check its label, or remove it")
+        # A loop inside an odd number of other loops of the region bounds a hole: its normals point into it.
+        inner = sum(_inside_polygon(polygon[0], other) for other in polygons if other is not polygon) % 2
+        turn = (1.0 if area > 0 else -1.0) * (-1.0 if inner else 1.0)
+        closed_loop = len(loop) == 1 and np.linalg.norm(polygon[0] - polygon[-1]) <= gap_factor * spacing
+        for path in loop:
+            tangent = _tangents(q[path], closed_loop, 1.5 * spacing)
+            length = np.linalg.norm(tangent, axis=1)
+            ok = length > 0
+            normals[path[ok]] = turn * np.column_stack([tangent[ok, 1], -tangent[ok, 0]]) / length[ok, None]
+    # Points off the paths (side branches of the tree): the normal of the nearest path point of the same piece when
+    # they lie beside it (a doubled row of points); a longer branch (a hook where two contours meet) gets none.
+    known = np.flatnonzero(np.isfinite(normals[:, 0]))
+    for number in np.unique(piece):
+        members = np.flatnonzero(piece == number)
+        missing = members[~np.isfinite(normals[members, 0])]
+        sources = np.intersect1d(members, known)
+        if len(missing) and len(sources):
+            distance, nearest = cKDTree(q[sources]).query(q[missing])
+            beside = distance <= 0.5 * spacing
+            normals[missing[beside]] = normals[sources[nearest[beside]]]
+    return normals
+
+
+def contour_normals(points, slices, planes=None, *, gap_factor: float = GAP_FACTOR, name: str = "the surface"):
+    """Outward in-plane unit normals of the contour points of one surface (one region).
+
+    Per slice, the points are projected on the slice plane and ordered into polylines (the longest path of each
+    piece of their minimum spanning tree, cut at edges longer than ``gap_factor`` x the median edge); the polylines
+    are chained into loops (see the module docstring) and each point's normal is the in-plane perpendicular of
+    its polyline, pointing out of the loop's region (out of a hole for a loop nested in another).
+
+    Parameters
+    ----------
+    points : (n, 3) float64, the points of one surface (a cavity, or an epicardium), input units
+    slices : (n,) int, slice id per point (-1: none)
+    planes : dict slice id -> SlicePlane, default fitted to these points (better: to all points of each slice)
+    gap_factor : float, polyline break, x the median point spacing
+    name : str, the surface's name in error messages
+
+    Returns
+    -------
+    (n, 3) float64 unit normals in the slice planes; NaN rows for points without a slice, in slices with fewer
+    than 3 points of this surface, or isolated
+
+    Raises
+    ------
+    InvalidInputError
+        When a slice's contour of this surface encloses no area (its points lie along a line).
+    """
+    points = check_points(points, dims=(3,))
+    slices = np.asarray(slices)
+    planes = slice_planes(points, slices) if planes is None else planes
+    normals = np.full(points.shape, np.nan)
+    for number in np.unique(slices[slices >= 0]).tolist():
+        members = np.flatnonzero(slices == number)
+        plane = planes.get(number)
+        if plane is None or len(members) < 3:
+            continue
+        in_plane = _normals_2d(plane.project(points[members]), gap_factor, f"{name} in slice {number}")
+        normals[members] = in_plane @ plane.axes
+    return normals
+
+
+# --- one RBF per surface -----------------------------------------------------------------------------------------
+
+def _kernel(r: np.ndarray, kernel: str) -> np.ndarray:
+    """phi(r), in place on r."""
+    if kernel == "cubic":
+        cube = r * r
+        cube *= r
+        return cube
+    if kernel == "linear":
+        return r
+    # thin plate r^2 log r, 0 at r = 0
+    safe = np.where(r > 0, r, 1.0)
+    return np.multiply(r * r, np.log(safe), out=r)
+
+
+def _kernel_slope(r: np.ndarray, kernel: str) -> np.ndarray:
+    """phi'(r) / r (finite at r = 0 where the kernel is smooth)."""
+    if kernel == "cubic":
+        return 3.0 * r
+    if kernel == "linear":
+        return 1.0 / np.where(r > 0, r, np.inf)
+    return 2.0 * np.log(np.where(r > 0, r, 1.0)) + 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class ContourRBF:
+    """f(x) = sum_j w_j phi(|y - c_j|) + a . y + b, y = (x - shift) / scale: a polyharmonic RBF, > 0 inside.
+
+    Attributes
+    ----------
+    centres : (m, 3) float64, the on- and off-surface points, scaled
+    weights : (m,) float64
+    polynomial : (4,) float64, b and a
+    kernel : "cubic" (r^3), "linear" (r) or "thin_plate" (r^2 log r)
+    shift : (3,) float64; scale : float, input units
+    points : (n, 3) float64, the surface's data points (input units)
+    """
+
+    centres: np.ndarray
+    weights: np.ndarray
+    polynomial: np.ndarray
+    kernel: str
+    shift: np.ndarray
+    scale: float
+    points: np.ndarray
+
+    @cached_property
+    def _centre_norms(self) -> np.ndarray:
+        return np.einsum("md,md->m", self.centres, self.centres)
+
+    @cached_property
+    def _centre_rows(self) -> np.ndarray:
+        return np.ascontiguousarray(-2.0 * self.centres.T)
+
+    def _blocks(self, x):
+        """(start, scaled points, distances to the centres) per chunk of x."""
+        y = (check_points(x, "x", dims=(3,)) - self.shift) / self.scale
+        step = max(1, _CHUNK_ENTRIES // len(self.centres))
+        for start in range(0, len(y), step):
+            part = y[start:start + step]
+            squared = part @ self._centre_rows
+            squared += self._centre_norms
+            squared += np.einsum("md,md->m", part, part)[:, None]
+            yield start, part, np.sqrt(np.maximum(squared, 0.0, out=squared), out=squared)
+
+    def __call__(self, x) -> np.ndarray:
+        """(m,) f at (m, 3) points, input units."""
+        x = np.asarray(x, dtype=np.float64)
+        value = np.empty(len(x))
+        for start, part, r in self._blocks(x):
+            value[start:start + len(part)] = (_kernel(r, self.kernel) @ self.weights + self.polynomial[0]
+                                              + part @ self.polynomial[1:])
+        return value
+
+    def gradient(self, x) -> np.ndarray:
+        """(m, 3) analytic gradient of f (per input unit)."""
+        x = np.asarray(x, dtype=np.float64)
+        slope = np.empty((len(x), 3))
+        for start, part, r in self._blocks(x):
+            factor = _kernel_slope(r, self.kernel) * self.weights   # (p, m)
+            slope[start:start + len(part)] = (part * factor.sum(axis=1)[:, None] - factor @ self.centres
+                                              + self.polynomial[1:])
+        return slope / self.scale
+
+
+def off_surface_offsets(points, normals, offset) -> np.ndarray:
+    """(n,) delta_i: ``offset``, halved (up to 5 times) until both p_i +/- delta_i n_i are nearer to p_i than to
+    any other point (about: no other point within 0.75 delta_i of them); 0 where there is no normal.
+
+    Along a contour the neighbours lie across the normal, so delta may exceed the point spacing; it shrinks where
+    another wall of the same surface is near (the thin apical RV cavity).
+    """
+    has = np.isfinite(normals).all(axis=1)
+    delta = np.where(has, float(offset), 0.0)
+    tree = cKDTree(points)
+    direction = np.where(has[:, None], normals, 0.0)
+    for _ in range(5):
+        crowded = np.zeros(len(points), bool)
+        for sign in (-1.0, 1.0):
+            crowded |= tree.query(points + sign * delta[:, None] * direction)[0] < 0.75 * delta - 1e-12
+        if not crowded.any():
+            break
+        delta[crowded] *= 0.5
+    return delta
+
+
+def fit_contour_rbf(points, normals, *, kernel: str = "linear", offset: float = 4.0,
+                    smoothing: float = 0.0, interior=None) -> ContourRBF:
+    """Polyharmonic RBF implicit of contour points with (in-plane) outward normals (Carr et al. 2001).
+
+    f is 0 on the points and +delta_i (inside) / -delta_i (outside) at p_i -/+ delta_i n_i, with delta_i from
+    :func:`off_surface_offsets` (``offset``, halved where another point is near), so that no off-surface point passes
+    another sample; an off-surface point closer than delta_i / 2 to another centre (contours that cross or hook
+    into each other) is left out.  Points without a normal (NaN) constrain only f = 0.  The system is solved
+    densely (3 n unknowns: about a second for 800 points); a nearly singular one (points repeated within rounding)
+    is refused.
+
+    Parameters
+    ----------
+    points : (n, 3) float64, input units, distinct
+    normals : (n, 3) float64 outward unit normals, NaN rows allowed
+    kernel : "linear" (phi = r, Carr's biharmonic, the default), "cubic" (r^3) or "thin_plate" (r^2 log r)
+    offset : float, input units, the largest off-surface distance
+    smoothing : float >= 0, added to the diagonal of the kernel matrix (0 interpolates), in units of
+        phi(bounding-box diagonal)
+    interior : ((k, 3), (k,)) float64, optional: more points and their values (> 0 inside, about the distance to
+        the surface), e.g. the centre of a valve through which a cavity must open
+
+    Returns
+    -------
+    ContourRBF
+    """
+    points = check_points(points, dims=(3,))
+    kernel = check_choice(kernel, "kernel", KERNELS)
+    offset = check_number(offset, "offset", low=0, low_open=True)
+    smoothing = check_number(smoothing, "smoothing", low=0)
+    normals = np.asarray(normals, dtype=np.float64)
+    if normals.shape != points.shape:
+        raise InvalidInputError(f"normals must have the shape of points {points.shape}, got {normals.shape}")
+    delta = off_surface_offsets(points, normals, offset)
+    has = delta > 0
+    direction = np.where(has[:, None], normals, 0.0)
+    off = np.vstack([points - delta[:, None] * direction, points + delta[:, None] * direction])[np.r_[has, has]]
+    off_values = np.r_[delta, -delta][np.r_[has, has]]
+    # An off-surface point closer than delta / 2 to another centre contradicts it (contours that cross or hook
+    # into each other): leave it out.
+    everything = np.vstack([points, off])
+    clear = (cKDTree(everything).query(off, k=2)[0][:, 1] >= 0.5 * np.abs(off_values))
+    centres = np.vstack([points, off[clear]])
+    values = np.r_[np.zeros(len(points)), off_values[clear]]
+    if interior is not None:
+        extra, extra_values = check_points(interior[0], "interior points", dims=(3,)), np.asarray(interior[1], float)
+        if extra_values.shape != (len(extra),) or not np.isfinite(extra_values).all():
+            raise InvalidInputError(f"interior values must be {len(extra)} finite numbers, got {interior[1]!r}")
+        centres, values = np.vstack([centres, extra]), np.r_[values, extra_values]
+    shift = points.mean(axis=0)
+    scale = float(np.linalg.norm(np.ptp(points, axis=0)))
+    y = (centres - shift) / scale
+    count = len(y)
+    matrix = np.zeros((count + 4, count + 4))
+    matrix[:count, :count] = _kernel(squareform(pdist(y)), kernel)
+    matrix[np.arange(count), np.arange(count)] += smoothing
+    matrix[:count, count] = matrix[count, :count] = 1.0
+    matrix[:count, count + 1:] = y
+    matrix[count + 1:, :count] = y.T
+    right = np.r_[values, np.zeros(4)]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", linalg.LinAlgWarning)   # judged by the residual below
+            solution = linalg.solve(matrix, right, assume_a="sym")
+    except (linalg.LinAlgError, ValueError) as error:
+        solution, reason = None, str(error)
+    else:
+        residual = float(np.abs(matrix @ solution - right).max())
+        reason = f"residual {residual:.3g}"
+        if not residual <= 1e-6 * max(1.0, float(np.abs(values).max())):
+            solution = None
+    if solution is None:
+        raise InvalidInputError(
+            f"the RBF system of {len(points)} contour points cannot be solved ({reason}); are points repeated "
+            "(within rounding), or all in one plane?")
+    return ContourRBF(centres=y, weights=solution[:count], polynomial=solution[count:], kernel=kernel, shift=shift,
+                      scale=scale, points=points)
+
+
+# --- fast evaluation on many points ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class SampledSurface:
+    """An implicit function sampled on a fine grid, exactly near its zero level; trilinear in between.
+
+    The grid is filled coarse to fine (spacings ``spacing`` x 2^levels, ..., x 2, x 1): the coarsest level is
+    evaluated everywhere, each finer level is interpolated from the one before and evaluated exactly only at its
+    nodes within ``band`` x (the coarser spacing) of the zero level.  Away from the surface the values are
+    interpolated (the sign is right; the magnitude about the distance); a bubble of f smaller than a coarse cell
+    may be missed, which is wanted.  Outside the grid, f is at most minus the distance to it.
+
+    Attributes
+    ----------
+    values : (n_x, n_y, n_z) float64, f at ``lower + index * spacing``
+    lower : (3,) float64; spacing : float, input units
+    exact_evaluations : int, how many nodes were evaluated exactly
+    """
+
+    values: np.ndarray
+    lower: np.ndarray
+    spacing: float
+    exact_evaluations: int = 0
+
+    @property
+    def upper(self) -> np.ndarray:
+        return self.lower + (np.array(self.values.shape) - 1) * self.spacing
+
+    @classmethod
+    def sample(cls, function, lower, upper, spacing: float, *, levels: int = 2, band: float = 1.5,
+               max_nodes: int = 1 << 25, progress: ProgressCallback = None) -> SampledSurface:
+        """Sample ``function`` ((m, 3) -> (m,)) over the box [lower, upper] (enlarged to whole coarse cells).
+
+        The spacing grows, if needed, so that the grid has at most ``max_nodes`` nodes (256 MiB of values).
+        """
+        lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+        spacing = max(float(spacing), float(np.prod(upper - lower) / max_nodes) ** (1 / 3))
+        coarse = spacing * 2 ** levels
+        shape = tuple(np.maximum(np.ceil((upper - lower) / coarse).astype(int), 1) + 1)
+        step = coarse
+        values = function(_nodes(lower, step, shape)).reshape(shape)
+        exact = values.size
+        for level in range(levels):
+            report(progress, (level + 1) / (levels + 1), f"sampling the surface: level {level + 1} of {levels}")
+            values = _upsample(values)
+            near = np.flatnonzero(np.abs(values) < band * step)
+            step /= 2
+            where = lower + np.stack(np.unravel_index(near, values.shape), axis=1) * step
+            values.reshape(-1)[near] = function(where)
+            exact += len(near)
+        return cls(values=values, lower=lower, spacing=step, exact_evaluations=exact)
+
+    def __call__(self, x) -> np.ndarray:
+        """(m,) trilinear f at (m, 3) points."""
+        x = np.asarray(x, dtype=np.float64)
+        value = ndimage.map_coordinates(self.values, ((x - self.lower) / self.spacing).T, order=1, mode="nearest")
+        outside = np.flatnonzero(((x < self.lower) | (x > self.upper)).any(axis=1))
+        if len(outside):
+            part = x[outside]
+            beyond = np.linalg.norm(np.maximum(self.lower - part, 0) + np.maximum(part - self.upper, 0), axis=1)
+            value[outside] = np.minimum(value[outside], -beyond)
+        return value
+
+
+def _upsample(values: np.ndarray) -> np.ndarray:
+    """The grid with every cell halved, new nodes linearly interpolated (shape n -> 2 n - 1 per axis)."""
+    for axis in range(values.ndim):
+        moved = np.moveaxis(values, axis, 0)
+        finer = np.empty((2 * len(moved) - 1, *moved.shape[1:]))
+        finer[::2] = moved
+        finer[1::2] = 0.5 * (moved[:-1] + moved[1:])
+        values = np.moveaxis(finer, 0, axis)
+    return np.ascontiguousarray(values)
+
+
+def _nodes(lower, spacing, shape) -> np.ndarray:
+    """(prod(shape), 3) coordinates of the grid nodes, C order (axis 0 is x)."""
+    axes = [lower[d] + np.arange(shape[d]) * spacing for d in range(3)]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+# --- the domain expression -----------------------------------------------------------------------------------------
+
+_TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-z0-9_.:]+)|(?P<op>[-+&()]))")
+
+
+def parse_domain(expression: str, known) -> tuple:
+    """Parse a CSG expression of surface names into a tree.
+
+    Grammar: ``expr := term (('+' | '-') term)*``, ``term := atom ('&' atom)*``, ``atom := NAME | '(' expr ')'``;
+    ``-`` is the difference, ``+`` the union, ``&`` the intersection (binding tighter), left-associative:
+    ``EPI - LV_ENDO - RV_ENDO`` is ``(EPI - LV_ENDO) - RV_ENDO``.  Names are letters, digits, ``_``, ``.``, ``:``.
+
+    Returns
+    -------
+    tree of tuples: ``("name", NAME)`` or ``(op, left, right)`` with op one of ``-``, ``+``, ``&``
+
+    Raises
+    ------
+    InvalidInputError
+        On a syntax error (the message shows where) or a name that is not in ``known`` (the message lists them).
+    """
+    if not isinstance(expression, str) or not expression.strip():
+        raise InvalidInputError(f"domain must be a non-empty expression such as {BIVME_DEFAULT_DOMAIN!r}, got "
+                                f"{expression!r}")
+    known = list(known)
+    tokens, position = [], 0
+    text = expression.rstrip()
+    while position < len(text):
+        match = _TOKEN.match(text, position)
+        if not match:
+            raise InvalidInputError(
+                f"domain {expression!r}: unexpected character {text[position:].lstrip()[:1]!r} at position "
+                f"{len(text[:position]) + len(text[position:]) - len(text[position:].lstrip())}; use surface "
+                "names, '-', '+', '&' and parentheses")
+        tokens.append((match.group("name") and "name" or match.group("op"), match.group("name") or match.group("op"),
+                       match.start(match.lastgroup)))
+        position = match.end()
+    tokens.append(("end", "", len(text)))
+    at = 0
+
+    def fail(message):
+        where = tokens[at][2]
+        raise InvalidInputError(f"domain {expression!r}: {message} at position {where}\n    {expression}\n"
+                                f"    {' ' * where}^")
+
+    def atom():
+        nonlocal at
+        kind, value, _ = tokens[at]
+        if kind == "name":
+            if value not in known:
+                raise InvalidInputError(
+                    f"domain {expression!r} names the unknown surface {value!r}; known surfaces: "
+                    f"{', '.join(known) or '(none)'}")
+            at += 1
+            return ("name", value)
+        if kind == "(":
+            at += 1
+            tree = expr()
+            if tokens[at][0] != ")":
+                fail("expected ')'")
+            at += 1
+            return tree
+        fail("expected a surface name or '('" if kind != "end" else "the expression ends too early")
+
+    def term():
+        nonlocal at
+        tree = atom()
+        while tokens[at][0] == "&":
+            at += 1
+            tree = ("&", tree, atom())
+        return tree
+
+    def expr():
+        nonlocal at
+        tree = term()
+        while tokens[at][0] in "+-" and tokens[at][0] != "end":
+            op = tokens[at][0]
+            at += 1
+            tree = (op, tree, term())
+        return tree
+
+    tree = expr()
+    if tokens[at][0] != "end":
+        fail(f"unexpected {tokens[at][1]!r}")
+    return tree
+
+
+def domain_names(tree) -> list:
+    """The surface names a parsed domain uses, in order of first use."""
+    if tree[0] == "name":
+        return [tree[1]]
+    return list(dict.fromkeys(domain_names(tree[1]) + domain_names(tree[2])))
+
+
+def evaluate_domain(tree, values: dict, min_wall: float = 0.0):
+    """The CSG value of a parsed domain and, per point, the index (into ``values``' keys) of the surface giving it.
+
+    ``A + B = max(f_A, f_B)``, ``A & B = min(f_A, f_B)``, ``A - B = min(f_A, -f_B)``, and with ``min_wall`` = t > 0
+    ``A - B = min(f_A, max(-f_B, min(t - f_A, t + f_A - f_B)))``: a point within t inside A's boundary stays in the
+    domain where B reaches less than t beyond A's boundary (f_B - f_A < t, f_B - f_A being about how far B's
+    boundary lies beyond A's).  Where two independently interpolated surfaces (a thin RV free wall's epicardium
+    and endocardium) cross between slices, the wall keeps the thickness t instead of opening in a hole; where B
+    leaves A by more (a cavity opening through the base), nothing is added.  There the boundary is the offset of
+    A's, attributed to B (the cavity's wall).
+    """
+    names = list(values)
+
+    def walk(node):
+        if node[0] == "name":
+            value = values[node[1]]
+            return value, np.full(len(value), names.index(node[1]))
+        (left, left_source), (right, right_source) = walk(node[1]), walk(node[2])
+        if node[0] == "-":
+            right = -right
+            if min_wall > 0:   # right is -f_B here
+                right = np.maximum(right, np.minimum(min_wall - left, min_wall + left + right))
+        take_right = right > left if node[0] == "+" else right < left
+        return np.where(take_right, right, left), np.where(take_right, right_source, left_source)
+
+    return walk(tree)
+
+
+# --- the base plane ------------------------------------------------------------------------------------------------
+
+def fit_base_plane(valve_points, inside_point):
+    """The least-squares plane of the valve points, its normal pointing away from ``inside_point`` (the apex).
+
+    Returns
+    -------
+    point : (3,) the valve points' centroid; normal : (3,) unit, out of the domain
+    """
+    valve_points = check_points(valve_points, "valve points", dims=(3,))
+    if len(valve_points) < 3:
+        raise InvalidInputError(f"a base plane needs at least 3 valve points, got {len(valve_points)}")
+    centre = valve_points.mean(axis=0)
+    _, spread, axes = np.linalg.svd(valve_points - centre, full_matrices=False)
+    if spread[1] <= 1e-6 * spread[0]:
+        raise InvalidInputError(f"the {len(valve_points)} valve points lie on one line, so they give no base plane; "
+                                "give base_plane=(point, normal)")
+    normal = axes[2]
+    if (np.asarray(inside_point, float) - centre) @ normal > 0:
+        normal = -normal
+    return centre, normal
+
+
+# --- everything together ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class LabelledImplicit:
+    """The domain's f: the CSG of one implicit per surface, cut by the base plane; callable (m, 3) -> (m,).
+
+    Attributes
+    ----------
+    surfaces : name -> callable implicit (f > 0 inside), the surfaces the domain uses
+    tree : the parsed domain (see :func:`parse_domain`); expression : its text
+    base : (point, normal) of the base plane (normal out of the domain), or None
+    min_wall : float, input units, the thinnest wall a difference keeps (see :func:`evaluate_domain`)
+    lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
+    points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
+        where none)
+    fits : name -> the exact implicit of each surface (:class:`ContourRBF`), which ``surfaces`` samples
+    """
+
+    surfaces: dict
+    tree: tuple
+    expression: str
+    base: tuple
+    min_wall: float
+    lower: np.ndarray
+    upper: np.ndarray
+    points: dict
+    normals: dict
+    fits: dict = field(default_factory=dict)
+
+    @property
+    def names(self) -> tuple:
+        """The surface names, then :data:`BASE`: the values of :meth:`active_surface`."""
+        return (*self.surfaces, BASE)
+
+    def _evaluate(self, x):
+        x = check_points(x, "x", dims=(3,))
+        value, source = evaluate_domain(self.tree, {name: function(x) for name, function in self.surfaces.items()},
+                                        self.min_wall)
+        if self.base is not None:
+            below = -(x - self.base[0]) @ self.base[1]
+            cut = below < value
+            value, source = np.where(cut, below, value), np.where(cut, len(self.surfaces), source)
+        return value, source
+
+    def __call__(self, x) -> np.ndarray:
+        """(m,) f at (m, 3) points, > 0 inside the domain."""
+        return self._evaluate(x)[0]
+
+    def active_surface(self, x) -> np.ndarray:
+        """(m,) index into :attr:`names` of the surface (or the base) whose implicit gives f at each point."""
+        return self._evaluate(x)[1]
+
+    def with_min_wall(self, min_wall: float) -> LabelledImplicit:
+        """The same surfaces, with another thinnest wall (input units)."""
+        return replace(self, min_wall=check_number(min_wall, "min_wall", low=0))
+
+
+def boundary_surfaces(mesh, function: LabelledImplicit):
+    """The boundary triangles of a mesh of ``function``'s domain, and the surface each lies on.
+
+    Returns
+    -------
+    facets : (b, 3) int64, boundary triangles oriented out of the domain
+    surface : (b,) int64, index into ``function.names`` (the surfaces, then "BASE") of the implicit active at each
+        triangle's centroid
+    """
+    facets = boundary_facets(np.asarray(mesh.cells))
+    return facets, function.active_surface(np.asarray(mesh.points)[facets].mean(axis=1))
+
+
+def _checked_surfaces(surfaces, labels) -> dict:
+    if surfaces is None:
+        return default_surfaces(labels)
+    if not isinstance(surfaces, dict) or not surfaces:
+        raise InvalidInputError(f"surfaces must map surface names to labels, got {surfaces!r}")
+    checked = {}
+    for name, members in surfaces.items():
+        if not re.fullmatch(r"[A-Za-z0-9_.:]+", str(name)):
+            raise InvalidInputError(f"surface name {name!r} must be letters, digits, '_', '.' or ':'")
+        members = (members,) if isinstance(members, (str, int, np.integer)) else tuple(members)
+        checked[str(name)] = tuple(str(member) for member in members)
+    return checked
+
+
+def _default_domain(surfaces: dict, labels) -> str:
+    if is_bivme(labels):
+        return BIVME_DEFAULT_DOMAIN
+    present = [name for name, members in surfaces.items() if np.isin(labels, members).any()]
+    if len(present) == 1:
+        return present[0]
+    raise InvalidInputError(
+        f"the points have {len(present)} surfaces ({', '.join(present)}): give domain, a CSG expression of them "
+        f"such as {' - '.join(present[:3])!r}")
+
+
+def _base_plane(base_plane, points, labels, surface_points):
+    if base_plane is None or (isinstance(base_plane, str) and base_plane == "none"):
+        return None
+    if isinstance(base_plane, str):
+        check_choice(base_plane, "base_plane", ("auto", "valves", "none"))
+        valves = np.isin(labels, BIVME_VALVES)
+        if base_plane == "auto" and not valves.any():
+            return None
+        if valves.sum() < 3:
+            raise InvalidInputError(
+                f"base_plane='valves' needs at least 3 points labelled {', '.join(BIVME_VALVES)}; the input has "
+                f"{int(valves.sum())}; give base_plane=(point, normal) or base_plane=None")
+        apex = np.isin(labels, BIVME_APEX)
+        inside = points[apex].mean(axis=0) if apex.any() else surface_points.mean(axis=0)
+        return fit_base_plane(points[valves], inside)
+    try:
+        point, normal = (np.asarray(part, dtype=np.float64) for part in base_plane)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"base_plane must be 'valves', 'auto', None or (point, normal), got {base_plane!r}")
+    if point.shape != (3,) or normal.shape != (3,) or not np.isfinite(point).all() or not np.isfinite(normal).all() \
+            or not np.linalg.norm(normal) > 0:
+        raise InvalidInputError(f"base_plane (point, normal) needs two finite 3-vectors, the normal nonzero (it "
+                                f"points out of the domain), got {base_plane!r}")
+    return point, normal / np.linalg.norm(normal)
+
+
+def _distinct(points, index) -> np.ndarray:
+    """``index`` without the points that repeat an earlier one (biv-me repeats some contours; contours on slices
+    that cross share the points on the crossing line), within 1e-6 x the bounding-box diagonal."""
+    tolerance = 1e-6 * float(np.linalg.norm(np.ptp(points[index], axis=0))) if len(index) else 0.0
+    pairs = cKDTree(points[index]).query_pairs(tolerance, output_type="ndarray")
+    keep = np.ones(len(index), bool)
+    keep[pairs.max(axis=1)] = False
+    return index[keep]
+
+
+def _outlet_points(points, labels, valves, wall=0.0):
+    """Per valve label present: the centre of its points and its radius (mean distance of its points to it) plus
+    ``wall``."""
+    centres, radii = [], []
+    for valve in valves:
+        members = points[labels == valve]
+        if len(members) >= 2:
+            centre = members.mean(axis=0)
+            centres.append(centre)
+            radii.append(float(np.linalg.norm(members - centre, axis=1).mean()) + wall)
+    return (np.array(centres), np.array(radii)) if centres else None
+
+
+def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=None, surfaces=None, outlets=None,
+                      kernel: str = "linear", offset: float = 4.0, smoothing: float = 0.0, base_offset: float = 0.0,
+                      min_wall: float = 2.5,
+                      gap_factor: float = GAP_FACTOR, resolution=None, progress: ProgressCallback = None):
+    """The implicit function of a domain bounded by several labelled contour surfaces.
+
+    Parameters
+    ----------
+    points : (n, 3) float64, contour points, input units (mm)
+    labels : (n,) str or int, the contour label of each point
+    domain : str, CSG expression of surface names (``-``, ``+``, ``&``, parentheses); default: for biv-me labels
+        :data:`BIVME_DEFAULT_DOMAIN`, else the only surface
+    base_plane : "auto" (the valve plane when valve points are present, else none), "valves" (the least-squares
+        plane of the biv-me valve points, the apex inside), None (no cut), or (point, normal) with the normal
+        pointing out of the domain
+    slices : (n,) int slice id per point (a GPFile's frameID), or None to find them (:func:`infer_slices`)
+    surfaces : dict name -> labels, default :func:`default_surfaces`
+    outlets : dict surface name -> valve labels through which that cavity opens (see :data:`BIVME_OUTLETS`, the
+        default for biv-me labels; {} for none)
+    kernel, offset, smoothing : of :func:`fit_contour_rbf`
+    base_offset : float, input units, moves the base plane along its normal (> 0: away from the apex)
+    min_wall : float, input units, the thinnest wall between a surface and what is subtracted from it (see
+        :func:`evaluate_domain`); 0 lets walls open where the surfaces cross
+    gap_factor : float, of :func:`contour_normals`
+    resolution : float, input units, the spacing of the grid each surface is sampled on (:class:`SampledSurface`);
+        default 0.35 x the median spacing of the surface's points (1 mm for contours traced on 1.4 mm pixels), at
+        least 1/400 of its bounding-box diagonal
+    progress : callable(fraction, message), optional
+
+    Returns
+    -------
+    f : LabelledImplicit, callable (m, 3) -> (m,), f > 0 inside
+    lower, upper : (3,) float64, a box holding the domain (for ``pipeline.implicit_grid``)
+    """
+    points = check_points(points, dims=(3,))
+    labels = _as_labels(labels, len(points))
+    surfaces = _checked_surfaces(surfaces, labels)
+    expression = _default_domain(surfaces, labels) if domain is None else domain
+    tree = parse_domain(expression, surfaces)
+    used = domain_names(tree)
+    for name in used:
+        if not np.isin(labels, surfaces[name]).any():
+            present = ", ".join(f"{label} ({count})" for label, count in zip(*np.unique(labels, return_counts=True)))
+            raise InvalidInputError(
+                f"surface {name} needs points labelled {' or '.join(surfaces[name])}, and the input has none; "
+                f"labels present: {present}")
+    if slices is None:
+        report(progress, 0.0, "finding the slice planes")
+        slices = infer_slices(points)
+    else:
+        slices = np.asarray(slices)
+        if slices.shape != (len(points),) or slices.dtype.kind not in "iu":
+            raise InvalidInputError(f"slices must hold one integer id per point ({len(points)}), got shape "
+                                    f"{slices.shape} of {slices.dtype}")
+        slices = np.where(slices >= 0, slices, -1).astype(np.int64)
+    planes = slice_planes(points, slices)
+    outlets = (BIVME_OUTLETS if is_bivme(labels) else {}) if outlets is None else dict(outlets)
+    in_any = np.isin(labels, [label for name in used for label in surfaces[name]])
+    base = _base_plane(base_plane, points, labels, points[in_any])
+    if base is not None:
+        base = (base[0] + check_number(base_offset, "base_offset") * base[1], base[1])
+
+    functions, surface_points, surface_normals, fits = {}, {}, {}, {}
+    for number, name in enumerate(used):
+        report(progress, 0.05 + 0.9 * number / len(used), f"fitting surface {name}")
+        index = _distinct(points, np.flatnonzero(np.isin(labels, surfaces[name])))
+        if len(index) < 10:
+            raise InvalidInputError(f"surface {name} has {len(index)} distinct points; it needs at least 10")
+        spread = np.linalg.svd(points[index] - points[index].mean(axis=0), compute_uv=False)
+        if spread[2] <= 1e-6 * spread[0]:
+            raise InvalidInputError(
+                f"the contours of surface {name} all lie in one plane, so they enclose no volume; it needs "
+                "contours on at least two slices")
+        normals = contour_normals(points[index], slices[index], planes, gap_factor=gap_factor, name=name)
+        interior = _outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
+        rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
+                              interior=interior)
+        diagonal = float(np.linalg.norm(np.ptp(points[index], axis=0)))
+        if resolution is None:
+            spacing = float(np.median(cKDTree(points[index]).query(points[index], k=2)[0][:, 1]))
+            step = max(0.35 * spacing, diagonal / 400)
+        else:
+            step = check_number(resolution, "resolution", low=0, low_open=True)
+        margin = 0.15 * np.ptp(points[index], axis=0) + 4 * step
+        functions[name] = SampledSurface.sample(
+            rbf, points[index].min(axis=0) - margin, points[index].max(axis=0) + margin, step,
+            progress=sub_progress(progress, 0.05 + 0.9 * (number + 0.3) / len(used), 0.05 + 0.9 * (number + 1) / len(used)))
+        surface_points[name], surface_normals[name], fits[name] = points[index], normals, rbf
+    function = LabelledImplicit(surfaces=functions, tree=tree, expression=expression, base=base,
+                                min_wall=check_number(min_wall, "min_wall", low=0), lower=points[in_any].min(axis=0),
+                                upper=points[in_any].max(axis=0), points=surface_points, normals=surface_normals,
+                                fits=fits)
+    lower, upper = _domain_box(function)
+    report(progress, 1.0, "surfaces fitted")
+    function = replace(function, lower=lower, upper=upper)
+    return function, lower, upper
+
+
+def _domain_box(function: LabelledImplicit):
+    """The box of the nodes with f > 0 of a grid over the surfaces' grids (4 x their spacing), one step larger.
+
+    Raises InvalidInputError when no node is inside: the surfaces enclose nothing, or the domain is empty.
+    """
+    grids = list(function.surfaces.values())
+    lower = np.min([grid.lower for grid in grids], axis=0)
+    upper = np.max([grid.upper for grid in grids], axis=0)
+    step = 4 * min(grid.spacing for grid in grids)
+    shape = tuple(np.ceil((upper - lower) / step).astype(int) + 1)
+    nodes = _nodes(lower, step, shape)
+    inside = np.zeros(len(nodes), bool)
+    for start in range(0, len(nodes), 1 << 18):
+        inside[start:start + (1 << 18)] = function(nodes[start:start + (1 << 18)]) > 0
+    if not inside.any():
+        raise InvalidInputError(
+            f"the domain {function.expression!r} is empty: no point is inside it"
+            + (" below the base plane" if function.base is not None else "")
+            + "; check that the contours enclose the regions the expression combines (and the base plane's side)")
+    return nodes[inside].min(axis=0) - step, nodes[inside].max(axis=0) + step
+
+
+# --- meshing -------------------------------------------------------------------------------------------------------
+
+#: the thinnest wall is at least this x R (so that a wall is about one cell thick) when min_wall is not given.
+WALL_PER_RADIUS = 1.25
+#: and at least this (input units): the RV free wall of adult hearts is 2 to 5 mm thick.
+MIN_WALL = 2.5
+
+
+@dataclass(frozen=True, eq=False)
+class LabelledMeshingResult(MeshingResult):
+    """A :class:`~bitemesh.core.pipeline.MeshingResult` and the domain's implicit function (for
+    :func:`boundary_surfaces`)."""
+
+    function: LabelledImplicit = None
+
+
+def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
+                 implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
+                 spurious: SpuriousParameters | None = None, progress: ProgressCallback = None,
+                 **options) -> LabelledMeshingResult:
+    """Every step on labelled contour points: :func:`labelled_implicit`, then the pipeline's ``implicit_grid`` and
+    ``mesh_from_grid``.
+
+    R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain (as
+    ``implicit_grid`` does); parameters left None take their defaults; ``min_wall`` defaults to the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS`
+    x R, so that no wall is thinner than about one cell (a thinner wall would open in holes).  ``implicit`` gives
+    the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``options`` go to
+    :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
+    """
+    implicit = ImplicitParameters() if implicit is None else implicit
+    biting = BitingParameters() if biting is None else biting
+    spurious = SpuriousParameters() if spurious is None else spurious
+    seconds = {}
+    with timed(seconds, "implicit fit"):
+        function, lower, upper = labelled_implicit(points, labels, domain, base_plane, slices=slices,
+                                                   surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
+                                                   else min_wall, progress=sub_progress(progress, 0.0, 0.3),
+                                                   **options)
+    with timed(seconds, "implicit sampling"):
+        radius = biting.radius
+        if radius is None:
+            size = float(np.max(upper - lower))
+            coarse = max(size / COARSE_GRID_NODES, implicit.grid_spacing or 0.0)
+            volume = sample_function(function, lower, upper, coarse, margin=2 * coarse,
+                                     max_memory_mb=implicit.max_memory_mb).inside_volume()
+            radius = radius_for_cells(volume, biting.cells, 3)
+        if min_wall is None:
+            function = function.with_min_wall(max(MIN_WALL, WALL_PER_RADIUS * radius))
+        grid, radius = implicit_grid(function, lower, upper, implicit, radius, biting.cells,
+                                     progress=sub_progress(progress, 0.3, 0.5))
+    fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
+    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.5, 1.0), seconds)
+    return LabelledMeshingResult(mesh=result.mesh, implicit=result.implicit, nodes=result.nodes, radius=result.radius,
+                                 seconds=result.seconds, function=function)
+
+
+def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, radius=None,
+                              cells=10000, min_wall=None, grid_spacing=None, margin=None, max_memory_mb=4096.0,
+                              threshold=0.4, min_component=0.01, order="boundary", seed=0,
+                              progress: ProgressCallback = None, **options) -> Mesh:
+    """A valid tetrahedral mesh of the domain bounded by labelled contour surfaces (a biv-me GPFile's myocardium).
+
+    Parameters
+    ----------
+    points : (n, 3) float64, contour points (mm); labels : (n,) str or int, one per point
+    domain, base_plane, slices : as for :func:`labelled_implicit` (default for biv-me labels: the two-cavity
+        myocardium ``EPI - LV_ENDO - RV_ENDO`` below the valve plane)
+    radius : R, node spacing (input units); default: chosen for about ``cells`` cells
+    min_wall : float, input units, the thinnest wall; default max(2.5, 1.25 R) (see :func:`run_labelled`)
+    The other parameters are those of :func:`bitemesh.core.pipeline.mesh_from_points` (grid and biting) and of
+    :func:`labelled_implicit` (``options``: kernel, offset, surfaces, outlets, base_offset, resolution, ...).
+
+    Returns
+    -------
+    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
+    """
+    return run_labelled(points, labels, domain=domain, base_plane=base_plane, slices=slices, min_wall=min_wall,
+                        implicit=ImplicitParameters(grid_spacing=grid_spacing, margin=margin,
+                                                    max_memory_mb=max_memory_mb),
+                        biting=BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
+                        spurious=SpuriousParameters(threshold=threshold, min_component=min_component),
+                        progress=progress, **options).mesh

@@ -1,0 +1,314 @@
+"""Labelled points: the biv-me GPFile and generic CSV / VTP readers, and the real patient meshed as the two-cavity
+myocardium (bitemesh.core.labelled on the data of ../shared/data/bivme_patient1)."""
+from __future__ import annotations
+
+from functools import cache
+from pathlib import Path
+
+import bitemesh
+import numpy as np
+import pytest
+from bitemesh.core import labelled
+from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.parameters import BitingParameters
+from bitemesh.io import read_labelled_points
+from scipy.spatial import cKDTree
+
+from tests.meshcheck import assert_valid_domain
+
+#: the label counts of GPFile_000.txt (its SOURCE.md)
+GPFILE_COUNTS = {"SAX_LV_ENDOCARDIAL": 233, "SAX_LV_EPICARDIAL": 216, "SAX_RV_FREEWALL": 186, "SAX_RV_SEPTUM": 87,
+                 "SAX_RV_EPICARDIAL": 228, "LAX_LV_ENDOCARDIAL": 208, "LAX_LV_EPICARDIAL": 200,
+                 "LAX_RV_FREEWALL": 130, "LAX_RV_SEPTUM": 70, "LAX_RV_EPICARDIAL": 233, "RV_INSERT": 10,
+                 "MITRAL_VALVE": 6, "AORTA_VALVE": 2, "PULMONARY_VALVE": 2, "TRICUSPID_VALVE": 2, "APEX_POINT": 1}
+PACKAGED = Path(bitemesh.__file__).resolve().parent / "data" / "bivme_patient1"
+
+
+def gpfile(shared_data) -> Path:
+    return shared_data / "bivme_patient1" / "GPFile_000.txt"
+
+
+# --- reading ------------------------------------------------------------------------------------------------------
+
+def test_the_gpfile_reads_with_its_label_counts_and_slices(shared_data):
+    points, labels, slices = read_labelled_points(gpfile(shared_data), slices=True)
+    assert points.shape == (1814, 3) and points.dtype == np.float64
+    assert dict(zip(*np.unique(labels, return_counts=True))) == GPFILE_COUNTS
+    assert sorted(np.unique(slices).tolist()) == [2, 3, 4, 5, 6, 7, 8, 9, 11]
+    assert points[0].tolist() == [-42.09469, -25.37305, -29.46908] and labels[0] == "SAX_RV_FREEWALL"
+    assert (points.min(axis=0) > [-75, -37, -114]).all() and (points.max(axis=0) < [58, 57, 7]).all()
+    same_points, same_labels = read_labelled_points(gpfile(shared_data))
+    assert np.array_equal(same_points, points) and np.array_equal(same_labels, labels)
+
+
+def test_the_package_ships_the_gpfile_with_its_licence(shared_data):
+    assert (PACKAGED / "GPFile_000.txt").read_bytes() == gpfile(shared_data).read_bytes()
+    assert (PACKAGED / "LICENSE.biv-me").read_bytes() == (shared_data / "bivme_patient1" / "LICENSE.biv-me").read_bytes()
+    assert "Apache" in (PACKAGED / "SOURCE.md").read_text()
+
+
+@pytest.mark.parametrize("separator", [",", ";", "\t", " "])
+def test_a_csv_with_integer_labels_and_a_header_reads(tmp_path, separator):
+    path = tmp_path / "contours.csv"
+    rows = ["x y z label slice".replace(" ", separator), "1.5 2 3 1 7", "4 5 6 2 7", "7 8 9.25 2.0 8"]
+    path.write_text("# exported contours\n" + "\n".join(row.replace(" ", separator) for row in rows) + "\n")
+    points, labels, slices = read_labelled_points(path, slices=True)
+    assert points.tolist() == [[1.5, 2, 3], [4, 5, 6], [7, 8, 9.25]]
+    assert labels.tolist() == ["1", "2", "2"] and slices.tolist() == [7, 7, 8]
+
+
+def test_a_headerless_csv_with_string_labels_and_named_columns_in_any_order(tmp_path):
+    path = tmp_path / "plain.txt"
+    path.write_text("0 0 0 EPI\n1 0 0 LV_ENDO\n")
+    points, labels, slices = read_labelled_points(path, slices=True)
+    assert labels.tolist() == ["EPI", "LV_ENDO"] and slices is None and points[1].tolist() == [1, 0, 0]
+    path = tmp_path / "reordered.csv"
+    path.write_text("Surface,Z,Y,X\nRV,3,2,1\n")
+    points, labels = read_labelled_points(path)
+    assert points.tolist() == [[1, 2, 3]] and labels.tolist() == ["RV"]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("x,y,z\n1,2,3\n", r"the header \['x', 'y', 'z'\] names no label column"),
+    ("x,y,z,label\n1,2,3,EPI\n1,two,3,EPI\n", r"line 3 has the coordinate 'two', not a number"),
+    ("x,y,z,label\n1,2,3,EPI\n1,2,3\n", r"line 3 has 3 fields, the header has 4"),
+    ("1 2 3\n", r"line 1 has 3 fields; a labelled point needs x y z label \[slice\]"),
+    ("x,y,z,label\n", r"the file has a header but no points"),
+    ("x,y,z,label\n1,2,3, \n", r"1 points have an empty label"),
+    ("x,y,z,label,slice\n1,2,3,A,first\n", r"line 2 has the slice id 'first', not an integer"),
+    ("x,y,z,label\n1,2,nan,A\n", r"NaN or infinite"),
+])
+def test_a_bad_labelled_table_says_which_line(tmp_path, text, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(InvalidInputError, match=message):
+        read_labelled_points(path)
+
+
+def test_missing_empty_and_unknown_files_are_refused(tmp_path):
+    with pytest.raises(InvalidInputError, match="does not exist"):
+        read_labelled_points(tmp_path / "absent.txt")
+    (tmp_path / "empty.csv").write_text("")
+    with pytest.raises(InvalidInputError, match="the file is empty"):
+        read_labelled_points(tmp_path / "empty.csv")
+    (tmp_path / "points.xyz").write_text("1 2 3 A\n")
+    with pytest.raises(InvalidInputError, match=r"unknown extension '.xyz'"):
+        read_labelled_points(tmp_path / "points.xyz")
+
+
+def write_vtp(path, points, arrays):
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
+    from vtkmodules.vtkCommonDataModel import vtkPolyData
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
+
+    data = vtkPolyData()
+    vtk_points = vtkPoints()
+    vtk_points.SetData(numpy_to_vtk(np.ascontiguousarray(points, dtype=np.float64), deep=True))
+    data.SetPoints(vtk_points)
+    for name, values in arrays.items():
+        values = np.asarray(values)
+        if values.dtype.kind == "U":
+            array = vtkStringArray()
+            for value in values:
+                array.InsertNextValue(str(value))
+        else:
+            array = numpy_to_vtk(values, deep=True)
+        array.SetName(name)
+        data.GetPointData().AddArray(array)
+    writer = vtkXMLPolyDataWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(data)
+    assert writer.Write() == 1
+
+
+@pytest.mark.parametrize("labels, expected", [
+    (np.array([3, 1, 3], dtype=np.int32), ["3", "1", "3"]),
+    (np.array(["EPI", "LV_ENDO", "EPI"]), ["EPI", "LV_ENDO", "EPI"]),
+])
+def test_a_vtp_with_a_label_array_reads(tmp_path, labels, expected):
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.5]])
+    write_vtp(tmp_path / "labelled.vtp", points, {"Label": labels, "Slice": np.array([0, 0, 4], dtype=np.int64)})
+    read, read_labels, slices = read_labelled_points(tmp_path / "labelled.vtp", slices=True)
+    assert np.array_equal(read, points) and read_labels.tolist() == expected and slices.tolist() == [0, 0, 4]
+
+
+def test_a_vtp_without_a_label_array_names_its_arrays(tmp_path):
+    write_vtp(tmp_path / "unlabelled.vtp", np.eye(3), {"Region": np.array([1, 2, 3], dtype=np.int32)})
+    with pytest.raises(InvalidInputError, match=r"no one-component point array named 'Label' \(point arrays "
+                                                r"present: Region\)"):
+        read_labelled_points(tmp_path / "unlabelled.vtp")
+
+
+# --- the real heart ------------------------------------------------------------------------------------------------
+
+def point_triangle_distance(p, triangles):
+    """(m,) distance from points p (m, 3) to triangles (m, 3, 3): the plane if the foot falls inside, else edges."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    normal = np.cross(b - a, c - a)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    height = np.einsum("ij,ij->i", p - a, normal)
+    foot = p - height[:, None] * normal
+    inside = np.ones(len(p), bool)
+    for start, end in ((a, b), (b, c), (c, a)):
+        inside &= np.einsum("ij,ij->i", np.cross(end - start, foot - start), normal) >= 0
+    edges = []
+    for start, end in ((a, b), (b, c), (c, a)):
+        t = np.clip(np.einsum("ij,ij->i", p - start, end - start) / np.einsum("ij,ij->i", end - start, end - start),
+                    0, 1)
+        edges.append(np.linalg.norm(p - (start + t[:, None] * (end - start)), axis=1))
+    return np.where(inside, np.abs(height), np.min(edges, axis=0))
+
+
+def distance_to_surface(points, vertices, facets, candidates=24):
+    """(m,) distance from each point to the nearest of the triangles (by the triangles with the nearest centroids)."""
+    k = min(candidates, len(facets))
+    _, near = cKDTree(vertices[facets].mean(axis=1)).query(points, k=k)
+    near = near.reshape(len(points), k)
+    triangles = vertices[facets[near.ravel()]]
+    return point_triangle_distance(np.repeat(points, k, axis=0), triangles).reshape(-1, k).min(axis=1)
+
+
+@cache
+def heart(path: str, cells: int):
+    points, labels, slices = read_labelled_points(path, slices=True)
+    return labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells))
+
+
+def guide_point_distances(result):
+    """Per surface, each of its contour points below the base plane to the boundary triangles of that surface."""
+    function = result.function
+    facets, surface = labelled.boundary_surfaces(result.mesh, function)
+    distances = {}
+    for number, (name, points) in enumerate(function.points.items()):
+        below = (points - function.base[0]) @ function.base[1] < 0
+        distances[name] = distance_to_surface(points[below], result.mesh.points, facets[surface == number])
+    return distances
+
+
+def check_heart(result, source, *, mean_bound, max_bound):
+    function = result.function
+    assert function.expression == labelled.BIVME_DEFAULT_DOMAIN
+    assert function.names == ("EPI", "LV_ENDO", "RV_ENDO", "BASE")
+    assert_valid_domain(result.mesh, components=1, mean_quality=0.75)
+    distances = guide_point_distances(result)
+    every = np.concatenate(list(distances.values()))
+    print(f"{len(result.mesh.cells)} cells: guide points mean {every.mean():.3f} mm, max {every.max():.3f} mm")
+    assert len(every) > 1600   # of 1,702 distinct contour points, those below the valve plane
+    assert every.mean() <= mean_bound and every.max() <= max_bound, (every.mean(), every.max())
+    # the myocardium (not the blood pools): deep inside each cavity (the centre of its short-axis contour in the
+    # third short-axis slice, frameID 4) is outside the mesh
+    volume = result.mesh.cell_data["Volume"].sum()
+    assert 140e3 < volume < 210e3   # mm^3
+    points, labels, slices = read_labelled_points(source, slices=True)
+    for name in ("LV_ENDO", "RV_ENDO"):
+        centre = points[np.isin(labels, labelled.BIVME_SURFACES[name]) & (slices == 4)].mean(axis=0)
+        assert function.surfaces[name](centre[None])[0] > 4 and function(centre[None])[0] < 0
+        assert not located(result.mesh, centre)
+
+
+def located(mesh, point, candidates=64):
+    """True when the point lies in one of the tetrahedra with the nearest centroids."""
+    corners = mesh.points[mesh.cells]
+    _, near = cKDTree(corners.mean(axis=1)).query(point, k=candidates)
+    edges = (corners[near, 1:] - corners[near, :1]).transpose(0, 2, 1)
+    local = np.linalg.solve(edges, (point - corners[near, 0])[..., None])[..., 0]
+    return bool(((local >= -1e-9).all(axis=1) & (local.sum(axis=1) <= 1 + 1e-9)).any())
+
+
+def test_the_patient_meshes_as_one_valid_myocardium_near_its_contours(shared_data):
+    """40,000 cells (R about 2.8 mm): valid, one part, the contour points within 1 mm on average."""
+    result = heart(str(gpfile(shared_data)), 40000)
+    check_heart(result, gpfile(shared_data), mean_bound=1.0, max_bound=6.0)
+
+
+@pytest.mark.slow
+def test_the_patient_at_136000_cells_meets_the_goals(shared_data):
+    """The paper's heart size: contour points within 1 mm on average and 3 mm at most, mean radius ratio >= 0.78."""
+    result = heart(str(gpfile(shared_data)), 136000)
+    check_heart(result, gpfile(shared_data), mean_bound=1.0, max_bound=3.0)
+    assert result.mesh.cell_data["RadiusRatio"].mean() >= 0.78
+    assert len(result.mesh.cells) > 110000
+
+
+# --- bad real input -------------------------------------------------------------------------------------------------
+
+def test_a_gpfile_without_rv_labels_names_the_missing_surface(shared_data):
+    points, labels, slices = read_labelled_points(gpfile(shared_data), slices=True)
+    keep = ~np.isin(labels, ["SAX_RV_FREEWALL", "LAX_RV_FREEWALL", "SAX_RV_SEPTUM", "LAX_RV_SEPTUM"])
+    with pytest.raises(InvalidInputError, match=r"surface RV_ENDO needs points labelled SAX_RV_FREEWALL or "
+                                                r"LAX_RV_FREEWALL or SAX_RV_SEPTUM or LAX_RV_SEPTUM or .*, and the "
+                                                r"input has none; labels present: AORTA_VALVE \(2\)"):
+        labelled.labelled_implicit(points[keep], labels[keep], slices=slices[keep])
+    # an LV-only domain needs none of them
+    lv_only = ~np.isin(labels, ["SAX_RV_FREEWALL", "LAX_RV_FREEWALL"])
+    function, _, _ = labelled.labelled_implicit(points[lv_only], labels[lv_only], "LV_EPI - LV_ENDO",
+                                                slices=slices[lv_only])
+    assert function.names == ("LV_EPI", "LV_ENDO", "BASE")
+
+
+def test_a_domain_naming_an_unknown_surface_lists_the_biv_me_surfaces(shared_data):
+    points, labels = read_labelled_points(gpfile(shared_data))
+    with pytest.raises(InvalidInputError, match=r"names the unknown surface 'RV'; known surfaces: EPI, LV_ENDO, "
+                                                r"RV_ENDO, LV_EPI"):
+        labelled.labelled_implicit(points, labels, "EPI - LV_ENDO - RV")
+
+
+def test_a_contour_that_encloses_nothing_is_named(shared_data):
+    """The LV endocardium of slice 4 replaced by a straight line of points in that slice."""
+    points, labels, slices = read_labelled_points(gpfile(shared_data), slices=True)
+    contour = np.flatnonzero((labels == "SAX_LV_ENDOCARDIAL") & (slices == 4))
+    start, end = points[contour[0]], points[contour[len(contour) // 2]]
+    points[contour] = start + np.linspace(0, 1, len(contour))[:, None] * (end - start)
+    with pytest.raises(InvalidInputError, match=r"the contour of LV_ENDO in slice 4 encloses no area"):
+        labelled.labelled_implicit(points, labels, slices=slices)
+
+
+# --- the config file ------------------------------------------------------------------------------------------------
+
+def test_a_json_or_toml_config_gives_the_domain_settings(tmp_path):
+    from bitemesh.io import read_labelled_config
+
+    (tmp_path / "lv.json").write_text(
+        '{"surfaces": {"EPI": ["SAX_LV_EPICARDIAL", "SAX_RV_SEPTUM"], "LV_ENDO": "SAX_LV_ENDOCARDIAL"}, '
+        '"domain": "EPI - LV_ENDO", "base_plane": {"point": [0, 0, 1], "normal": [0, 0, 2]}, "min_wall": 2}')
+    assert read_labelled_config(tmp_path / "lv.json") == {
+        "surfaces": {"EPI": ["SAX_LV_EPICARDIAL", "SAX_RV_SEPTUM"], "LV_ENDO": ["SAX_LV_ENDOCARDIAL"]},
+        "domain": "EPI - LV_ENDO", "base_plane": ([0, 0, 1], [0, 0, 2]), "min_wall": 2.0}
+    (tmp_path / "heart.toml").write_text('domain = "EPI - LV_ENDO - RV_ENDO"\nbase_plane = "none"\n'
+                                         'base_offset = -2.5\n[outlets]\nLV_ENDO = ["MITRAL_VALVE"]\n')
+    assert read_labelled_config(tmp_path / "heart.toml") == {
+        "domain": "EPI - LV_ENDO - RV_ENDO", "base_plane": None, "base_offset": -2.5,
+        "outlets": {"LV_ENDO": ["MITRAL_VALVE"]}}
+
+
+@pytest.mark.parametrize("text, message", [
+    ('{"domian": "EPI"}', r"unknown key\(s\) domian; known keys: domain, surfaces"),
+    ('{"min_wall": "thick"}', r"min_wall must be number, got 'thick'"),
+    ('{"base_plane": [0, 0, 1]}', r"base_plane must be 'auto', 'valves', 'none', null or \{point"),
+    ('{"surfaces": {"EPI": []}}', r"surfaces must be \{name: \[labels\]\}"),
+    ('{"domain": "EPI"', r"cannot read a labelled-domain config from .*Expecting"),
+    ('["EPI"]', r"must hold a table"),
+])
+def test_a_bad_config_says_what_is_wrong(tmp_path, text, message):
+    from bitemesh.io import read_labelled_config
+
+    (tmp_path / "bad.json").write_text(text)
+    with pytest.raises(InvalidInputError, match=message):
+        read_labelled_config(tmp_path / "bad.json")
+
+
+def test_labelled_files_are_told_from_plain_points(tmp_path, shared_data):
+    from bitemesh.io import looks_labelled
+
+    assert looks_labelled(gpfile(shared_data))
+    (tmp_path / "a.csv").write_text("x,y,z,label\n1,2,3,EPI\n")
+    (tmp_path / "b.txt").write_text("1 2 3 4\n")          # x y nx ny: plain points
+    (tmp_path / "c.txt").write_text("# c\n1 2 3 LV\n")
+    (tmp_path / "d.csv").write_text("x,y,z,nx,ny,nz\n1,2,3,0,0,1\n")
+    assert [looks_labelled(tmp_path / name) for name in ("a.csv", "b.txt", "c.txt", "d.csv")] == [True, False, True,
+                                                                                                False]
+    write_vtp(tmp_path / "l.vtp", np.eye(3), {"Label": np.array([1, 2, 2], dtype=np.int32)})
+    write_vtp(tmp_path / "p.vtp", np.eye(3), {})
+    assert looks_labelled(tmp_path / "l.vtp") and not looks_labelled(tmp_path / "p.vtp")
+    assert not looks_labelled(tmp_path / "absent.csv") and not looks_labelled(tmp_path / "x.stl")
