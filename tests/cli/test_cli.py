@@ -284,7 +284,7 @@ def test_quality_bins_zero_is_one_line(reference, tmp_path, capsys):
 
 def test_demo_meshes_the_die(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    assert cli.build_parser().parse_args(["demo"]).output == "die.vtu"
+    assert cli.build_parser().parse_args(["demo"]).dataset == "die"   # written to die.vtu by default
     code = cli.main(["demo", "-o", "die.vtu"])
     out, err = capsys.readouterr()
     assert_no_traceback(err)
@@ -628,3 +628,21 @@ def test_a_label_map_file_is_meshed_in_its_physical_space(tmp_path, capsys):
     np.testing.assert_allclose(mesh.points.mean(axis=0), [10 + 9.75, -5 + 9.75, 3 + 9.75], atol=0.3)
     assert cli.main(["mesh", str(path), "-o", str(output), "--label", "7"]) == 1
     assert "label" in capsys.readouterr().err
+
+
+def test_a_gpfile_meshes_as_the_two_cavity_myocardium_without_flags(shared_data, tmp_path, capsys):
+    gpfile = shared_data / "bivme_patient1" / "GPFile_000.txt"
+    output = tmp_path / "heart.vtu"
+    assert cli.main(["mesh", str(gpfile), "-o", str(output), "--cells", "20000"]) == 0
+    mesh = read_mesh(output)
+    assert_valid_domain(mesh, components=1)
+    assert 120e3 < mesh.cell_data["Volume"].sum() < 220e3            # mm^3: a myocardium of about 170 ml
+    assert cli.main(["mesh", str(gpfile), "-o", str(output), "--domain", "EPI - AORTA"]) == 1
+    assert "AORTA" in capsys.readouterr().err
+
+
+def test_demo_heart_meshes_the_shipped_guide_points(tmp_path, capsys):
+    output = tmp_path / "heart.vtu"
+    assert cli.main(["demo", "heart", "--cells", "20000", "-o", str(output)]) == 0
+    assert_valid_domain(read_mesh(output), components=1)
+    assert "biv-me" in capsys.readouterr().out

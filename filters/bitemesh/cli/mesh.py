@@ -5,7 +5,7 @@ from ..core.errors import InvalidInputError
 from ..core.parameters import OptimizeParameters
 from ..core.pipeline import run as run_pipeline
 from ..core.quality import quality_summary
-from ..io import read_points, write_mesh
+from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points, write_mesh
 from ..labelmap import LABEL_MAP_EXTENSIONS
 from .options import ProgressBar, add_parameter_options, check_output, parameters_from_args, print_timings
 
@@ -21,6 +21,11 @@ def add_parser(subcommands) -> None:
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_parameter_options(parser)
     add_optimize_options(parser)
+    contours = parser.add_argument_group("labelled contours (a biv-me GPFile, a table or VTP with a Label)")
+    contours.add_argument("--domain", metavar="EXPR",
+                          help='CSG of the labelled surfaces, e.g. "EPI - LV_ENDO - RV_ENDO" (- difference, + union, '
+                               '& intersection, parentheses); default for a GPFile: the two-cavity myocardium')
+    contours.add_argument("--config", metavar="FILE", help="a JSON or TOML file with the domain and its options")
     labels = parser.add_argument_group("label maps")
     labels.add_argument("--label", type=int, action="append", metavar="N",
                         help="a label of the domain (repeat for a union); default every nonzero label")
@@ -45,9 +50,13 @@ def run(args) -> None:
     check_output(args.output)
     bar = ProgressBar()
     try:
-        result = mesh_label_map(args, bar) if args.input.lower().endswith(LABEL_MAP_EXTENSIONS) else \
-            run_pipeline(*read_points(args.input), *parameters_from_args(args), progress=bar,
-                         optimize=optimize_parameters(args))
+        if args.input.lower().endswith(LABEL_MAP_EXTENSIONS):
+            result = mesh_label_map(args, bar)
+        elif args.domain or args.config or looks_labelled(args.input):
+            result = mesh_labelled_points(args, bar)
+        else:
+            result = run_pipeline(*read_points(args.input), *parameters_from_args(args), progress=bar,
+                                  optimize=optimize_parameters(args))
     finally:
         bar.close()
     write_mesh(result.mesh, args.output)
@@ -66,3 +75,17 @@ def mesh_label_map(args, progress):
                           cells=biting.cells, grid_spacing=implicit.grid_spacing, ras=args.ras, order=biting.order,
                           seed=biting.seed, threshold=spurious.threshold, min_component=spurious.min_component,
                           max_memory_mb=implicit.max_memory_mb, progress=progress)
+
+
+def mesh_labelled_points(args, progress, path=None):
+    """Labelled contour points (``path``, default the input) to the mesh of the domain of ``--domain``."""
+    from ..core.labelled import run_labelled
+    if args.optimize:
+        raise InvalidInputError("--optimize is not available for labelled contours yet; mesh without it")
+    points, labels, slices = read_labelled_points(path or args.input, slices=True)
+    options = read_labelled_config(args.config) if args.config else {}
+    if args.domain:
+        options["domain"] = args.domain
+    implicit, biting, spurious = parameters_from_args(args)
+    return run_labelled(points, labels, slices=slices, implicit=implicit, biting=biting, spurious=spurious,
+                        progress=progress, **options)
