@@ -138,15 +138,8 @@ class DelaunayTetra(BitemeshAlgorithm):
         mesh_to_unstructured(Mesh(nodes, delaunay(nodes)), vtkUnstructuredGrid.GetData(outInfo))
 
 
-@with_parameters(SpuriousParameters)
-class SpuriousCellFilter(BitemeshAlgorithm):
-    """All Delaunay cells (port 0) and f on the grid (port 1) -> the valid domain, unused points dropped.
-
-    A cell goes when f < 0 at its circumcentre and |f|/|grad f| there exceeds ``Threshold`` x its circumradius
-    (the paper's test, on the cells lying on the surface), or when its centroid is outside; then voids inside are
-    filled, flat boundary cells peeled, pinched edges and vertices repaired and parts below ``MinComponent``
-    dropped.
-    """
+class MeshWithImplicitFilter(BitemeshAlgorithm):
+    """Base of the steps that take a mesh (port 0) and f on the grid (port 1) and give a mesh."""
 
     def __init__(self):
         super().__init__(nInputPorts=2, inputType="vtkDataObject", nOutputPorts=1, outputType="vtkUnstructuredGrid")
@@ -155,11 +148,27 @@ class SpuriousCellFilter(BitemeshAlgorithm):
         info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid" if port == 0 else "vtkImageData")
         return 1
 
-    def execute(self, request, inInfo, outInfo):
+    def mesh_and_grid(self, inInfo):
+        """The input mesh (without its cell data) and the implicit grid, of the same dimension."""
         mesh = unstructured_to_mesh(vtkUnstructuredGrid.GetData(inInfo[0]))
         grid = image_to_grid(vtkImageData.GetData(inInfo[1]))
         if grid.dim != mesh.dim:
             raise InvalidInputError(f"the mesh is {mesh.dim}D but the implicit image is {grid.dim}D")
+        return Mesh(mesh.points, mesh.cells), grid
+
+
+@with_parameters(SpuriousParameters)
+class SpuriousCellFilter(MeshWithImplicitFilter):
+    """All Delaunay cells (port 0) and f on the grid (port 1) -> the valid domain, unused points dropped.
+
+    A cell goes when f < 0 at its circumcentre and |f|/|grad f| there exceeds ``Threshold`` x its circumradius
+    (the paper's test, on the cells lying on the surface), or when its centroid is outside; then voids inside are
+    filled, flat boundary cells peeled, pinched edges and vertices repaired and parts below ``MinComponent``
+    dropped.
+    """
+
+    def execute(self, request, inInfo, outInfo):
+        mesh, grid = self.mesh_and_grid(inInfo)
         domain = carve_domain(grid, mesh.points, mesh.cells, self.parameters(SpuriousParameters), self.progress)
         mesh_to_unstructured(domain, vtkUnstructuredGrid.GetData(outInfo))
 
@@ -194,21 +203,12 @@ class QualityFilter(BitemeshAlgorithm):
 
 
 @with_parameters(OptimizeParameters)
-class MeshOptimizer(BitemeshAlgorithm):
+class MeshOptimizer(MeshWithImplicitFilter):
     """A valid mesh (port 0) and f on the grid (port 1) -> the mesh relaxed, without slivers, boundary on f = 0."""
 
-    def __init__(self):
-        super().__init__(nInputPorts=2, inputType="vtkDataObject", nOutputPorts=1, outputType="vtkUnstructuredGrid")
-
-    def FillInputPortInformation(self, port, info):
-        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid" if port == 0 else "vtkImageData")
-        return 1
-
     def execute(self, request, inInfo, outInfo):
-        mesh = unstructured_to_mesh(vtkUnstructuredGrid.GetData(inInfo[0]))
-        grid = image_to_grid(vtkImageData.GetData(inInfo[1]))
-        optimized = optimize_mesh(grid, Mesh(mesh.points, mesh.cells), self.parameters(OptimizeParameters),
-                                  self.progress)
+        mesh, grid = self.mesh_and_grid(inInfo)
+        optimized = optimize_mesh(grid, mesh, self.parameters(OptimizeParameters), self.progress)
         mesh_to_unstructured(optimized, vtkUnstructuredGrid.GetData(outInfo))
 
 

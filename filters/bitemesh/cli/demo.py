@@ -10,11 +10,10 @@ from importlib import resources
 
 from ..core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
 from ..core.pipeline import run as run_pipeline
-from ..core.quality import quality_summary
 from ..core.shapes import die, sample_surface
-from ..io import read_labelled_points, write_mesh
+from ..io import read_labelled_points
 from .mesh import add_optimize_options, optimize_parameters
-from .options import ProgressBar, check_output, print_timings
+from .options import ProgressBar, check_output, write_and_report
 
 #: cells asked for the heart: the cells-per-volume estimate undershoots by about 12 % on thin walls.
 HEART_CELLS = 155000
@@ -39,11 +38,7 @@ def run(args) -> None:
         result, note = (mesh_heart if args.dataset == "heart" else mesh_die)(args, bar)
     finally:
         bar.close()
-    write_mesh(result.mesh, args.output)
-    print(f"wrote {args.output} (radius R = {result.radius:.4g}{note})")
-    print(quality_summary(result.mesh))
-    print("time per step:")
-    print_timings(result.seconds)
+    write_and_report(result, args.output, note)
 
 
 def mesh_die(args, progress):

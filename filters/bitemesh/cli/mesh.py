@@ -4,10 +4,9 @@ from __future__ import annotations
 from ..core.errors import InvalidInputError
 from ..core.parameters import OptimizeParameters
 from ..core.pipeline import run as run_pipeline
-from ..core.quality import quality_summary
-from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points, write_mesh
+from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points
 from ..labelmap import LABEL_MAP_EXTENSIONS
-from .options import ProgressBar, add_parameter_options, check_output, parameters_from_args, print_timings
+from .options import ProgressBar, add_parameter_options, check_output, parameters_from_args, write_and_report
 
 
 def add_parser(subcommands) -> None:
@@ -59,11 +58,7 @@ def run(args) -> None:
                                   optimize=optimize_parameters(args))
     finally:
         bar.close()
-    write_mesh(result.mesh, args.output)
-    print(f"wrote {args.output} (radius R = {result.radius:.4g})")
-    print(quality_summary(result.mesh))
-    print("time per step:")
-    print_timings(result.seconds)
+    write_and_report(result, args.output)
 
 
 def mesh_label_map(args, progress):

@@ -8,7 +8,8 @@ from pathlib import Path
 
 from ..core.errors import InvalidInputError
 from ..core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
-from ..io import MESH_EXTENSIONS
+from ..core.quality import quality_summary
+from ..io import MESH_EXTENSIONS, write_mesh
 
 STEP_PARAMETERS = (ImplicitParameters, BitingParameters, SpuriousParameters)
 
@@ -71,6 +72,15 @@ class ProgressBar:
         if self.shown:
             self.stream.write("\n")
             self.stream.flush()
+
+
+def write_and_report(result, output, note: str = "") -> None:
+    """Write the mesh of a pipeline result, then print R, the quality summary and the time per step."""
+    write_mesh(result.mesh, output)
+    print(f"wrote {output} (radius R = {result.radius:.4g}{note})")
+    print(quality_summary(result.mesh))
+    print("time per step:")
+    print_timings(result.seconds)
 
 
 def print_timings(seconds: dict, stream=None) -> None:
