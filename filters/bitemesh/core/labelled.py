@@ -38,13 +38,13 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
-from scipy import linalg, ndimage, sparse
+from scipy import linalg, sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist, squareform
 
 from .errors import InvalidInputError, check_choice, check_number, check_points
-from .grid import sample_function
+from .grid import ImplicitGrid, sample_function
 from .mesh import Mesh
 from .parameters import BitingParameters, ImplicitParameters, SpuriousParameters
 from .pipeline import COARSE_GRID_NODES, MeshingResult, implicit_grid, mesh_from_grid, radius_for_cells, timed
@@ -654,16 +654,14 @@ class SampledSurface:
             exact += len(near)
         return cls(values=values, lower=lower, spacing=step, exact_evaluations=exact)
 
+    @cached_property
+    def grid(self) -> ImplicitGrid:
+        """The same samples as the pipeline's grid type (its evaluation is the one used)."""
+        return ImplicitGrid(origin=self.lower, spacing=np.full(self.values.ndim, self.spacing), values=self.values)
+
     def __call__(self, x) -> np.ndarray:
-        """(m,) trilinear f at (m, 3) points."""
-        x = np.asarray(x, dtype=np.float64)
-        value = ndimage.map_coordinates(self.values, ((x - self.lower) / self.spacing).T, order=1, mode="nearest")
-        outside = np.flatnonzero(((x < self.lower) | (x > self.upper)).any(axis=1))
-        if len(outside):
-            part = x[outside]
-            beyond = np.linalg.norm(np.maximum(self.lower - part, 0) + np.maximum(part - self.upper, 0), axis=1)
-            value[outside] = np.minimum(value[outside], -beyond)
-        return value
+        """(m,) trilinear f at (m, 3) points; outside the grid, at most minus the distance to it."""
+        return self.grid.evaluate(x)
 
 
 def _upsample(values: np.ndarray) -> np.ndarray:
