@@ -35,7 +35,8 @@ import numpy as np
 from .core.errors import InvalidInputError, check_number
 from .core.grid import ImplicitGrid, sample_function
 from .core.mesh import Mesh
-from .core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from .core.parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
+                              optimize_parameters)
 from .core.pipeline import GRID_PER_RADIUS, MeshingResult, mesh_from_grid, radius_for_cells
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.quality import cell_quality
@@ -330,8 +331,8 @@ class LabelMapMeshingResult(MeshingResult):
 def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                     implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                     spurious: SpuriousParameters | None = None,
-                    smoothing: float = SMOOTHING_VOXELS, progress: ProgressCallback = None,
-                    seconds: dict | None = None) -> LabelMapMeshingResult:
+                    optimize: OptimizeParameters | None = None, smoothing: float = SMOOTHING_VOXELS,
+                    progress: ProgressCallback = None, seconds: dict | None = None) -> LabelMapMeshingResult:
     """Mesh the chosen labels of a voxel array and place the mesh with a homogeneous index-to-physical matrix.
 
     The one path from voxels to a mesh, shared by :func:`label_map_mesh` (files) and the Slicer module (segments).
@@ -345,8 +346,8 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     implicit : ImplicitParameters or None (defaults); its grid_spacing (the grid I; default R / 4, or the voxels
         when their largest size is between R / 8 and R / 4) and max_memory_mb are used; method, error_bound and
         margin do not apply to label maps
-    biting, spurious : BitingParameters and SpuriousParameters, as for
-        :func:`~bitemesh.core.pipeline.mesh_from_grid`; None: the defaults
+    biting, spurious, optimize : BitingParameters, SpuriousParameters and OptimizeParameters, as for
+        :func:`~bitemesh.core.pipeline.mesh_from_grid`; None: the defaults (``optimize`` None: no MeshOptimizer)
     smoothing : see :func:`label_map_to_grid`
 
     Returns
@@ -402,7 +403,7 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                                max_memory_mb=implicit.max_memory_mb, progress=sub_progress(progress, 0.1, 0.3))
     seconds["distance"] = seconds.get("distance", 0.0) + time.perf_counter() - clock
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 1.0), seconds)
+    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 1.0), seconds, optimize)
 
     # Local frame (index x spacing) -> physical: the unit columns of the matrix, then its translation.
     to_physical = np.eye(dim + 1)
@@ -423,7 +424,8 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
 
 def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spacing=None, ras=False,
                    order="boundary", seed=0, threshold=0.4, min_component=0.01, max_memory_mb=4096.0,
-                   smoothing=SMOOTHING_VOXELS, progress: ProgressCallback = None) -> LabelMapMeshingResult:
+                   optimize=False, smoothing=SMOOTHING_VOXELS, progress: ProgressCallback = None
+                   ) -> LabelMapMeshingResult:
     """A valid tetrahedral (triangular for a 2D image) mesh of labels of a label map, in its physical space.
 
     Parameters
@@ -436,6 +438,7 @@ def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spa
     ras : False: points in ITK's LPS (the file's physical space); True: in RAS (x and y negated), as in Slicer
     order, seed : BitingParameters; threshold, min_component : SpuriousParameters; max_memory_mb : the memory the
         distance and the grid may take
+    optimize : False, True (the MeshOptimizer with its defaults) or OptimizeParameters
     smoothing : standard deviation (voxels) of the staircase filter (see :func:`label_map_to_grid`); 0 is off
     progress : callable(fraction, message), optional
 
@@ -451,5 +454,5 @@ def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spa
     biting = BitingParameters(radius=radius, cells=cells, order=order, seed=seed)
     spurious = SpuriousParameters(threshold=threshold, min_component=min_component)
     return mesh_label_grid(label_map.labels, label_map.index_to_physical(ras=ras), labels=labels,
-                           implicit=implicit, biting=biting, spurious=spurious, smoothing=smoothing,
-                           progress=progress)
+                           implicit=implicit, biting=biting, spurious=spurious,
+                           optimize=optimize_parameters(optimize), smoothing=smoothing, progress=progress)

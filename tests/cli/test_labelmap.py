@@ -6,8 +6,11 @@ lost origin moves the mesh by far more than the tolerances.
 """
 import numpy as np
 import pytest
+from bitemesh import cli
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.mesh import signed_measures
+from bitemesh.core.quality import dihedral_angles
+from bitemesh.io import read_mesh
 from bitemesh.labelmap import LabelMap, label_map_mesh, label_map_to_grid, mesh_label_grid, read_label_map
 
 from tests.meshcheck import assert_valid_domain
@@ -192,6 +195,17 @@ def test_a_path_is_read_and_meshed_in_one_call(ellipsoid_file):
     result = label_map_mesh(ellipsoid_file, cells=1500, labels=LABEL)
     assert result.labels == (LABEL,)
     assert_valid_domain(result.mesh, components=1)
+
+
+def test_optimize_relaxes_a_rotated_label_map_in_place(ellipsoid, ellipsoid_file, tmp_path, capsys):
+    output = tmp_path / "optimized.vtu"
+    assert cli.main(["mesh", str(ellipsoid_file), "-o", str(output), "--cells", "2500", "--optimize"]) == 0
+    assert "optimize" in capsys.readouterr().out
+    mesh = read_mesh(output)
+    assert_valid_domain(mesh, euler=2, components=1, measure=4 / 3 * np.pi * np.prod(SEMI_AXES),
+                        measure_tolerance=0.04, mean_quality=0.86)   # chords: -3.1 % (-3.4 % unoptimised)
+    assert np.nanmin(dihedral_angles(mesh.points, mesh.cells)) >= 20.0
+    assert np.linalg.norm(centroid(mesh) - ellipsoid[1]) < SPACING.min()
 
 
 def test_mesh_label_grid_takes_the_index_to_physical_matrix(ellipsoid):

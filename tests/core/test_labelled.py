@@ -19,7 +19,7 @@ from bitemesh.core.labelled import (
     run_labelled,
     slice_planes,
 )
-from bitemesh.core.parameters import BitingParameters
+from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.shapes import two_cavity_shell
 
 from tests.meshcheck import assert_valid_domain
@@ -313,6 +313,17 @@ def test_valves_are_needed_for_a_valve_plane(shell):
     points, labels, slices = shell
     with pytest.raises(InvalidInputError, match=r"base_plane='valves' needs at least 3 points labelled MITRAL_VALVE"):
         labelled_implicit(points, labels, SHELL_DOMAIN, "valves", slices=slices)
+
+
+def test_optimize_relaxes_the_shell_without_changing_its_shape_or_topology(shell):
+    points, labels, slices = shell
+    plain, optimized = (run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane=BASE, slices=slices,
+                                     biting=BitingParameters(cells=4000), optimize=optimize)
+                        for optimize in (None, OptimizeParameters()))
+    assert_valid_domain(optimized.mesh, euler=2, components=1, mean_quality=0.84,
+                        measure=plain.mesh.cell_data["Volume"].sum(), measure_tolerance=0.02)
+    assert optimized.mesh.cell_data["MinDihedralAngle"].min() >= 15.0 > plain.mesh.cell_data["MinDihedralAngle"].min()
+    assert "optimize" in optimized.seconds
 
 
 def test_mesh_from_labelled_points_is_deterministic(shell):

@@ -198,6 +198,20 @@ def test_when_nothing_valid_comes_out_the_input_comes_back(small, monkeypatch):
         optimize_mesh(grid, invalid)
 
 
+def test_a_relaxation_that_changes_the_topology_is_abandoned(small, monkeypatch):
+    grid, mesh, _ = small
+    interior = np.flatnonzero(~np.isin(mesh.cells, boundary_facets(mesh.cells)).any(axis=1))
+
+    def with_a_void(grid, points, cells, *args, **kwargs):  # valid, but one interior cell gone: a second boundary
+        return points, np.delete(cells, interior[0], axis=0), []
+    monkeypatch.setattr(optimizer, "relax", with_a_void)
+    messages = []
+    result = optimize_mesh(grid, mesh, progress=lambda *report: messages.append(report[1]))
+    assert any("relaxation abandoned" in message and "Euler" in message for message in messages)
+    assert_valid_domain(result, euler=2, components=1)
+    assert np.nanmin(dihedral_angles(result.points, result.cells)) >= 20.0
+
+
 def test_wrong_inputs_are_refused_with_a_message(small):
     grid, mesh, _ = small
     flat = Mesh(mesh.points[:, :2], mesh.cells[:, :3])

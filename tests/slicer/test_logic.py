@@ -208,6 +208,17 @@ def test_segmentation_gives_tetrahedra_where_the_segment_is(scene, logic, direct
     assert radii.max() < BALL_RADIUS + 1.0
 
 
+def test_optimize_relaxes_a_segment_in_place(scene, logic):
+    segmentation, centre, _ = ball_segmentation(scene, np.diag([-1.0, 1.0, 1.0]))
+    model = output_model(scene)
+    result = logic.process(segmentation, model, cells=3000, optimize=1)
+    mesh = mesh_of(model)
+    assert_valid_domain(mesh, euler=2, components=1, measure=4 / 3 * np.pi * BALL_RADIUS**3, measure_tolerance=0.05,
+                        mean_quality=0.85)
+    assert result.summary.angle_min >= 20.0
+    assert np.linalg.norm(centroid(mesh) - centre) < 0.5
+
+
 def test_segmentation_follows_its_parent_transform(scene, logic):
     segmentation, centre, _ = ball_segmentation(scene, np.eye(3))
     transform = scene.AddNewNodeByClass("vtkMRMLLinearTransformNode")

@@ -52,10 +52,7 @@ def mesh_die(args, progress):
 
 
 def mesh_heart(args, progress):
-    from ..core.errors import InvalidInputError
     from ..core.labelled import run_labelled
-    if args.optimize:
-        raise InvalidInputError("--optimize is not available for labelled contours yet; mesh without it")
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
     with resources.as_file(source) as path:
         points, labels, slices = read_labelled_points(path, slices=True)
@@ -63,5 +60,6 @@ def mesh_heart(args, progress):
           "Apache-2.0), mm")
     cells = round(args.cells * HEART_CELLS / 136000) if args.cells else HEART_CELLS
     result = run_labelled(points, labels, slices=slices, implicit=ImplicitParameters(),
-                          biting=BitingParameters(cells=cells), spurious=SpuriousParameters(), progress=progress)
+                          biting=BitingParameters(cells=cells), spurious=SpuriousParameters(),
+                          optimize=optimize_parameters(args), progress=progress)
     return result, f", myocardium {result.mesh.cell_data['Volume'].sum() / 1000:.1f} ml"

@@ -1,7 +1,6 @@
 """``bitemesh mesh INPUT -o OUTPUT``: scattered points, or a label map, to a tetrahedral mesh."""
 from __future__ import annotations
 
-from ..core.errors import InvalidInputError
 from ..core.parameters import OptimizeParameters
 from ..core.pipeline import run as run_pipeline
 from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points
@@ -63,24 +62,21 @@ def run(args) -> None:
 
 def mesh_label_map(args, progress):
     from ..labelmap import label_map_mesh
-    if args.optimize:
-        raise InvalidInputError("--optimize is not available for label maps yet; mesh without it")
     implicit, biting, spurious = parameters_from_args(args)
     return label_map_mesh(args.input, labels=set(args.label) if args.label else None, radius=biting.radius,
                           cells=biting.cells, grid_spacing=implicit.grid_spacing, ras=args.ras, order=biting.order,
                           seed=biting.seed, threshold=spurious.threshold, min_component=spurious.min_component,
-                          max_memory_mb=implicit.max_memory_mb, progress=progress)
+                          max_memory_mb=implicit.max_memory_mb, optimize=optimize_parameters(args) or False,
+                          progress=progress)
 
 
 def mesh_labelled_points(args, progress, path=None):
     """Labelled contour points (``path``, default the input) to the mesh of the domain of ``--domain``."""
     from ..core.labelled import run_labelled
-    if args.optimize:
-        raise InvalidInputError("--optimize is not available for labelled contours yet; mesh without it")
     points, labels, slices = read_labelled_points(path or args.input, slices=True)
     options = read_labelled_config(args.config) if args.config else {}
     if args.domain:
         options["domain"] = args.domain
     implicit, biting, spurious = parameters_from_args(args)
     return run_labelled(points, labels, slices=slices, implicit=implicit, biting=biting, spurious=spurious,
-                        progress=progress, **options)
+                        optimize=optimize_parameters(args), progress=progress, **options)

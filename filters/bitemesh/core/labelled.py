@@ -46,7 +46,8 @@ from scipy.spatial.distance import pdist, squareform
 from .errors import InvalidInputError, check_choice, check_number, check_points
 from .grid import ImplicitGrid, sample_function
 from .mesh import Mesh
-from .parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from .parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
+                         optimize_parameters)
 from .pipeline import COARSE_GRID_NODES, MeshingResult, implicit_grid, mesh_from_grid, radius_for_cells, timed
 from .progress import ProgressCallback, report, sub_progress
 from .topology import boundary_facets
@@ -1108,15 +1109,16 @@ class LabelledMeshingResult(MeshingResult):
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
                  implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
-                 spurious: SpuriousParameters | None = None, progress: ProgressCallback = None,
-                 **options) -> LabelledMeshingResult:
+                 spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
+                 progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
     """Every step on labelled contour points: :func:`labelled_implicit`, then the pipeline's ``implicit_grid`` and
     ``mesh_from_grid``.
 
     R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain (as
     ``implicit_grid`` does); parameters left None take their defaults; ``min_wall`` defaults to the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS`
     x R, so that no wall is thinner than about one cell (a thinner wall would open in holes).  ``implicit`` gives
-    the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``options`` go to
+    the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``optimize`` (None: skipped) runs
+    the MeshOptimizer on the valid domain.  ``options`` go to
     :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
     """
     implicit = ImplicitParameters() if implicit is None else implicit
@@ -1141,14 +1143,14 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
         grid, radius = implicit_grid(function, lower, upper, implicit, radius, biting.cells,
                                      progress=sub_progress(progress, 0.3, 0.5))
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.5, 1.0), seconds)
+    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.5, 1.0), seconds, optimize)
     return LabelledMeshingResult(mesh=result.mesh, implicit=result.implicit, nodes=result.nodes, radius=result.radius,
                                  seconds=result.seconds, function=function)
 
 
 def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, radius=None,
                               cells=10000, min_wall=None, grid_spacing=None, margin=None, max_memory_mb=4096.0,
-                              threshold=0.4, min_component=0.01, order="boundary", seed=0,
+                              threshold=0.4, min_component=0.01, order="boundary", seed=0, optimize=False,
                               progress: ProgressCallback = None, **options) -> Mesh:
     """A valid tetrahedral mesh of the domain bounded by labelled contour surfaces (a biv-me GPFile's myocardium).
 
@@ -1159,7 +1161,7 @@ def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto",
         myocardium ``EPI - LV_ENDO - RV_ENDO`` below the valve plane)
     radius : R, node spacing (input units); default: chosen for about ``cells`` cells
     min_wall : float, input units, the thinnest wall; default max(2.5, 1.25 R) (see :func:`run_labelled`)
-    The other parameters are those of :func:`bitemesh.core.pipeline.mesh_from_points` (grid and biting) and of
+    The other parameters are those of :func:`bitemesh.core.pipeline.mesh_from_points` (grid, biting, optimize) and of
     :func:`labelled_implicit` (``options``: kernel, offset, surfaces, outlets, base_offset, resolution, ...).
 
     Returns
@@ -1171,4 +1173,4 @@ def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto",
                                                     max_memory_mb=max_memory_mb),
                         biting=BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
                         spurious=SpuriousParameters(threshold=threshold, min_component=min_component),
-                        progress=progress, **options).mesh
+                        optimize=optimize_parameters(optimize), progress=progress, **options).mesh

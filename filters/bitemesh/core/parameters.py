@@ -119,3 +119,15 @@ class OptimizeSwitch(Parameters):
 
     optimize: int = parameter(0, "1 also runs the MeshOptimizer (relaxation, sliver removal), 0 skips it", low=0,
                               high=1, integer=True)
+
+
+def optimize_parameters(optimize) -> OptimizeParameters | None:
+    """The MeshOptimizer's parameters for an ``optimize`` argument: False or None (skip it), True (its defaults)
+    or OptimizeParameters."""
+    if optimize is None or optimize is False:
+        return None
+    if optimize is True:
+        return OptimizeParameters()
+    if isinstance(optimize, OptimizeParameters):
+        return optimize
+    raise InvalidInputError(f"optimize must be True, False or OptimizeParameters, got {optimize!r}")

@@ -19,7 +19,8 @@ from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
 from .implicit import fit_implicit
 from .mesh import Mesh
 from .optimize import optimize_mesh
-from .parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
+from .parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
+                         optimize_parameters)
 from .progress import ProgressCallback, report, sub_progress
 from .quality import cell_quality
 
@@ -141,7 +142,8 @@ def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="
     points : (n, 3) or (n, 2) float64, samples of the surface (input units)
     normals : (n, k) float64 outward normals, or None to estimate them
     radius : R, node spacing (input units); default: chosen for about ``cells`` cells
-    optimize : also run the MeshOptimizer (relaxation, sliver removal) with its default parameters
+    optimize : True also runs the MeshOptimizer (relaxation, sliver removal) with its defaults, or give its
+        OptimizeParameters
     The other parameters are those of :class:`ImplicitParameters`, :class:`BitingParameters` and
     :class:`SpuriousParameters`, with the same names.
 
@@ -154,4 +156,4 @@ def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="
                                   max_memory_mb=max_memory_mb),
                BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
                SpuriousParameters(threshold=threshold, min_component=min_component), progress,
-               OptimizeParameters() if optimize else None).mesh
+               optimize_parameters(optimize)).mesh

@@ -309,11 +309,9 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         if any(node.IsA("vtkMRMLSegmentationNode") for node in nodes):
             if len(nodes) > 1:
                 raise InvalidInputError("a segmentation must be the only input; mesh one segmentation at a time")
-            if optimize is not None:
-                raise InvalidInputError("optimize is not available for segmentations yet; mesh without it")
             if segmentId is not None and not isinstance(segmentId, str):
                 raise InvalidInputError(f"segmentId must be a segment ID string, got {segmentId!r}")
-            mesh, radius, seconds = self._meshSegment(nodes[0], segmentId, implicit, biting, spurious,
+            mesh, radius, seconds = self._meshSegment(nodes[0], segmentId, implicit, biting, spurious, optimize,
                                                       sub_progress(progress, 0.0, 0.95))
         else:
             points, normals = self._scatteredPoints(nodes, implicit.method)
@@ -488,7 +486,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
 
     # --- a segmentation ----------------------------------------------------------------------------------------------
 
-    def _meshSegment(self, node, segmentId, implicit, biting, spurious, progress):
+    def _meshSegment(self, node, segmentId, implicit, biting, spurious, optimize, progress):
         """Mesh one segment: its binary labelmap through bitemesh.labelmap.mesh_label_grid (the path the bitemesh
         command takes for label map files), which meshes in the voxel frame and places the mesh with the labelmap's
         IJK-to-RAS matrix; then the segmentation's parent transforms carry it to world."""
@@ -500,7 +498,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         firstVoxel = np.eye(4)
         firstVoxel[:3, 3] = ijk0   # labels[0, 0, 0] is voxel ijk0 of the labelmap's frame
         result = mesh_label_grid(labels, ijkToWorld @ firstVoxel, implicit=implicit, biting=biting,
-                                 spurious=spurious, progress=progress)
+                                 spurious=spurious, optimize=optimize, progress=progress)
         transform = _toWorld(node)
         if transform is None:
             return result.mesh, result.radius, result.seconds
