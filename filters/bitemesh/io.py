@@ -423,9 +423,6 @@ LABELLED_EXTENSIONS = LABELLED_TEXT_EXTENSIONS + LABELLED_VTK_EXTENSIONS
 LABEL_COLUMNS = ("label", "labels", "contour type", "contour_type", "contourtype", "type", "region", "surface")
 #: header names (lower case) of the optional slice column; a GPFile's is "frameID".
 SLICE_COLUMNS = ("frameid", "frame_id", "slice", "sliceid", "slice_id", "slice id")
-#: point-data array names (lower case) of the label and the optional slice in VTK files.
-LABEL_ARRAYS = ("label", "labels")
-SLICE_ARRAYS = ("slice", "sliceid", "slice_id", "frameid")
 
 
 def read_labelled_points(path, *, slices: bool = False):
@@ -490,8 +487,9 @@ def looks_labelled(path) -> bool:
                 reader = _vtk_reader(path)
                 reader.GetExecutive().Update()
                 dataset = reader.GetOutputDataObject(0)
+            from .algorithms.convert import LABEL_ARRAYS, named_point_array
             return dataset is not None and hasattr(dataset, "GetPointData") and \
-                _point_data_array(dataset, LABEL_ARRAYS) is not None
+                named_point_array(dataset, LABEL_ARRAYS) is not None
     except (OSError, InvalidInputError):
         return False
     return False
@@ -578,23 +576,6 @@ def _read_labelled_table(path: Path):
     return points, labels, slice_ids
 
 
-def _point_data_array(dataset, names):
-    """The first point-data array (data or string array) whose lower-case name is in ``names``, as numpy."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
-    data = dataset.GetPointData()
-    for index in range(data.GetNumberOfArrays()):
-        array = data.GetAbstractArray(index)
-        if (array.GetName() or "").lower() not in names:
-            continue
-        if array.GetNumberOfComponents() != 1:
-            continue
-        if array.IsA("vtkStringArray"):
-            return np.array([array.GetValue(i) for i in range(array.GetNumberOfTuples())], dtype=str)
-        return np.array(vtk_to_numpy(array)).reshape(-1)
-    return None
-
-
 def _read_labelled_vtk(path: Path):
     with _vtk_silenced():
         reader = _vtk_reader(path)
@@ -605,25 +586,16 @@ def _read_labelled_vtk(path: Path):
         raise InvalidInputError(
             f"cannot read labelled points from '{path}': the {reader.GetClassName()} read no points; is the file "
             "truncated, or not of the format its extension says?")
-    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from .algorithms.convert import point_coordinates, point_labels
 
-    points = check_points(np.array(vtk_to_numpy(dataset.GetPoints().GetData()), dtype=np.float64).reshape(-1, 3),
-                          f"points of '{path}'", dims=(3,))
-    labels = _point_data_array(dataset, LABEL_ARRAYS)
+    points = check_points(point_coordinates(dataset), f"points of '{path}'", dims=(3,))
+    labels, slice_ids = point_labels(dataset, f"cannot read labelled points from '{path}'")
     if labels is None:
         data = dataset.GetPointData()
         present = [data.GetArrayName(i) for i in range(data.GetNumberOfArrays())]
         raise InvalidInputError(
             f"cannot read labelled points from '{path}': it has no one-component point array named 'Label' "
             f"(point arrays present: {', '.join(map(str, present)) or 'none'})")
-    if labels.dtype.kind == "f" and not (np.isfinite(labels).all() and np.all(labels == np.round(labels))):
-        raise InvalidInputError(f"cannot read labelled points from '{path}': the Label array holds non-integer "
-                                "numbers; labels are integers or strings")
-    slice_ids = _point_data_array(dataset, SLICE_ARRAYS)
-    if slice_ids is not None:
-        if slice_ids.dtype.kind not in "iuf" or not np.all(np.isfinite(slice_ids.astype(float))):
-            raise InvalidInputError(f"cannot read labelled points from '{path}': the slice array must hold integers")
-        slice_ids = slice_ids.astype(np.int64)
     return points, labels, slice_ids
 
 

@@ -357,6 +357,8 @@ def other_value(item, value):
     """A valid value of the parameter ``item`` different from ``value``."""
     if "choices" in item.metadata:
         return next(choice for choice in item.metadata["choices"] if choice != value)
+    if "text" in item.metadata:
+        return value + " - A"
     return 1.5 if value is None else value + 1
 
 
@@ -592,6 +594,8 @@ VTK_9_2_API = {
     "InsertNextValue", "SetData", "GetOffsetsArray", "GetConnectivityArray",  # vtkCellArray: VTK 9.0
     "GetInstance", "DisplayErrorText", "DisplayWarningText", "GetVTKMajorVersion", "GetVTKMinorVersion",
     "GetCellTypes",  # called only where vtkVersion says 9.6 or later
+    # string point arrays (Label): run in ParaView 5.11's pvpython (VTK 9.2.20230111)
+    "GetAbstractArray", "GetNumberOfComponents", "GetNumberOfTuples", "IsA", "GetValue",
 }
 
 

@@ -16,6 +16,9 @@ from ..core.mesh import Mesh
 
 #: the point array of the implicit image: f > 0 inside.
 IMPLICIT_ARRAY = "Implicit"
+#: point-data array names (lower case) of the contour label and the optional slice id of labelled points.
+LABEL_ARRAYS = ("label", "labels")
+SLICE_ARRAYS = ("slice", "sliceid", "slice_id", "frameid")
 
 
 def point_coordinates(dataset) -> np.ndarray:
@@ -30,6 +33,40 @@ def point_array(dataset, name: str):
     """A copy of the named point-data array as numpy, or None."""
     array = dataset.GetPointData().GetArray(name)
     return None if array is None else numpy_support.vtk_to_numpy(array).copy()
+
+
+def named_point_array(dataset, names):
+    """The first one-component point-data array (numbers or strings) whose lower-case name is in ``names``, as a
+    numpy copy; None when there is none."""
+    data = dataset.GetPointData()
+    for index in range(data.GetNumberOfArrays()):
+        array = data.GetAbstractArray(index)
+        if (array.GetName() or "").lower() not in names or array.GetNumberOfComponents() != 1:
+            continue
+        if array.IsA("vtkStringArray"):
+            return np.array([array.GetValue(i) for i in range(array.GetNumberOfTuples())], dtype=str)
+        return np.array(numpy_support.vtk_to_numpy(array)).reshape(-1)
+    return None
+
+
+def point_labels(dataset, what: str = "the input"):
+    """The contour labels of a point set and their slices: ((n,) labels or None, (n,) int64 slice ids or None).
+
+    Labels come from a point array ``Label`` (integers or strings), slices from ``Slice`` or ``FrameID``.
+    Raises InvalidInputError (naming ``what``) for labels that are non-integer numbers or slices that are not
+    integers.
+    """
+    labels = named_point_array(dataset, LABEL_ARRAYS)
+    if labels is not None and labels.dtype.kind == "f" and not (np.isfinite(labels).all()
+                                                                and np.all(labels == np.round(labels))):
+        raise InvalidInputError(f"{what}: the Label array holds non-integer numbers; labels are integers or strings")
+    slices = named_point_array(dataset, SLICE_ARRAYS) if labels is not None else None
+    if slices is not None:
+        if slices.dtype.kind not in "iuf" or not np.all(np.isfinite(slices.astype(float))) \
+                or np.any(slices.astype(float) != np.round(slices.astype(float))):
+            raise InvalidInputError(f"{what}: the slice array (Slice or FrameID) must hold integers")
+        slices = slices.astype(np.int64)
+    return labels, slices
 
 
 def vtk_points(coordinates: np.ndarray) -> vtkPoints:

@@ -20,13 +20,13 @@ from ..core.grid import grid_shape
 from ..core.mesh import Mesh
 from ..core.implicit import grid_layout, points_to_implicit
 from ..core.optimize import optimize_mesh
-from ..core.parameters import (BitingParameters, ImplicitParameters, LabelMapParameters, OptimizeParameters,
-                               OptimizeSwitch, QualityParameters, SpuriousParameters)
+from ..core.parameters import (BitingParameters, ImplicitParameters, LabelledParameters, LabelMapParameters,
+                               OptimizeParameters, OptimizeSwitch, QualityParameters, SpuriousParameters)
 from ..core.pipeline import radius_for_cells, run
 from ..core.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
 from .convert import (field_array, grid_to_image, image_to_grid, mesh_to_unstructured, nodes_to_polydata,
-                      point_array, point_coordinates, unstructured_to_mesh)
+                      point_array, point_coordinates, point_labels, unstructured_to_mesh)
 
 
 def scattered_points(dataset):
@@ -44,16 +44,50 @@ def scattered_points(dataset):
     return points, normals
 
 
-@with_parameters(ImplicitParameters, LabelMapParameters)
-class PointsToImplicit(BitemeshAlgorithm):
-    """Scattered points (with optional ``Normals``) or a label map -> f on the grid I (vtkImageData ``Implicit``).
+def labelled_contours(dataset):
+    """(points (n, 3), labels (n,), slice ids (n,) or None) of a point set with a ``Label`` point array, else
+    None."""
+    if not isinstance(dataset, vtkPointSet) or dataset.GetNumberOfPoints() == 0:
+        return None
+    labels, slices = point_labels(dataset)
+    return None if labels is None else (point_coordinates(dataset), labels, slices)
 
-    f > 0 inside, about the signed distance near the surface.  Points use MPU (or RBF); a vtkImageData input is a
-    label map, turned into a signed distance by SimpleITK (``Label`` chooses the domain's label).
+
+def labelled_options(parameters: LabelledParameters) -> dict:
+    """Keywords of :func:`~bitemesh.core.labelled.labelled_implicit` from LabelledParameters."""
+    return {"domain": parameters.domain.strip() or None, "base_plane": parameters.base_plane}
+
+
+@with_parameters(ImplicitParameters, LabelMapParameters, LabelledParameters)
+class PointsToImplicit(BitemeshAlgorithm):
+    """Scattered points (with optional ``Normals``), labelled contours or a label map -> f on the grid I
+    (vtkImageData ``Implicit``).
+
+    f > 0 inside, about the signed distance near the surface.  Points use MPU (or RBF).  Points with a ``Label``
+    point array (and optionally ``Slice``) are contours of several surfaces: one implicit per surface, combined by
+    ``Domain`` (a CSG expression) and cut by the base plane.  A vtkImageData input is a label map, turned into a
+    signed distance by SimpleITK (``Label`` chooses the domain's label).
     """
 
     def __init__(self):
         super().__init__(nInputPorts=1, inputType="vtkDataSet", nOutputPorts=1, outputType="vtkImageData")
+        self._fitted = None  # ((input MTime, fit options), (function, lower, upper)) of the last labelled fit
+
+    def labelled_fit(self, source):
+        """(LabelledImplicit, lower, upper) of labelled contour input, fitted once per input, domain and base plane;
+        None for other input.  RequestInformation needs the domain's box, RequestData the function: one fit serves
+        both, and changes of the grid or of the thinnest wall only sample it again."""
+        from ..core.labelled import labelled_implicit
+        contours = labelled_contours(source)
+        if contours is None:
+            return None
+        options = labelled_options(self.parameters(LabelledParameters))
+        key = (source.GetMTime(), tuple(options.items()))
+        if self._fitted is None or self._fitted[0] != key:
+            points, labels, slices = contours
+            self._fitted = (key, labelled_implicit(points, labels, slices=slices, min_wall=0.0,
+                                                   progress=self.progress, **options))
+        return self._fitted[1]
 
     def RequestInformation(self, request, inInfo, outInfo):
         # The grid's extent depends on the input's bounds: bring the input up to date before announcing it.
@@ -75,7 +109,8 @@ class PointsToImplicit(BitemeshAlgorithm):
         if isinstance(source, vtkImageData):
             return self.label_grid(source, geometry_only=True)
         parameters = self.parameters(ImplicitParameters)
-        points = check_points(scattered_points(source)[0])
+        fit = self.labelled_fit(source)
+        points = check_points(scattered_points(source)[0]) if fit is None else np.array(fit[1:])
         lower, upper, spacing, margin = grid_layout(points, parameters.grid_spacing, parameters.margin)
         shape = grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=parameters.max_memory_mb)
         return lower - margin, np.full(len(lower), spacing), shape
@@ -95,8 +130,13 @@ class PointsToImplicit(BitemeshAlgorithm):
 
     def execute(self, request, inInfo, outInfo):
         source = vtkDataSet.GetData(inInfo[0])
+        fit = None if isinstance(source, vtkImageData) else self.labelled_fit(source)
         if isinstance(source, vtkImageData):
             grid = self.label_grid(source)
+        elif fit is not None:
+            from ..core.labelled import sample_labelled
+            grid = sample_labelled(*fit, self.parameters(ImplicitParameters),
+                                   self.parameters(LabelledParameters).min_wall, progress=self.progress)
         else:
             parameters = self.parameters(ImplicitParameters)
             points, normals = scattered_points(source)
@@ -212,22 +252,33 @@ class MeshOptimizer(MeshWithImplicitFilter):
         mesh_to_unstructured(optimized, vtkUnstructuredGrid.GetData(outInfo))
 
 
-@with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeSwitch, OptimizeParameters)
+@with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeSwitch, OptimizeParameters,
+                 LabelledParameters)
 class MeshFromPoints(BitemeshAlgorithm):
     """The whole method in one filter: scattered points -> a valid mesh with its quality arrays.
 
     As ``bitemesh.run``: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by default;
-    ``SetOptimize(1)`` also runs the MeshOptimizer.
+    ``SetOptimize(1)`` also runs the MeshOptimizer.  Points with a ``Label`` point array are labelled contours,
+    meshed as ``bitemesh.core.labelled.run_labelled`` does (``Domain``, ``BasePlane``, ``MinWall``).
     """
 
     def __init__(self):
         super().__init__(nInputPorts=1, inputType="vtkPointSet", nOutputPorts=1, outputType="vtkUnstructuredGrid")
 
     def execute(self, request, inInfo, outInfo):
-        points, normals = scattered_points(vtkPointSet.GetData(inInfo[0]))
+        source = vtkPointSet.GetData(inInfo[0])
         optimize = self.parameters(OptimizeParameters) if self.parameters(OptimizeSwitch).optimize else None
-        result = run(points, normals, self.parameters(ImplicitParameters), self.parameters(BitingParameters),
-                     self.parameters(SpuriousParameters), progress=self.progress, optimize=optimize)
+        steps = {"implicit": self.parameters(ImplicitParameters), "biting": self.parameters(BitingParameters),
+                 "spurious": self.parameters(SpuriousParameters), "optimize": optimize, "progress": self.progress}
+        contours = labelled_contours(source)
+        if contours is None:
+            result = run(*scattered_points(source), **steps)
+        else:
+            from ..core.labelled import run_labelled
+            labelled = self.parameters(LabelledParameters)
+            points, labels, slices = contours
+            result = run_labelled(points, labels, slices=slices, min_wall=labelled.min_wall,
+                                  **labelled_options(labelled), **steps)
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(result.mesh, output)
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))

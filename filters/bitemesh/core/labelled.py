@@ -44,11 +44,13 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist, squareform
 
 from .errors import InvalidInputError, check_choice, check_number, check_points
-from .grid import ImplicitGrid, sample_function
+from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
+from .implicit import grid_layout
 from .mesh import Mesh
 from .parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
                          optimize_parameters)
-from .pipeline import COARSE_GRID_NODES, MeshingResult, implicit_grid, mesh_from_grid, radius_for_cells, timed
+from .pipeline import (COARSE_GRID_NODES, GRID_PER_RADIUS, MeshingResult, implicit_grid, mesh_from_grid,
+                       radius_for_cells, timed)
 from .progress import ProgressCallback, report, sub_progress
 from .topology import boundary_facets
 
@@ -1099,6 +1101,26 @@ WALL_PER_RADIUS = 1.25
 MIN_WALL = 2.5
 
 
+def thinnest_wall(radius: float) -> float:
+    """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS` x R."""
+    return max(MIN_WALL, WALL_PER_RADIUS * radius)
+
+
+def sample_labelled(function: LabelledImplicit, lower, upper, implicit: ImplicitParameters, min_wall=None,
+                    progress: ProgressCallback = None) -> ImplicitGrid:
+    """The domain's f on the grid I of PointsToImplicit (as :func:`bitemesh.core.implicit.points_to_implicit`
+    lays it out for the box [lower, upper] of :func:`labelled_implicit`: spacing grid_spacing, default the box's
+    diagonal / 100).
+
+    ``min_wall`` (input units) defaults to :func:`thinnest_wall` of R = GRID_PER_RADIUS x the spacing, the R that
+    the grid suits.
+    """
+    lower, upper, spacing, margin = grid_layout(np.array([lower, upper]), implicit.grid_spacing, implicit.margin)
+    function = function.with_min_wall(thinnest_wall(GRID_PER_RADIUS * spacing) if min_wall is None else min_wall)
+    return sample_function(function, lower, upper, spacing, margin=margin, max_memory_mb=implicit.max_memory_mb,
+                           exact_within=EXACT_WITHIN * spacing, progress=progress)
+
+
 @dataclass(frozen=True, eq=False)
 class LabelledMeshingResult(MeshingResult):
     """A :class:`~bitemesh.core.pipeline.MeshingResult` and the domain's implicit function (for
@@ -1115,8 +1137,9 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     ``mesh_from_grid``.
 
     R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain (as
-    ``implicit_grid`` does); parameters left None take their defaults; ``min_wall`` defaults to the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS`
-    x R, so that no wall is thinner than about one cell (a thinner wall would open in holes).  ``implicit`` gives
+    ``implicit_grid`` does); parameters left None take their defaults; ``min_wall`` defaults to
+    :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would open in
+    holes).  ``implicit`` gives
     the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``optimize`` (None: skipped) runs
     the MeshOptimizer on the valid domain.  ``options`` go to
     :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
@@ -1139,7 +1162,7 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
                                      max_memory_mb=implicit.max_memory_mb).inside_volume()
             radius = radius_for_cells(volume, biting.cells, 3)
         if min_wall is None:
-            function = function.with_min_wall(max(MIN_WALL, WALL_PER_RADIUS * radius))
+            function = function.with_min_wall(thinnest_wall(radius))
         grid, radius = implicit_grid(function, lower, upper, implicit, radius, biting.cells,
                                      progress=sub_progress(progress, 0.3, 0.5))
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)

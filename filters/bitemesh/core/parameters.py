@@ -1,6 +1,7 @@
 """One frozen dataclass of parameters per step: defaults, units and valid ranges in one place.
 
-Each field's metadata holds ``help``, ``unit`` and either ``range`` (low, high, low_open, high_open) or ``choices``.
+Each field's metadata holds ``help``, ``unit`` and either ``range`` (low, high, low_open, high_open), ``choices``
+or ``text`` (free text).
 The CLI flags, the VTK setters, the ParaView domains and the Slicer parameter node read them from here.
 """
 from __future__ import annotations
@@ -14,10 +15,13 @@ INF = float("inf")
 
 
 def parameter(default, help: str, *, unit: str = "", low=None, high=None, low_open=False, high_open=False,
-              choices=None, integer=False):
-    """A dataclass field carrying its help text, unit and valid range (None: optional, chosen automatically)."""
+              choices=None, integer=False, text=False):
+    """A dataclass field carrying its help text, unit and valid range (None: optional, chosen automatically);
+    ``text``: any string."""
     metadata = {"help": help, "unit": unit, "integer": integer}
-    if choices is not None:
+    if text:
+        metadata["text"] = True
+    elif choices is not None:
         metadata["choices"] = tuple(choices)
     else:
         metadata["range"] = (low, high, low_open, high_open)
@@ -31,6 +35,10 @@ class Parameters:
         for item in fields(self):
             value = getattr(self, item.name)
             if value is None:
+                continue
+            if "text" in item.metadata:
+                if not isinstance(value, str):
+                    raise InvalidInputError(f"{item.name} must be text, got {value!r}")
                 continue
             if "choices" in item.metadata:
                 check_choice(value, item.name, item.metadata["choices"])
@@ -90,6 +98,20 @@ class LabelMapParameters(Parameters):
 
     label: Optional[int] = parameter(None, "the label of the domain; default every nonzero label", low=0,
                                      integer=True)
+
+
+@dataclass(frozen=True)
+class LabelledParameters(Parameters):
+    """Labelled contours: points with a label each (a biv-me GPFile, a table or a ``Label`` array) to a domain."""
+
+    domain: str = parameter("", "CSG of the labelled surfaces, e.g. 'EPI - LV_ENDO - RV_ENDO' (- difference, "
+                            "+ union, & intersection, parentheses); empty: the two-cavity myocardium for biv-me labels, "
+                            "else the only surface", text=True)
+    base_plane: str = parameter("auto", "the plane that closes the domain: auto (the valve plane when valve points "
+                                "are labelled), valves (required), or none", choices=("auto", "valves", "none"))
+    min_wall: Optional[float] = parameter(
+        None, "the thinnest wall the domain keeps between a surface and what is subtracted from it; default the "
+        "larger of 2.5 mm and 5 grid spacings (1.25 R)", unit="input units", low=0)
 
 
 @dataclass(frozen=True)

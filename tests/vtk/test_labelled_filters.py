@@ -1,0 +1,156 @@
+"""Labelled contours in the VTK filters: points with a ``Label`` (and ``Slice``) point array go through
+PointsToImplicit (Domain, BasePlane, MinWall) and the rest of the chain, or through MeshFromPoints in one step,
+and give what the core gives.
+
+The synthetic case is the two-cavity shell of tests/core/test_labelled.py, sampled whole (no base plane): a closed
+ellipsoidal shell with two closed cavities, whose volume is known.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from bitemesh.algorithms import (BitingSampler, DelaunayTetra, MeshFromPoints, PointsToImplicit, QualityFilter,
+                                 SpuriousCellFilter)
+from bitemesh.algorithms.convert import image_to_grid, unstructured_to_mesh, vtk_points
+from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.labelled import run_labelled
+from bitemesh.core.parameters import BitingParameters
+from bitemesh.core.pipeline import GRID_PER_RADIUS
+from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.vtkCommonCore import vtkStringArray
+from vtkmodules.vtkCommonDataModel import vtkPolyData
+
+from tests.core.test_labelled import ELLIPSOIDS, SCALE, SHELL_DOMAIN, sample_shell
+from tests.meshcheck import assert_valid_domain
+
+CELLS = 6000
+#: the closed shell: the outer ellipsoid minus both cavities, mm^3
+SHELL_VOLUME = 4 / 3 * np.pi * SCALE**3 * sum(sign * np.prod(axes) for sign, (_, axes)
+                                               in zip((1, -1, -1), ELLIPSOIDS.values()))
+
+
+def labelled_polydata(points, labels, slices=None) -> vtkPolyData:
+    """Points with a string ``Label`` array and an integer ``Slice`` array, as a VTP of contours would hold."""
+    result = vtkPolyData()
+    result.SetPoints(vtk_points(points))
+    names = vtkStringArray()
+    names.SetName("Label")
+    for label in labels:
+        names.InsertNextValue(str(label))
+    result.GetPointData().AddArray(names)
+    if slices is not None:
+        ids = numpy_to_vtk(np.asarray(slices, dtype=np.int32), deep=True)
+        ids.SetName("Slice")
+        result.GetPointData().AddArray(ids)
+    return result
+
+
+@pytest.fixture(scope="module")
+def closed_shell():
+    """The whole shell's contours (short-axis slices over its full height) and their vtkPolyData."""
+    points, labels, slices = sample_shell(spacing=5.0, sax=tuple(range(-75, 80, 10)))
+    return points, labels, slices, labelled_polydata(points, labels, slices)
+
+
+def test_mesh_from_points_meshes_labelled_contours_as_the_core_does(closed_shell):
+    points, labels, slices, data = closed_shell
+    one_step = MeshFromPoints()
+    one_step.SetInputData(data)
+    one_step.SetCells(CELLS)
+    one_step.SetDomain(SHELL_DOMAIN)
+    one_step.SetBasePlane("none")
+    mesh = unstructured_to_mesh(one_step.update())
+    core = run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane="none", slices=slices,
+                        biting=BitingParameters(cells=CELLS)).mesh
+    np.testing.assert_array_equal(mesh.cells, core.cells)
+    np.testing.assert_allclose(mesh.points, core.points, atol=1e-9)
+    assert_valid_domain(mesh, euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03,
+                        mean_quality=0.75)
+
+
+def test_the_five_filter_chain_meshes_labelled_contours(closed_shell):
+    *_, data = closed_shell
+    radius = (5.4 * SHELL_VOLUME / CELLS) ** (1 / 3)
+    implicit = PointsToImplicit()
+    implicit.SetInputData(data)
+    implicit.SetDomain(SHELL_DOMAIN)
+    implicit.SetBasePlane("none")
+    implicit.SetGridSpacing(radius / GRID_PER_RADIUS)
+    biting = BitingSampler()
+    biting.SetInputConnection(implicit.GetOutputPort())
+    biting.SetRadius(radius)
+    tetra = DelaunayTetra()
+    tetra.SetInputConnection(biting.GetOutputPort())
+    carve = SpuriousCellFilter()
+    carve.SetInputConnection(0, tetra.GetOutputPort())
+    carve.SetInputConnection(1, implicit.GetOutputPort())
+    quality = QualityFilter()
+    quality.SetInputConnection(carve.GetOutputPort())
+    mesh = unstructured_to_mesh(quality.update())
+    assert_valid_domain(mesh, euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03,
+                        mean_quality=0.75)
+    # the image is f of the domain: positive in the wall between the cavities, negative inside each cavity
+    grid = image_to_grid(implicit.GetOutputDataObject(0))
+    wall, lv, rv = [-5.0, 0, -20], [15.0, 0, -20], [-27.5, 0, -20]
+    assert grid.evaluate(np.array([wall])) > 0 > grid.evaluate(np.array([lv, rv])).max()
+    # a change downstream, of the grid or of the wall does not fit the surfaces again; a change of the domain does
+    fitted = implicit._fitted
+    biting.SetRadius(1.1 * radius)
+    implicit.SetMinWall(3.0)
+    quality.update()
+    assert implicit._fitted is fitted
+    implicit.SetDomain("EPI - LV_ENDO")
+    implicit.update()
+    assert implicit._fitted is not fitted
+    assert image_to_grid(implicit.GetOutputDataObject(0)).evaluate(np.array([rv])) > 0   # the RV cavity is filled
+
+
+def test_the_thinnest_wall_follows_the_grid_or_min_wall(closed_shell):
+    *_, data = closed_shell
+    implicit = PointsToImplicit()
+    implicit.SetInputData(data)
+    implicit.SetDomain(SHELL_DOMAIN)
+    implicit.SetBasePlane("none")
+    implicit.SetGridSpacing(2.0)
+    default = image_to_grid(implicit.update()).inside_volume()
+    implicit.SetMinWall(0.0)
+    thinnest = image_to_grid(implicit.update()).inside_volume()
+    implicit.SetMinWall(14.0)   # thicker than the shell's thinnest wall (11.5 mm between EPI and RV_ENDO)
+    thick = image_to_grid(implicit.update()).inside_volume()
+    assert thinnest < default < thick
+    assert thinnest == pytest.approx(SHELL_VOLUME, rel=0.03)
+
+
+@pytest.mark.parametrize("setting, message", [
+    ({"SetDomain": "EPI - LV_ENDO - AORTA"}, "unknown surface 'AORTA'"),
+    ({"SetDomain": "EPI -"}, "domain"),
+    ({"SetBasePlane": "valves"}, "base_plane='valves' needs at least 3 points"),
+    ({"SetBasePlane": "top"}, "base_plane"),
+    ({"SetMinWall": -1.0}, "min_wall"),
+])
+def test_bad_labelled_settings_are_reported_with_their_name(closed_shell, vtk_errors, setting, message):
+    *_, data = closed_shell
+    for algorithm in (PointsToImplicit(), MeshFromPoints()):
+        algorithm.SetInputData(data)
+        algorithm.SetDomain(SHELL_DOMAIN)
+        for name, value in setting.items():
+            getattr(algorithm, name)(value)
+        with pytest.raises(InvalidInputError, match=message):
+            algorithm.update()
+        assert algorithm.GetOutputDataObject(0).GetNumberOfPoints() == 0
+        assert message.split()[0] in vtk_errors.text()
+        vtk_errors.clear()
+
+
+def test_labels_that_are_non_integer_numbers_are_refused(closed_shell, vtk_errors):
+    points, *_ = closed_shell
+    data = vtkPolyData()
+    data.SetPoints(vtk_points(points))
+    labels = numpy_to_vtk(np.linspace(0.5, 3.5, len(points)), deep=True)
+    labels.SetName("Label")
+    data.GetPointData().AddArray(labels)
+    algorithm = MeshFromPoints()
+    algorithm.SetInputData(data)
+    with pytest.raises(InvalidInputError, match="non-integer"):
+        algorithm.update()
+    vtk_errors.clear()
