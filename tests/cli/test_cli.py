@@ -646,3 +646,20 @@ def test_demo_heart_meshes_the_shipped_guide_points(tmp_path, capsys):
     assert cli.main(["demo", "heart", "--cells", "20000", "-o", str(output)]) == 0
     assert_valid_domain(read_mesh(output), components=1)
     assert "biv-me" in capsys.readouterr().out
+
+
+def test_labelled_flags_win_over_the_config_file(tmp_path, capsys):
+    from tests.core.test_labelled import sample_shell
+    from tests.vtk.test_labelled_filters import SHELL_VOLUME
+    points, labels, slices = sample_shell(spacing=5.0, sax=tuple(range(-75, 80, 10)))
+    contours = tmp_path / "shell.csv"
+    contours.write_text("x,y,z,label,slice\n" + "".join(f"{x},{y},{z},{label},{number}\n" for (x, y, z), label,
+                                                         number in zip(points, labels, slices)))
+    config = tmp_path / "shell.json"
+    config.write_text('{"domain": "EPI - LV_ENDO", "base_plane": "valves"}')
+    output = tmp_path / "shell.vtu"
+    assert cli.main(["mesh", str(contours), "-o", str(output), "--config", str(config)]) == 1
+    assert "base_plane='valves' needs at least 3 points" in capsys.readouterr().err
+    assert cli.main(["mesh", str(contours), "-o", str(output), "--config", str(config), "--cells", "6000",
+                     "--domain", "EPI - LV_ENDO - RV_ENDO", "--base-plane", "none", "--min-wall", "3"]) == 0
+    assert_valid_domain(read_mesh(output), euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03)

@@ -1,7 +1,9 @@
 """``bitemesh mesh INPUT -o OUTPUT``: scattered points, or a label map, to a tetrahedral mesh."""
 from __future__ import annotations
 
-from ..core.parameters import OptimizeParameters
+from dataclasses import fields
+
+from ..core.parameters import LabelledParameters, OptimizeParameters
 from ..core.pipeline import run as run_pipeline
 from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points
 from ..labelmap import LABEL_MAP_EXTENSIONS
@@ -19,11 +21,9 @@ def add_parser(subcommands) -> None:
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_parameter_options(parser)
     add_optimize_options(parser)
-    contours = parser.add_argument_group("labelled contours (a biv-me GPFile, a table or VTP with a Label)")
-    contours.add_argument("--domain", metavar="EXPR",
-                          help='CSG of the labelled surfaces, e.g. "EPI - LV_ENDO - RV_ENDO" (- difference, + union, '
-                               '& intersection, parentheses); default for a GPFile: the two-cavity myocardium')
-    contours.add_argument("--config", metavar="FILE", help="a JSON or TOML file with the domain and its options")
+    add_parameter_options(parser, (LabelledParameters,))
+    parser.add_argument("--config", metavar="FILE", help="labelled contours: a JSON or TOML file with the domain and "
+                                                         "its options (flags given on the command line win)")
     labels = parser.add_argument_group("label maps")
     labels.add_argument("--label", type=int, action="append", metavar="N",
                         help="a label of the domain (repeat for a union); default every nonzero label")
@@ -50,7 +50,7 @@ def run(args) -> None:
     try:
         if args.input.lower().endswith(LABEL_MAP_EXTENSIONS):
             result = mesh_label_map(args, bar)
-        elif args.domain or args.config or looks_labelled(args.input):
+        elif args.config or labelled_flags(args) or looks_labelled(args.input):
             result = mesh_labelled_points(args, bar)
         else:
             result = run_pipeline(*read_points(args.input), *parameters_from_args(args), progress=bar,
@@ -66,8 +66,19 @@ def mesh_label_map(args, progress):
     return label_map_mesh(args.input, labels=set(args.label) if args.label else None, radius=biting.radius,
                           cells=biting.cells, grid_spacing=implicit.grid_spacing, ras=args.ras, order=biting.order,
                           seed=biting.seed, threshold=spurious.threshold, min_component=spurious.min_component,
-                          max_memory_mb=implicit.max_memory_mb, optimize=optimize_parameters(args) or False,
+                          max_memory_mb=implicit.max_memory_mb, optimize=optimize_parameters(args),
                           progress=progress)
+
+
+def labelled_flags(args) -> dict:
+    """The labelled-contour flags given on the command line (those not at their default), as keywords of
+    run_labelled."""
+    labelled = parameters_from_args(args, (LabelledParameters,))[0]
+    given = {item.name: getattr(labelled, item.name) for item in fields(LabelledParameters)
+             if getattr(labelled, item.name) != item.default}
+    if "domain" in given:
+        given["domain"] = given["domain"].strip() or None
+    return given
 
 
 def mesh_labelled_points(args, progress, path=None):
@@ -75,8 +86,7 @@ def mesh_labelled_points(args, progress, path=None):
     from ..core.labelled import run_labelled
     points, labels, slices = read_labelled_points(path or args.input, slices=True)
     options = read_labelled_config(args.config) if args.config else {}
-    if args.domain:
-        options["domain"] = args.domain
+    options.update(labelled_flags(args))   # a flag given wins over the config file
     implicit, biting, spurious = parameters_from_args(args)
     return run_labelled(points, labels, slices=slices, implicit=implicit, biting=biting, spurious=spurious,
                         optimize=optimize_parameters(args), progress=progress, **options)

@@ -23,7 +23,7 @@ def describe(metadata: dict, default) -> str:
         low, high, low_open, high_open = metadata["range"]
         text += f"; range {'(' if low_open else '['}{'-inf' if low is None else low}, " \
                 f"{'inf' if high is None else high}{')' if high_open else ']'}"
-    return text + (f"; default {default}" if default is not None else "")
+    return text + (f"; default {default}" if default not in (None, "") else "")
 
 
 def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
@@ -31,7 +31,8 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
     for cls in parameter_classes:
         group = parser.add_argument_group(cls.__doc__.split(":")[0])
         for item in fields(cls):
-            kind = str if "choices" in item.metadata else int if item.metadata["integer"] else float
+            text = "choices" in item.metadata or "text" in item.metadata
+            kind = str if text else int if item.metadata["integer"] else float
             group.add_argument(f"--{item.name.replace('_', '-')}", dest=item.name, type=kind,
                                choices=item.metadata.get("choices"), default=item.default,
                                help=describe(item.metadata, item.default))

@@ -110,8 +110,9 @@ class LabelledParameters(Parameters):
     base_plane: str = parameter("auto", "the plane that closes the domain: auto (the valve plane when valve points "
                                 "are labelled), valves (required), or none", choices=("auto", "valves", "none"))
     min_wall: Optional[float] = parameter(
-        None, "the thinnest wall the domain keeps between a surface and what is subtracted from it; default the "
-        "larger of 2.5 mm and 5 grid spacings (1.25 R)", unit="input units", low=0)
+        None, "the thinnest wall the domain keeps between a surface and what is subtracted from it (a wall thinner "
+        "than a cell opens in holes); default the larger of 2.5 and 1.25 R (R = 4 grid spacings in "
+        "PointsToImplicit)", unit="input units", low=0)
 
 
 @dataclass(frozen=True)
