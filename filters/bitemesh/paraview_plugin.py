@@ -11,8 +11,9 @@ Never put a virtual environment holding the pip ``vtk`` wheel on ParaView's path
 This is the only module of bitemesh that imports ``paraview``.  The ParaView classes are subclasses of the VTK
 filters in :mod:`bitemesh.algorithms`, generated here from the parameter dataclasses of
 :mod:`bitemesh.core.parameters`: each field becomes a property (its name in CamelCase) with the field's default,
-its range (``IntRangeDomain``/``DoubleRangeDomain``) or choices (``StringListDomain``) and its help and unit as
-documentation.  Nothing about a parameter is written here a second time.
+its range (``IntRangeDomain``/``DoubleRangeDomain``), choices (``StringListDomain``) or free text (a string
+property without a domain) and its help and unit as documentation.  Nothing about a parameter is written here a
+second time.
 
 A parameter that is None by default ("chosen automatically") cannot be None in a ParaView property: it has an
 *automatic value*, 0 when 0 is outside the parameter's range (radius, grid spacing, error bound), else -1 (margin
@@ -111,6 +112,8 @@ def documentation(item) -> str:
         text += f" [{meta['unit']}]"
     if "choices" in meta:
         return f"{text}. One of: {', '.join(meta['choices'])}."
+    if "text" in meta:
+        return f"{text}."
     text += f". Valid values: {range_text(item)}"
     if optional(item):
         text += (f". {automatic_value(item)} means automatic (None in bitemesh: the default described above); "
@@ -142,6 +145,8 @@ def property_decorators(item):
               "default_values": default_value(item)}
     # smdomain.xml nests any element in the property: here its documentation
     decorators = [smdomain.xml(f"<Documentation>{escape(documentation(item))}</Documentation>")]
+    if "text" in item.metadata:  # any string: a text field, no domain
+        return decorators + [smproperty.stringvector(**common)]
     if "choices" in item.metadata:
         strings = "".join(f'<String value="{escape(choice)}"/>' for choice in item.metadata["choices"])
         decorators += [smdomain.xml(f'<StringListDomain name="list">{strings}</StringListDomain>'),

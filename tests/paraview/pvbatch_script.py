@@ -2,12 +2,16 @@
 
     pvbatch pvbatch_script.py --plugin filters/bitemesh/paraview_plugin.py --points sphere.csv --out DIR
         [--cells 3000] [--radius 0.15] [--grid-spacing 0.03] [--seed 0]
+        [--labelled shell.vtp [--domain "EPI - LV_ENDO - RV_ENDO"] [--bad-domain "EPI - AORTA"] [--labelled-cells 6000]]
 
 Loads the plugin, reads the scattered points as a ParaView user would (CSV Reader, Table To Points), meshes them
 with "Volume Mesh From Points" and with the five-filter chain, and compares each with the plain VTK filters and
-``bitemesh.run`` on the same points and parameters in this same process (they must be equal, bit for bit).  Writes
-``DIR/one_shot.vtu``, ``DIR/chain.vtu`` and ``DIR/results.json``: every check by name with ``ok`` and a detail, and
-the facts the test compares again in its own Python.  No check stops the script: the test reports each one.
+``bitemesh.run`` on the same points and parameters in this same process (they must be equal, bit for bit).  With
+``--labelled``, meshes labelled contour points (a VTP with ``Label`` and ``Slice`` arrays, read with ParaView's
+reader) with "Volume Mesh From Points" and the given Domain (base plane none), after trying the bad domain.  Writes
+``DIR/one_shot.vtu``, ``DIR/chain.vtu``, ``DIR/labelled.vtu`` and ``DIR/results.json``: every check by name with
+``ok`` and a detail, and the facts the test compares again in its own Python.  No check stops the script: the test
+reports each one.
 """
 from __future__ import annotations
 
@@ -39,6 +43,10 @@ from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonDataModel import vtkImageData
 
 SPHERE_VOLUME = 4.0 / 3.0 * math.pi
+#: bitemesh class name -> the plugin's filter in paraview.simple
+FILTERS = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
+           "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
+           "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter"}
 #: the README's Programmable Filter script (Output Data Set Type: vtkUnstructuredGrid); CELLS is substituted.
 PROGRAMMABLE_SCRIPT = """
 import bitemesh
@@ -133,7 +141,8 @@ def environment(plugin: Path) -> None:
 
 @guarded("properties follow the parameter dataclasses")
 def properties(proxies: dict) -> None:
-    """Every field of each filter's dataclasses is a property with its default, range or choices, and help."""
+    """Every field of each filter's dataclasses is a property with its default, range, choices or free text, and
+    help."""
     problems = []
     for class_name, proxy in proxies.items():
         for item in (f for dataclass in getattr(algorithms, class_name).parameter_classes for f in fields(dataclass)):
@@ -147,6 +156,13 @@ def properties(proxies: dict) -> None:
             help_text = prop.GetDocumentation().GetDescription() if prop.GetDocumentation() else ""
             if meta["help"] not in " ".join(help_text.split()):
                 problems.append(f"{class_name}.{name}: help {help_text!r}")
+            if "text" in meta:  # a string property without a domain
+                domains = prop.NewDomainIterator()
+                domains.Begin()
+                if not prop.IsA("vtkSMStringVectorProperty") or default != item.default or not domains.IsAtEnd():
+                    problems.append(f"{class_name}.{name}: {prop.GetClassName()}, default {default!r}, a domain "
+                                    f"{None if domains.IsAtEnd() else domains.GetKey()}")
+                continue
             if "choices" in meta:
                 domain = prop.GetDomain("list")
                 strings = [domain.GetString(i) for i in range(domain.GetNumberOfStrings())] if domain else None
@@ -280,6 +296,39 @@ def bad_parameter(points_proxy, args) -> None:
     print("bad-parameter checks done", flush=True)
 
 
+@guarded("labelled contours")
+def labelled(args, out: Path) -> None:
+    """Labelled contours from a VTP: a bad Domain is an error naming the surface, then the right one meshes them."""
+    reader = simple.XMLPolyDataReader(FileName=[str(args.labelled)])
+    arrays = updated(reader).GetPointData()
+    kinds = {name: arrays.GetAbstractArray(name).GetClassName() if arrays.GetAbstractArray(name) else None
+             for name in ("Label", "Slice")}
+    check("labelled: ParaView's reader keeps the Label and Slice arrays",
+          kinds["Label"] == "vtkStringArray" and kinds["Slice"] is not None, kinds)
+    proxies = {}
+    for class_name in "PointsToImplicit", "MeshFromPoints":
+        proxy = proxies[class_name] = getattr(simple, FILTERS[class_name])(Input=reader, Domain=args.bad_domain,
+                                                                           BasePlane="none")
+        labels = [proxy.GetProperty(name).GetXMLLabel() for name in ("Domain", "BasePlane", "MinWall")]
+        check(f"labelled: {class_name} shows Domain, Base Plane, Min Wall (-1: automatic)",
+              labels == ["Domain", "Base Plane", "Min Wall"] and proxy.MinWall == -1, f"{labels}, {proxy.MinWall}")
+        data = updated(proxy)
+        error = proxy.GetClientSideObject().last_error
+        check(f"labelled bad domain: {class_name} names the unknown surface, empty output",
+              "unknown surface" in str(error) and data.GetNumberOfPoints() == 0, repr(error))
+
+    proxy = proxies["MeshFromPoints"]
+    proxy.Domain = args.domain
+    proxy.Cells = args.labelled_cells
+    grid = timed("Volume Mesh From Points, labelled contours", proxy)
+    error = proxy.GetClientSideObject().last_error
+    check("labelled: the right domain then meshes the contours", error is None and grid.GetNumberOfCells() > 0,
+          f"{grid.GetNumberOfCells()} cells, error {error!r}")
+    SaveData(str(out / "labelled.vtu"), proxy=proxy)
+    facts["labelled"] = {"points": grid.GetNumberOfPoints(), "cells": grid.GetNumberOfCells(),
+                         "radius": grid.GetFieldData().GetArray("Radius").GetValue(0), "file": "labelled.vtu"}
+
+
 @guarded("programmable filter")
 def programmable(points_proxy, xyz: np.ndarray, args) -> None:
     """The README's Programmable Filter script gives bitemesh.mesh_from_points's mesh."""
@@ -324,6 +373,10 @@ def main() -> int:
     parser.add_argument("--radius", type=float, default=0.15)
     parser.add_argument("--grid-spacing", type=float, default=0.03)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--labelled", type=Path, help="a VTP of labelled contour points")
+    parser.add_argument("--domain", default="EPI - LV_ENDO - RV_ENDO")
+    parser.add_argument("--bad-domain", default="EPI - AORTA")
+    parser.add_argument("--labelled-cells", type=int, default=6000)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
 
@@ -337,11 +390,8 @@ def main() -> int:
     environment(args.plugin)
 
     if checks["plugin loads"]["ok"]:
-        names = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
-                 "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
-                 "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter"}
-        missing = [label for label in names.values() if not hasattr(simple, label)]
-        check("six filters in paraview.simple", not missing, missing or sorted(names.values()))
+        missing = [label for label in FILTERS.values() if not hasattr(simple, label)]
+        check("six filters in paraview.simple", not missing, missing or sorted(FILTERS.values()))
 
         reader = CSVReader(FileName=[str(args.points)])
         points_proxy = TableToPoints(Input=reader, XColumn="x", YColumn="y", ZColumn="z")
@@ -350,12 +400,14 @@ def main() -> int:
               np.array_equal(xyz, np.loadtxt(args.points, delimiter=",", skiprows=1)), f"{len(xyz)} points")
 
         manager = servermanager.vtkSMProxyManager.GetProxyManager().GetActiveSessionProxyManager()
-        properties({class_name: manager.NewProxy("filters", f"Bitemesh{class_name}") for class_name in names})
+        properties({class_name: manager.NewProxy("filters", f"Bitemesh{class_name}") for class_name in FILTERS})
         one_shot(points_proxy, xyz, args, args.out)
         chain(points_proxy, xyz, args, args.out)
         bad_parameter(points_proxy, args)
         programmable(points_proxy, xyz, args)
         label_map()
+        if args.labelled:
+            labelled(args, args.out)
 
     facts["seconds"]["pvbatch script"] = round(time.perf_counter() - clock, 3)
     (args.out / "results.json").write_text(json.dumps({"checks": checks, "facts": facts}, indent=1, default=str))

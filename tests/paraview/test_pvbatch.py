@@ -1,6 +1,7 @@
-"""The ParaView plugin, headless in pvbatch: the same mesh from the same points as the VTK filters and bitemesh.run.
+"""The ParaView plugin, headless in pvbatch: the same mesh from the same points as the VTK filters and bitemesh.run
+(and, for labelled contours, as run_labelled).
 
-pvbatch runs ``pvbatch_script.py`` beside this file once per session (about 15 s): ParaView 5.11's own Python and
+pvbatch runs ``pvbatch_script.py`` beside this file once per session (about 25 s): ParaView 5.11's own Python and
 VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH`` holding only the clone's ``filters/`` (the pip ``vtk``
 wheel of this virtual environment would crash it).  The script records every check by name in ``results.json``;
 the tests here report them and check again, in this Python, the meshes it wrote.  Skipped where pvbatch is absent
@@ -18,11 +19,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bitemesh.core.labelled import run_labelled
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
 from bitemesh.core.pipeline import run
 from bitemesh.core.shapes import sample_surface, sphere
 
+from tests.core.test_labelled import SHELL_DOMAIN, sample_shell
 from tests.meshcheck import assert_valid_domain
+from tests.vtk.test_labelled_filters import SHELL_VOLUME, labelled_polydata
 
 HERE = Path(__file__).resolve().parent
 FILTERS = HERE.parents[1] / "filters"
@@ -31,6 +35,8 @@ PVBATCH = shutil.which("pvbatch")
 #: the parameters the script uses (its defaults, passed explicitly)
 CELLS, RADIUS, GRID_SPACING, SEED = 3000, 0.15, 0.03, 0
 SPHERE_VOLUME = 4.0 / 3.0 * math.pi
+#: the labelled contours' cells, and a domain that names a surface the contours lack
+LABELLED_CELLS, BAD_DOMAIN = 6000, "EPI - LV_ENDO - AORTA"
 TIMEOUT_SECONDS = 600
 
 pytestmark = pytest.mark.skipif(
@@ -58,14 +64,26 @@ def points() -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def pvbatch_run(tmp_path_factory, points):
+def contours():
+    """(1616, 3) points, labels and slice ids of the closed two-cavity shell's contours (EPI, LV_ENDO, RV_ENDO)."""
+    return sample_shell(spacing=5.0, sax=tuple(range(-75, 80, 10)))
+
+
+@pytest.fixture(scope="module")
+def pvbatch_run(tmp_path_factory, points, contours):
     """Run the script once in pvbatch; its results, output folder and console output."""
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
     folder = tmp_path_factory.mktemp("pvbatch")
     csv = folder / "sphere.csv"
     np.savetxt(csv, points, delimiter=",", header="x,y,z", comments="", fmt="%.17g")  # exact round trip
+    writer = vtkXMLPolyDataWriter()  # binary: an exact round trip
+    writer.SetInputData(labelled_polydata(*contours))
+    writer.SetFileName(str(folder / "shell.vtp"))
+    writer.Write()
     command = [PVBATCH, str(HERE / "pvbatch_script.py"), "--plugin", str(PLUGIN), "--points", str(csv),
                "--out", str(folder), "--cells", str(CELLS), "--radius", str(RADIUS),
-               "--grid-spacing", str(GRID_SPACING), "--seed", str(SEED)]
+               "--grid-spacing", str(GRID_SPACING), "--seed", str(SEED), "--labelled", str(folder / "shell.vtp"),
+               "--domain", SHELL_DOMAIN, "--bad-domain", BAD_DOMAIN, "--labelled-cells", str(LABELLED_CELLS)]
     completed = subprocess.run(command, check=False, capture_output=True, text=True, timeout=TIMEOUT_SECONDS,
                                env=pvbatch_environment(), cwd=folder, stdin=subprocess.DEVNULL)
     console = f"$ {' '.join(command)}\n--- stdout ---\n{completed.stdout}\n--- stderr ---\n{completed.stderr}"
@@ -144,6 +162,33 @@ def test_a_negative_radius_is_a_paraview_error_naming_radius_without_a_crash(pvb
     assert "MeshFromPoints: radius must be in (0, inf], got -1.0" in stderr
     assert "BitingSampler: radius must be in (0, inf], got -2.0" in stderr
     assert "DelaunayTetra:" not in stderr and "SpuriousCellFilter:" not in stderr  # no echo of the root cause
+
+
+def test_labelled_properties_are_on_points_to_implicit_and_volume_mesh_from_points(pvbatch_run):
+    """Domain, Base Plane and Min Wall (-1: automatic) on both; Domain a string property without a domain."""
+    assert_checks(pvbatch_run, "labelled: PointsToImplicit shows", "labelled: MeshFromPoints shows",
+                  "properties follow the parameter dataclasses")
+
+
+def test_labelled_contours_give_the_mesh_of_run_labelled_here(pvbatch_run, contours):
+    """A VTP with Label and Slice arrays, read by ParaView: Volume Mesh From Points with Domain, Base Plane none and
+    Cells gives run_labelled's mesh (in this Python: the same cells, the coordinates equal to rounding; measured
+    4e-11 between numpy 1.24 there and 2 here)."""
+    assert_checks(pvbatch_run, "labelled: ParaView's reader", "labelled: the right domain")
+    points, labels, slices = contours
+    expected = run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane="none", slices=slices,
+                            biting=BitingParameters(cells=LABELLED_CELLS)).mesh
+    mesh = read_back(pvbatch_run, "labelled")
+    assert mesh.points.shape == expected.points.shape and np.array_equal(mesh.cells, expected.cells)
+    np.testing.assert_allclose(mesh.points, expected.points, rtol=0, atol=1e-9)
+    assert_valid_domain(mesh, euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03)
+
+
+def test_an_unknown_surface_in_domain_is_a_paraview_error_naming_it_without_a_crash(pvbatch_run):
+    assert_checks(pvbatch_run, "labelled bad domain")
+    message = f"domain '{BAD_DOMAIN}' names the unknown surface 'AORTA'"
+    for class_name in ("PointsToImplicit", "MeshFromPoints"):
+        assert pvbatch_run["stderr"].count(f"{class_name}: {message}") == 1, pvbatch_run["console"]  # once
 
 
 def test_the_readme_programmable_filter_script_meshes_the_points(pvbatch_run):
