@@ -329,6 +329,21 @@ def labelled(args, out: Path) -> None:
                          "radius": grid.GetFieldData().GetArray("Radius").GetValue(0), "file": "labelled.vtu"}
 
 
+@guarded("gpfile")
+def gpfile(args, out: Path) -> None:
+    """The README's path for a biv-me GPFile: CSV reader (tabs), Table To Points, Volume Mesh From Points with the
+    default (empty) Domain."""
+    table = simple.CSVReader(FileName=[str(args.gpfile)], FieldDelimiterCharacters="\t")
+    points = simple.TableToPoints(Input=table, XColumn="x", YColumn="y", ZColumn="z")
+    proxy = getattr(simple, FILTERS["MeshFromPoints"])(Input=points, Cells=args.labelled_cells)
+    grid = timed("Volume Mesh From Points, GPFile", proxy)
+    error = proxy.GetClientSideObject().last_error
+    check("gpfile: the default domain meshes the myocardium", error is None and grid.GetNumberOfCells() > 0,
+          f"{grid.GetNumberOfCells()} cells, error {error!r}")
+    SaveData(str(out / "gpfile.vtu"), proxy=proxy)
+    facts["gpfile"] = {"cells": grid.GetNumberOfCells(), "file": "gpfile.vtu"}
+
+
 @guarded("programmable filter")
 def programmable(points_proxy, xyz: np.ndarray, args) -> None:
     """The README's Programmable Filter script gives bitemesh.mesh_from_points's mesh."""
@@ -377,6 +392,7 @@ def main() -> int:
     parser.add_argument("--domain", default="EPI - LV_ENDO - RV_ENDO")
     parser.add_argument("--bad-domain", default="EPI - AORTA")
     parser.add_argument("--labelled-cells", type=int, default=6000)
+    parser.add_argument("--gpfile", type=Path, help="a biv-me GPFile, read as a tab-separated table")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
 
@@ -408,6 +424,8 @@ def main() -> int:
         label_map()
         if args.labelled:
             labelled(args, args.out)
+        if args.gpfile:
+            gpfile(args, args.out)
 
     facts["seconds"]["pvbatch script"] = round(time.perf_counter() - clock, 3)
     (args.out / "results.json").write_text(json.dumps({"checks": checks, "facts": facts}, indent=1, default=str))

@@ -38,6 +38,8 @@ SPHERE_VOLUME = 4.0 / 3.0 * math.pi
 #: the labelled contours' cells, and a domain that names a surface the contours lack
 LABELLED_CELLS, BAD_DOMAIN = 6000, "EPI - LV_ENDO - AORTA"
 TIMEOUT_SECONDS = 600
+#: the biv-me guide points shipped in the package
+GPFILE = FILTERS / "bitemesh" / "data" / "bivme_patient1" / "GPFile_000.txt"
 
 pytestmark = pytest.mark.skipif(
     PVBATCH is None, reason="pvbatch is absent: apt-get install paraview python3-paraview python3-numpy "
@@ -83,7 +85,8 @@ def pvbatch_run(tmp_path_factory, points, contours):
     command = [PVBATCH, str(HERE / "pvbatch_script.py"), "--plugin", str(PLUGIN), "--points", str(csv),
                "--out", str(folder), "--cells", str(CELLS), "--radius", str(RADIUS),
                "--grid-spacing", str(GRID_SPACING), "--seed", str(SEED), "--labelled", str(folder / "shell.vtp"),
-               "--domain", SHELL_DOMAIN, "--bad-domain", BAD_DOMAIN, "--labelled-cells", str(LABELLED_CELLS)]
+               "--domain", SHELL_DOMAIN, "--bad-domain", BAD_DOMAIN, "--labelled-cells", str(LABELLED_CELLS),
+               "--gpfile", str(GPFILE)]
     completed = subprocess.run(command, check=False, capture_output=True, text=True, timeout=TIMEOUT_SECONDS,
                                env=pvbatch_environment(), cwd=folder, stdin=subprocess.DEVNULL)
     console = f"$ {' '.join(command)}\n--- stdout ---\n{completed.stdout}\n--- stderr ---\n{completed.stderr}"
@@ -168,6 +171,18 @@ def test_labelled_properties_are_on_points_to_implicit_and_volume_mesh_from_poin
     """Domain, Base Plane and Min Wall (-1: automatic) on both; Domain a string property without a domain."""
     assert_checks(pvbatch_run, "labelled: PointsToImplicit shows", "labelled: MeshFromPoints shows",
                   "properties follow the parameter dataclasses")
+
+
+def test_a_gpfile_read_as_a_table_gives_the_myocardium_of_run_labelled(pvbatch_run):
+    """The README's ParaView path for a GPFile: its "contour type" and "frameID" columns are the labels and slices."""
+    from bitemesh.io import read_labelled_points
+    assert_checks(pvbatch_run, "gpfile")
+    points, labels, slices = read_labelled_points(GPFILE, slices=True)
+    expected = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=LABELLED_CELLS)).mesh
+    mesh = read_back(pvbatch_run, "gpfile")
+    assert np.array_equal(mesh.cells, expected.cells)
+    np.testing.assert_allclose(mesh.points, expected.points, rtol=0, atol=1e-9)
+    assert_valid_domain(mesh, components=1)
 
 
 def test_labelled_contours_give_the_mesh_of_run_labelled_here(pvbatch_run, contours):

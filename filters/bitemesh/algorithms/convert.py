@@ -16,8 +16,9 @@ from ..core.mesh import Mesh
 
 #: the point array of the implicit image: f > 0 inside.
 IMPLICIT_ARRAY = "Implicit"
-#: point-data array names (lower case) of the contour label and the optional slice id of labelled points.
-LABEL_ARRAYS = ("label", "labels")
+#: point-data array names (lower case) of the contour label and the optional slice id of labelled points (a
+#: GPFile read as a table gives "contour type" and "frameID").
+LABEL_ARRAYS = ("label", "labels", "contour type", "contour_type")
 SLICE_ARRAYS = ("slice", "sliceid", "slice_id", "frameid")
 
 

@@ -55,7 +55,7 @@ def labelled_contours(dataset):
 
 def labelled_options(parameters: LabelledParameters) -> dict:
     """Keywords of :func:`~bitemesh.core.labelled.labelled_implicit` from LabelledParameters."""
-    return {"domain": parameters.domain.strip() or None, "base_plane": parameters.base_plane}
+    return {"domain": (parameters.domain or "").strip() or None, "base_plane": parameters.base_plane}
 
 
 @with_parameters(ImplicitParameters, LabelMapParameters, LabelledParameters)
