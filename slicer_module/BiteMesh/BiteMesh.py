@@ -53,6 +53,10 @@ an implicit surface (MPU, or an RBF for sparse contours), nodes about R apart, D
 cells removed, a valid domain.<br>
 <b>Input</b>: a markups point list (points on the surface), one or more markups closed curves (contours), a
 surface model (its points and normals) or a segmentation (one segment).<br>
+<b>Labelled contours</b>: <i>Load labelled points...</i> reads a biv-me GPFile, a CSV table or a VTP with a Label
+array (LPS coordinates, as Slicer's files) into a model; or name closed curves after their surfaces (EPI, LV_ENDO_1,
+...) and give a <b>Domain</b> such as EPI - LV_ENDO - RV_ENDO. One surface per label, combined by the domain and
+closed by the base plane.<br>
 <b>Output</b>: a model node holding the tetrahedra (an unstructured grid) coloured by radius ratio
 (1 = regular tetrahedron), and the radius-ratio histogram as a table and a plot.<br>
 <b>Radius R</b> sets the element size; leave it automatic to aim for <b>Cells</b> cells. The mesh is in RAS
@@ -75,6 +79,8 @@ def _annotated(spec):
     from slicer.parameterNodeWrapper import Choice, Minimum, WithinRange
     if spec.choices is not None:
         return Annotated[str, Choice(list(spec.choices))]
+    if spec.kind is str:   # free text
+        return str
     high = spec.high
     if spec.kind is int:
         high = _INT_MAX if high is None else min(high, _INT_MAX)
@@ -146,6 +152,7 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.addObserver(slicer.mrmlScene, slicer.mrmlScene.EndCloseEvent, self.onSceneEndClose)
         self.ui.applyButton.connect("clicked(bool)", self.onApplyButton)
         self.ui.cancelButton.connect("clicked(bool)", self.onCancelButton)
+        self.ui.loadLabelledPointsButton.connect("clicked(bool)", self.onLoadLabelledPoints)
         self.ui.contoursSelector.connect("checkedNodesChanged()", self.onContoursChanged)
         self.ui.segmentComboBox.connect("currentIndexChanged(int)", self.onSegmentChanged)
 
@@ -194,6 +201,7 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
             self.ui.statusLabel.text = _("BiteMesh needs {packages}: reopen the module to install it.").format(
                 packages=", ".join(missing))
             self.ui.applyButton.enabled = False
+            self.ui.loadLabelledPointsButton.enabled = False
             return False
         return True
 
@@ -280,6 +288,19 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
                 combo.currentIndex = max(index, 0)
         finally:
             self._updatingExtras = False
+
+    def onLoadLabelledPoints(self):
+        """Read a labelled points file into a model node (the logic's loadLabelledPoints) and make it the input."""
+        if self._parameterNode is None:
+            return
+        from bitemesh.io import LABELLED_EXTENSIONS
+        patterns = " ".join(f"*{extension}" for extension in LABELLED_EXTENSIONS)
+        path = qt.QFileDialog.getOpenFileName(slicer.util.mainWindow(), _("Load labelled points"), "",
+                                              _("Labelled points") + f" ({patterns});;" + _("All files") + " (*)")
+        if not path:
+            return
+        with slicer.util.tryWithErrorDisplay(_("BiteMesh could not read the labelled points."), waitCursor=True):
+            self._parameterNode.inputNode = self.logic.loadLabelledPoints(path)
 
     def onContoursChanged(self):
         if self._parameterNode is not None and not self._updatingExtras:

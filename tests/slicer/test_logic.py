@@ -21,19 +21,30 @@ from xml.etree import ElementTree  # noqa: E402
 import bitemesh  # noqa: E402
 import numpy as np  # noqa: E402
 from bitemesh import Cancelled, InvalidInputError  # noqa: E402
-from bitemesh.algorithms.convert import cell_types, unstructured_to_mesh  # noqa: E402
+from bitemesh.algorithms.convert import (  # noqa: E402
+    cell_types,
+    nodes_to_polydata,
+    point_coordinates,
+    unstructured_to_mesh,
+)
+from bitemesh.core.labelled import run_labelled  # noqa: E402
 from bitemesh.core.parameters import (  # noqa: E402
     BitingParameters,
     ImplicitParameters,
+    LabelledParameters,
     QualityParameters,
     SpuriousParameters,
 )
+from bitemesh.io import read_labelled_points  # noqa: E402
+from vtkmodules.util import numpy_support  # noqa: E402
 from vtkmodules.vtkCommonCore import VTK_SHORT  # noqa: E402
 from vtkmodules.vtkCommonDataModel import VTK_TETRA, vtkImageData  # noqa: E402
 from vtkmodules.vtkCommonMath import vtkMatrix4x4  # noqa: E402
 from vtkmodules.vtkFiltersSources import vtkSphereSource  # noqa: E402
 
+from tests.core.test_labelled import SHELL_DOMAIN, sample_shell  # noqa: E402
 from tests.meshcheck import assert_valid_domain  # noqa: E402
+from tests.vtk.test_labelled_filters import SHELL_VOLUME, labelled_polydata  # noqa: E402
 
 MODULE = Path(__file__).resolve().parents[2] / "slicer_module" / "BiteMesh"
 sys.path.insert(0, str(MODULE))
@@ -42,6 +53,7 @@ from BiteMeshLib import selftest  # noqa: E402
 from BiteMeshLib.logic import BiteMeshLogic  # noqa: E402
 
 CENTRE = np.array([30.0, -40.0, 55.0])   # RAS, mm: off the origin, so that a wrong frame shows
+GPFILE = Path(bitemesh.__file__).resolve().parent / "data" / "bivme_patient1" / "GPFile_000.txt"
 RADIUS = 20.0
 BALL_RADIUS = 12.0
 
@@ -97,7 +109,6 @@ def centroid(mesh):
 
 def ball_segmentation(scene, direction, spacing=(0.8, 0.6, 1.2), origin=(10.0, -20.0, 5.0), dims=(40, 50, 28)):
     """A ball segment imported from a label map with the given geometry; returns it and the ball's RAS centre."""
-    from vtkmodules.util import numpy_support
     spacing = np.asarray(spacing)
     labelmap = scene.AddNewNodeByClass("vtkMRMLLabelMapVolumeNode", "ball")
     labelmap.SetSpacing(*spacing)
@@ -328,6 +339,115 @@ def test_model_points_and_normals_through_its_transform(scene, logic):
     assert np.linalg.norm(centroid(mesh) - CENTRE) < 0.5
 
 
+# --- labelled contours ----------------------------------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_a_loaded_gpfile_meshes_as_run_labelled(scene, logic):
+    """biv-me's guide points, loaded as a model (LPS file -> RAS), give run_labelled's mesh of the same points."""
+    node = logic.loadLabelledPoints(GPFILE, scene=scene)
+    points, labels, slices = read_labelled_points(GPFILE, slices=True)
+    data = node.GetPolyData()
+    assert node.GetName() == "GPFile_000" and data.GetNumberOfVerts() == len(points)
+    ras = points * [-1.0, -1.0, 1.0]
+    np.testing.assert_array_equal(point_coordinates(data), ras)
+    assert data.GetPointData().GetAbstractArray("Label").IsA("vtkStringArray")
+    model_labels, model_slices = logic._modelLabels(node)
+    assert model_labels.tolist() == labels.tolist() and model_slices.tolist() == slices.tolist()
+    as_ras = logic.loadLabelledPoints(GPFILE, "as RAS", scene=scene, coordinateSystem="RAS")
+    np.testing.assert_array_equal(point_coordinates(as_ras.GetPolyData()), points)
+
+    model = output_model(scene)
+    result = logic.process(node, model, cells=15000)
+    expected = run_labelled(ras, labels, slices=slices, biting=BitingParameters(cells=15000)).mesh
+    mesh = mesh_of(model)
+    np.testing.assert_array_equal(mesh.cells, expected.cells)
+    np.testing.assert_array_equal(mesh.points, expected.points)
+    assert_valid_domain(mesh, components=1)
+    assert result.radius > 0 and 12000 < len(mesh.cells) < 18000
+
+
+def shell_curves(scene):
+    """The closed two-cavity shell's contours as closed curves, one per slice and surface, named as a user would:
+    EPI, EPI_1, EPI 2, EPI-3, ..., and one RV_ENDO contour named "septum", labelled by its attribute."""
+    points, labels, slices = sample_shell(spacing=5.0, sax=tuple(range(-75, 80, 10)))
+    curves = []
+    for number in np.unique(slices):
+        for label in np.unique(labels[slices == number]):
+            copy = sum(contour_label == label for contour_label, _ in curves)
+            name = label if copy == 0 else f"{label}{'-_ '[copy % 3]}{copy}"
+            node = scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)
+            for point in points[(slices == number) & (labels == label)]:
+                node.AddControlPoint(*map(float, point))
+            curves.append((label, node))
+    label, node = next((label, node) for label, node in curves[::-1] if label == "RV_ENDO")
+    node.SetName("septum")
+    node.SetAttribute(bitemesh_logic.LABEL_ATTRIBUTE, label)
+    return [node for _, node in curves]
+
+
+def test_closed_curves_named_after_their_surfaces_mesh_the_domain(scene, logic):
+    curves = shell_curves(scene)
+    model = output_model(scene)
+    logic.process(curves, model, cells=6000, domain=SHELL_DOMAIN, base_plane="none")
+    assert_valid_domain(mesh_of(model), euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03,
+                        mean_quality=0.75)
+
+
+def test_labelled_points_take_their_slices_from_curves_and_models(scene, logic):
+    """Each closed curve is a slice of its own, a point list's points have none, a model's Slice ids are kept
+    apart from the curves'; with no slice at all bitemesh finds the planes (None)."""
+    curves = closed_curves(scene, levels=(-0.5, 0.5))
+    for curve, name in zip(curves, ("LV_ENDO", "LV_ENDO_1")):
+        curve.SetName(name)
+    points = point_list(scene, sphere_points(20), "EPI 2")
+    model = scene.AddNewNodeByClass("vtkMRMLModelNode", "labelled")
+    model.SetAndObservePolyData(labelled_polydata(sphere_points(6), [7] * 6, [4, 4, 4, 9, 9, 9]))
+    coordinates, labels, slices = logic._labelledPoints([*curves, points, model])
+    assert len(coordinates) == len(labels) == len(slices)
+    assert set(labels.tolist()) == {"LV_ENDO", "EPI", "7"}
+    assert slices[labels == "EPI"].tolist() == [-1] * 20 and slices[labels == "7"].tolist() == [6, 6, 6, 11, 11, 11]
+    for number in (0, 1):   # each curve resampled evenly: at least its 12 control points, at most 5 mm apart
+        contour = coordinates[slices == number]
+        steps = np.linalg.norm(contour - np.roll(contour, 1, axis=0), axis=1)
+        assert len(contour) >= 12 and steps.max() <= bitemesh_logic.CONTOUR_SPACING
+        assert steps.max() < 1.02 * steps.min() and set(labels[slices == number].tolist()) == {"LV_ENDO"}
+    assert logic._labelledPoints([points])[2] is None
+
+
+@pytest.mark.parametrize("name, label", [("LV_ENDO", "LV_ENDO"), ("LV_ENDO_1", "LV_ENDO"), ("LV_ENDO 2", "LV_ENDO"),
+                                         ("LV_ENDO-3", "LV_ENDO"), ("LV2", "LV2"), ("12", "12")])
+def test_a_contour_is_labelled_by_its_name_without_a_copy_number(scene, name, label):
+    assert bitemesh_logic.contourLabel(scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)) == label
+
+
+def test_bad_labelled_input_is_refused(scene, logic, tmp_path):
+    curves = closed_curves(scene, levels=(-0.5, 0.0, 0.5))
+    for curve in curves:
+        curve.SetName("LV_ENDO")
+    with pytest.raises(InvalidInputError, match="unknown surface 'RV_ENDO'; known surfaces: LV_ENDO"):
+        logic.process(curves, output_model(scene), domain="LV_ENDO - RV_ENDO")
+    fractional = scene.AddNewNodeByClass("vtkMRMLModelNode", "fractional labels")
+    fractional.SetAndObservePolyData(nodes_to_polydata(sphere_points(30)))
+    values = numpy_support.numpy_to_vtk(np.linspace(0.0, 2.0, 30), deep=True)
+    values.SetName("Label")
+    fractional.GetPolyData().GetPointData().AddArray(values)
+    with pytest.raises(InvalidInputError, match="'fractional labels': the Label array holds non-integer numbers"):
+        logic.process(fractional, output_model(scene))
+    surface = scene.AddNewNodeByClass("vtkMRMLModelNode", "surface")
+    surface.SetAndObservePolyData(nodes_to_polydata(sphere_points(30)))
+    with pytest.raises(InvalidInputError, match="'surface' has no point array Label"):
+        logic.process([curves[0], surface], output_model(scene), domain="LV_ENDO")
+    segmentation, _, _ = ball_segmentation(scene, np.eye(3))
+    with pytest.raises(InvalidInputError, match="clear domain to mesh the segment"):
+        logic.process(segmentation, output_model(scene), domain="LV_ENDO")
+    with pytest.raises(InvalidInputError, match="base_plane must be one of"):
+        logic.process(curves, output_model(scene), domain="LV_ENDO", base_plane="top")
+    with pytest.raises(InvalidInputError, match="labelled points"):
+        logic.loadLabelledPoints(tmp_path / "missing.txt", scene=scene)
+    with pytest.raises(InvalidInputError, match="coordinateSystem must be one of"):
+        logic.loadLabelledPoints(GPFILE, scene=scene, coordinateSystem="IJK")
+
+
 # --- bad input, cancel, progress ------------------------------------------------------------------------------------
 
 def test_empty_point_list_is_refused(scene, logic):
@@ -417,13 +537,15 @@ def test_parameter_specs_follow_the_core_dataclasses():
     assert list(specs) == list(bitemesh_logic.PARAMETERS)
     from bitemesh.core.parameters import OptimizeSwitch
     classes = {cls.__name__: cls for cls in (ImplicitParameters, BitingParameters, SpuriousParameters,
-                                             QualityParameters, OptimizeSwitch)}
+                                             QualityParameters, OptimizeSwitch, LabelledParameters)}
     for name, (dataclass_name, field_name) in bitemesh_logic.PARAMETERS.items():
         item = {f.name: f for f in fields(classes[dataclass_name])}[field_name]
         spec = specs[name]
         assert spec.core == field_name and spec.help == item.metadata["help"]
         if "choices" in item.metadata:
             assert spec.choices == item.metadata["choices"] and spec.default == item.default
+        elif item.metadata.get("text"):
+            assert spec.kind is str and spec.choices is None and spec.default == item.default
         else:
             low, high, low_open, _ = item.metadata["range"]
             assert spec.low == low and spec.lowOpen == low_open
@@ -433,6 +555,8 @@ def test_parameter_specs_follow_the_core_dataclasses():
     assert specs["cells"].kind is int and specs["cells"].default == 10000
     assert (specs["threshold"].low, specs["threshold"].high) == (0.0, 1.0)
     assert specs["method"].choices == ("mpu", "rbf")
+    assert (specs["domain"].kind, specs["domain"].default, specs["domain"].choices) == (str, "", None)
+    assert specs["basePlane"].choices == ("auto", "valves", "none") and specs["basePlane"].default == "auto"
     # "automatic" is never a valid value of the core, so it cannot be confused with one
     for spec in specs.values():
         if spec.automatic is not None:
@@ -440,6 +564,8 @@ def test_parameter_specs_follow_the_core_dataclasses():
                 classes[bitemesh_logic.PARAMETERS[spec.name][0]](**{spec.core: spec.automatic})
     assert bitemesh_logic.coreParameters({"radius": 0.0, "gridSpacing": 0.5, "method": "rbf", "cells": 500}) == \
         {"radius": None, "grid_spacing": 0.5, "method": "rbf", "cells": 500}
+    assert bitemesh_logic.coreParameters({"domain": "EPI - LV_ENDO", "basePlane": "none"}) == \
+        {"domain": "EPI - LV_ENDO", "base_plane": "none"}
 
 
 def test_requirements_install_only_scipy(monkeypatch):
@@ -483,10 +609,11 @@ def test_ui_file_binds_every_parameter():
     for name, widget_class in bound.items():
         spec = specs.get(name)
         expected = ("qMRMLNodeComboBox" if spec is None else "QComboBox" if spec.choices else
-                    "QSpinBox" if spec.kind is int else "QDoubleSpinBox")
+                    "QLineEdit" if spec.kind is str else "QSpinBox" if spec.kind is int else "QDoubleSpinBox")
         assert widget_class == expected, name   # the widget types parameterNodeWrapper connects
     names = {widget.get("name") for widget in tree.iter("widget")}
-    assert {"applyButton", "cancelButton", "progressBar", "segmentComboBox", "contoursSelector"} <= names
+    assert {"applyButton", "cancelButton", "progressBar", "segmentComboBox", "contoursSelector",
+            "loadLabelledPointsButton"} <= names
 
 
 def test_module_file_has_the_slicer_classes():
@@ -589,7 +716,7 @@ hints = typing.get_type_hints(cls, include_extras=True)
 assert type(None) in typing.get_args(hints["inputNode"]), "inputNode must allow None"
 assert typing.get_args(hints["contours"])[0] is slicer.vtkMRMLMarkupsClosedCurveNode
 for spec in BiteMesh.BiteMeshLogic.parameterSpecs():
-    kind, *validators = typing.get_args(hints[spec.name])
+    kind, *validators = typing.get_args(hints[spec.name]) or (hints[spec.name],)   # free text: plain str
     assert kind is spec.kind, spec.name
     for validator in validators:
         validator.validate(getattr(cls, spec.name))   # every default passes its own range

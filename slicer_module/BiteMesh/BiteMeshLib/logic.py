@@ -4,7 +4,8 @@ Everything the module does happens here, without Qt, ctk or ScriptedLoadableModu
 against the real MRML classes of the PyPI package ``slicer-core`` (where the tests run it).
 
 Coordinates: Slicer's world frame is RAS (ITK's LPS is diag(-1, -1, 1) of it).  Markups give their control and
-curve points in world coordinates; a model's points are taken through its parent transforms; a segment's binary
+curve points in world coordinates; a model's points are taken through its parent transforms; labelled points files
+are read as LPS, as Slicer reads its own model and markups files (:func:`loadLabelledPoints`); a segment's binary
 labelmap is meshed in its own voxel frame (voxel size applied) and the mesh is then carried to world coordinates by
 the labelmap's IJK-to-RAS direction and origin and the segmentation's parent transforms, so the mesh lands where
 the segment is.  The output mesh is always in world (RAS) coordinates.
@@ -18,6 +19,8 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import logging
+import math
+import re
 import sys
 import time
 from dataclasses import asdict, dataclass, field, fields
@@ -26,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import slicer
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import vtkPoints
+from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
 from vtkmodules.vtkCommonDataModel import vtkTable
 from vtkmodules.vtkCommonMath import vtkMatrix4x4
 from vtkmodules.vtkCommonTransforms import vtkGeneralTransform
@@ -143,9 +146,12 @@ PARAMETERS = {
     "maxMemoryMb": ("ImplicitParameters", "max_memory_mb"),
     "bins": ("QualityParameters", "bins"),
     "optimize": ("OptimizeSwitch", "optimize"),
+    "domain": ("LabelledParameters", "domain"),
+    "basePlane": ("LabelledParameters", "base_plane"),
 }
-#: keywords of :meth:`BiteMeshLogic.process` beyond the panel's (no "automatic" sentinel fits them).
-EXTRA_KEYWORDS = {"margin": ("ImplicitParameters", "margin")}
+#: keywords of :meth:`BiteMeshLogic.process` beyond the panel's (no "automatic" sentinel fits them: their ranges
+#: include their low bound).
+EXTRA_KEYWORDS = {"margin": ("ImplicitParameters", "margin"), "min_wall": ("LabelledParameters", "min_wall")}
 
 
 @dataclass(frozen=True)
@@ -157,7 +163,7 @@ class ParameterSpec:
     name : parameter-node name (camelCase); core : keyword of ``process`` (the dataclass field)
     kind : float, int or str; default : the parameter-node default
     low, high : valid range (None: unbounded); lowOpen : the low bound itself is invalid
-    choices : the valid values of a str parameter, else None
+    choices : the valid values of a str parameter, else None (a str parameter without choices is free text)
     automatic : the parameter-node value that stands for "chosen automatically" (the core's None), or None when the
         parameter is not optional; it is ``low`` of an open range, never a valid value
     help, unit : from the field's metadata
@@ -184,9 +190,10 @@ def parameterSpecs() -> tuple:
     for name, (dataclassName, fieldName) in PARAMETERS.items():
         item = {f.name: f for f in fields(getattr(core, dataclassName))}[fieldName]
         metadata = item.metadata
-        if "choices" in metadata:
-            specs.append(ParameterSpec(name, fieldName, str, item.default, None, None, False,
-                                       tuple(metadata["choices"]), None, metadata["help"], metadata["unit"]))
+        if "choices" in metadata or metadata.get("text"):
+            choices = tuple(metadata["choices"]) if "choices" in metadata else None
+            specs.append(ParameterSpec(name, fieldName, str, item.default, None, None, False, choices, None,
+                                       metadata["help"], metadata["unit"]))
             continue
         low, high, lowOpen, _ = metadata["range"]
         kind = int if metadata["integer"] else float
@@ -210,6 +217,63 @@ def coreParameters(values: dict) -> dict:
             value = values[spec.name]
             keywords[spec.core] = None if spec.automatic is not None and value == spec.automatic else value
     return keywords
+
+
+# --- labelled points files ------------------------------------------------------------------------------------------
+
+#: how loadLabelledPoints takes a file's coordinates: as LPS (negate x and y for RAS) or as RAS.
+COORDINATE_SYSTEMS = ("LPS", "RAS")
+#: the loaded points are drawn as dots this large (pixels).
+LABELLED_POINT_SIZE = 4.0
+
+
+def loadLabelledPoints(path, name=None, scene=None, coordinateSystem="LPS"):
+    """A model node in ``scene`` holding the labelled contour points of a file, to mesh with
+    :meth:`BiteMeshLogic.process`.
+
+    Parameters
+    ----------
+    path : a biv-me GPFile (.txt), a CSV table or a VTK file (.vtp) with a ``Label`` point array, as read by
+        bitemesh.io.read_labelled_points
+    name : the node's name; default the file's name without its extension
+    scene : vtkMRMLScene; default slicer.mrmlScene
+    coordinateSystem : "LPS" (default) or "RAS", the frame of the file's coordinates (mm).  Files are LPS as
+        Slicer reads its own model and markups files, and as DICOM's patient coordinates are, in which biv-me
+        writes GPFiles (the points of bitemesh's sample GPFile lie on the slice planes that its SliceInfoFile's
+        ImagePositionPatient and ImageOrientationPatient give); LPS points are turned to RAS, x and y negated, so
+        that they overlay the images of the same study.
+
+    Returns
+    -------
+    vtkMRMLModelNode: one vertex per point (world RAS, mm), point arrays ``Label`` (vtkStringArray) and, when the
+    file gives slices, ``Slice`` (int64).
+    """
+    _requireBitemesh()
+    from bitemesh.algorithms.convert import nodes_to_polydata
+    from bitemesh.core.errors import check_choice
+    from bitemesh.io import read_labelled_points
+
+    check_choice(coordinateSystem, "coordinateSystem", COORDINATE_SYSTEMS)
+    points, labels, slices = read_labelled_points(path, slices=True)
+    if coordinateSystem == "LPS":
+        points = points * np.array([-1.0, -1.0, 1.0])
+    polydata = nodes_to_polydata(points)
+    labelArray = vtkStringArray()
+    labelArray.SetName("Label")
+    labelArray.SetNumberOfValues(len(labels))
+    for index, label in enumerate(labels.tolist()):
+        labelArray.SetValue(index, label)
+    polydata.GetPointData().AddArray(labelArray)
+    if slices is not None:
+        sliceArray = numpy_support.numpy_to_vtk(np.ascontiguousarray(slices, dtype=np.int64), deep=True)
+        sliceArray.SetName("Slice")
+        polydata.GetPointData().AddArray(sliceArray)
+    scene = slicer.mrmlScene if scene is None else scene
+    node = scene.AddNewNodeByClass("vtkMRMLModelNode", name or Path(path).stem)
+    node.SetAndObservePolyData(polydata)
+    node.CreateDefaultDisplayNodes()
+    node.GetDisplayNode().SetPointSize(LABELLED_POINT_SIZE)
+    return node
 
 
 # --- what the logic returns -----------------------------------------------------------------------------------------
@@ -242,6 +306,13 @@ TABLE_ROLE, SERIES_ROLE, CHART_ROLE = "BiteMeshQualityTable", "BiteMeshQualitySe
 COLOR_NODE_IDS = ("vtkMRMLColorTableNodeFileViridis.txt", "vtkMRMLColorTableNodeRainbow")
 #: closed curves for the RBF are resampled to about this many points in all, at least MIN_CURVE_POINTS each.
 RBF_CURVE_POINTS, MIN_CURVE_POINTS = 300, 16
+#: a labelled closed curve is resampled evenly by arc length to at least its control points, at most this far apart
+#: (mm): about biv-me's contour points (3 mm) and the contour RBF's 4 mm offset, and few enough for a quick fit.
+CONTOUR_SPACING = 5.0
+#: a node attribute naming the label of a closed curve or point list (else its name without a copy number).
+LABEL_ATTRIBUTE = "BiteMesh.Label"
+#: a trailing copy number of a node name: "LV_ENDO_1", "LV_ENDO 2" and "LV_ENDO-3" are contours of LV_ENDO.
+COPY_NUMBER = re.compile(r"[ _-]+\d+$")
 INPUT_TYPES = ("vtkMRMLMarkupsFiducialNode", "vtkMRMLMarkupsClosedCurveNode", "vtkMRMLModelNode",
                "vtkMRMLSegmentationNode")
 
@@ -252,7 +323,9 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
     ``process(inputNode, outputModelNode, **parameters)`` takes a markups point list, one or more markups closed
     curves (contours), a model (its points and normals) or a segmentation (one segment), and writes into
     ``outputModelNode`` a vtkUnstructuredGrid of tetrahedra coloured by radius ratio, with the radius-ratio
-    histogram as a table node and a bar plot.  It needs no GUI.
+    histogram as a table node and a bar plot.  Labelled contours (a model with a point array ``Label``, as
+    :meth:`loadLabelledPoints` makes from a biv-me GPFile, or closed curves named after their surfaces with a
+    ``domain``) are meshed as the domain their surfaces bound.  It needs no GUI.
     """
 
     def __init__(self, parent=None):
@@ -263,6 +336,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
     coreParameters = staticmethod(coreParameters)
     missingRequirements = staticmethod(missingRequirements)
     installRequirements = staticmethod(installRequirements)
+    loadLabelledPoints = staticmethod(loadLabelledPoints)
 
     def process(self, inputNode, outputModelNode, segmentId=None, progress=None, **parameters) -> BiteMeshResult:
         """Mesh ``inputNode`` into ``outputModelNode``.
@@ -276,9 +350,17 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         progress : callable(fraction, message) or None; it may raise bitemesh.Cancelled to stop
         **parameters : keywords of bitemesh's parameter dataclasses, None for "automatic": radius, cells,
             grid_spacing, error_bound, method, threshold, min_component, order, seed, max_memory_mb, margin,
-            bins.  ``method`` defaults to "rbf" for closed curves (sparse contours), else "mpu".  For a segmentation
-            the grid is the segment's voxel grid, resampled to grid_spacing when given or when the voxels are
-            coarser than radius / 4 or finer than radius / 8; method and error_bound do not apply.
+            bins, optimize (0 or 1), domain, base_plane, min_wall.  ``method`` defaults to "rbf" for closed curves
+            (sparse contours), else "mpu".  For a segmentation the grid is the segment's voxel grid, resampled to
+            grid_spacing when given or when the voxels are coarser than radius / 4 or finer than radius / 8;
+            method and error_bound do not apply.
+
+        Labelled contours: the input is labelled when a model has a point array ``Label`` or ``domain`` is given
+        (not empty); then every input node is labelled (:meth:`_labelledPoints`) and the points go to
+        bitemesh's ``run_labelled``: one surface per label (biv-me's surfaces for biv-me labels), combined by the
+        CSG expression ``domain`` (default: biv-me's two-cavity myocardium, or the only label), closed by
+        ``base_plane`` (auto, valves or none), no wall thinner than ``min_wall`` (mm; default max(2.5, 1.25 R));
+        method and error_bound do not apply.  domain, base_plane and min_wall do not apply to other inputs.
 
         Returns
         -------
@@ -292,6 +374,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         bitemesh = _requireBitemesh()
         from bitemesh.core import parameters as core
         from bitemesh.core.errors import Cancelled, InvalidInputError
+        from bitemesh.core.labelled import run_labelled
         from bitemesh.core.progress import report, sub_progress
 
         clock = time.perf_counter()
@@ -303,6 +386,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         biting = core.BitingParameters(**settings["BitingParameters"])
         spurious = core.SpuriousParameters(**settings["SpuriousParameters"])
         quality = core.QualityParameters(**settings["QualityParameters"])
+        labelled = core.LabelledParameters(**settings["LabelledParameters"])
+        domain = (labelled.domain or "").strip()   # "" (or None) stands for the default domain
         optimize = core.OptimizeParameters() if core.OptimizeSwitch(**settings["OptimizeSwitch"]).optimize else None
 
         report(progress, 0.0, "reading the input")
@@ -311,8 +396,18 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
                 raise InvalidInputError("a segmentation must be the only input; mesh one segmentation at a time")
             if segmentId is not None and not isinstance(segmentId, str):
                 raise InvalidInputError(f"segmentId must be a segment ID string, got {segmentId!r}")
+            if domain:
+                raise InvalidInputError(f"domain: {labelled.domain!r} combines labelled contours, and a segmentation "
+                                        "has none; clear domain to mesh the segment")
             mesh, radius, seconds = self._meshSegment(nodes[0], segmentId, implicit, biting, spurious, optimize,
                                                       sub_progress(progress, 0.0, 0.95))
+        elif domain or any(node.IsA("vtkMRMLModelNode") and self._modelLabels(node)[0] is not None for node in nodes):
+            points, labels, slices = self._labelledPoints(nodes)
+            report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")
+            result = run_labelled(points, labels, domain=domain or None, base_plane=labelled.base_plane,
+                                  slices=slices, min_wall=labelled.min_wall, implicit=implicit, biting=biting,
+                                  spurious=spurious, optimize=optimize, progress=sub_progress(progress, 0.02, 0.95))
+            mesh, radius, seconds = result.mesh, result.radius, dict(result.seconds)
         else:
             points, normals = self._scatteredPoints(nodes, implicit.method)
             report(progress, 0.02, f"meshing {len(points)} points")
@@ -370,7 +465,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         if unknown:
             raise InvalidInputError(f"unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
         split = {name: {} for name in ("ImplicitParameters", "BitingParameters", "SpuriousParameters",
-                                       "QualityParameters", "OptimizeSwitch")}
+                                       "QualityParameters", "OptimizeSwitch", "LabelledParameters")}
         split["ImplicitParameters"]["method"] = method
         for name, value in parameters.items():
             split[known[name]][name] = value
@@ -391,7 +486,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             if node.IsA("vtkMRMLMarkupsFiducialNode"):
                 parts.append((self._pointListPoints(node), None))
             elif node.IsA("vtkMRMLMarkupsClosedCurveNode"):
-                parts.append(self._closedCurvePoints(node))
+                points = self._closedCurvePoints(node)
+                parts.append((points, contourNormals(points, node.GetName())))
             else:
                 parts.append(self._modelPoints(node))
         curves = [index for index, node in enumerate(nodes) if node.IsA("vtkMRMLMarkupsClosedCurveNode")]
@@ -427,13 +523,56 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             points[row] = position
         return points
 
-    @staticmethod
-    def _closedCurvePoints(node):
-        """(points, outward in-plane normals) along a closed curve, in world coordinates.
+    def _labelledPoints(self, nodes):
+        """Labelled contour points of the input nodes, in world coordinates (mm).
 
-        The curve is taken as interpolated by Slicer (its curve points), without the point that repeats the first.
-        Each normal lies in the curve's best-fit plane, perpendicular to the curve, pointing away from its inside.
+        A model gives its points, its point array ``Label`` and its ``Slice`` (or ``FrameID``) array when present; a
+        closed curve (one slice of its own) its curve resampled evenly by arc length (at least its control points,
+        at most :data:`CONTOUR_SPACING` apart) and a point list its placed points (slice unknown), each labelled
+        :func:`contourLabel`.
+
+        Returns
+        -------
+        points : (n, 3) float64; labels : (n,) str
+        slices : (n,) int64 slice ids (-1: unknown), or None when no point has one (bitemesh then finds the slice
+            planes)
         """
+        from bitemesh.algorithms.convert import point_coordinates
+        from bitemesh.core.errors import InvalidInputError
+        parts, nextSlice = [], 0
+        for node in nodes:
+            if node.IsA("vtkMRMLModelNode"):
+                labels, slices = self._modelLabels(node)
+                if labels is None:
+                    raise InvalidInputError(
+                        f"inputNode: the model '{node.GetName()}' has no point array Label, and labelled contours "
+                        "need a label per point; load them with loadLabelledPoints, or clear domain and mesh the "
+                        "model alone as a surface")
+                points = point_coordinates(self._worldPolyData(node))
+                labels = (labels.astype(np.int64) if labels.dtype.kind in "iuf" else labels).astype(str)
+                if slices is None:
+                    slices = np.full(len(points), -1, dtype=np.int64)
+                else:   # the model's own ids, moved past those already taken
+                    slices = np.where(slices >= 0, slices + nextSlice, -1)
+            else:
+                if node.IsA("vtkMRMLMarkupsClosedCurveNode"):
+                    curve = self._closedCurvePoints(node)
+                    count = max(node.GetNumberOfControlPoints(), math.ceil(closedLength(curve) / CONTOUR_SPACING))
+                    points, number = resampleClosed(curve, count), nextSlice
+                else:
+                    points, number = self._pointListPoints(node), -1
+                labels = np.full(len(points), contourLabel(node))
+                slices = np.full(len(points), number, dtype=np.int64)
+            nextSlice = max(nextSlice, int(slices.max()) + 1)
+            parts.append((points, labels, slices))
+        slices = np.concatenate([part[2] for part in parts])
+        return (np.vstack([part[0] for part in parts]), np.concatenate([part[1] for part in parts]),
+                slices if (slices >= 0).any() else None)
+
+    @staticmethod
+    def _closedCurvePoints(node) -> np.ndarray:
+        """(n, 3) points along a closed curve, in world coordinates: the curve as interpolated by Slicer (its curve
+        points), without the point that repeats the first."""
         from bitemesh.core.errors import InvalidInputError
         curve = node.GetCurvePointsWorld() if node.GetNumberOfControlPoints() >= 3 else None
         if curve is None or curve.GetNumberOfPoints() < 3:
@@ -445,13 +584,21 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         points = points[step > 1e-9 * max(length, 1e-300)]   # drop repeats (the closing point repeats the first)
         if len(points) < 3 or length <= 0:
             raise InvalidInputError(f"inputNode: the closed curve '{node.GetName()}' is degenerate (zero length)")
-        return points, contourNormals(points, node.GetName())
+        return points
 
     @staticmethod
-    def _modelPoints(node):
-        """(points, normals or None) of a surface model in world coordinates; normals from the model or computed
-        from its polygons (auto-oriented outward); None when they are missing or unusable (bitemesh estimates them).
-        """
+    def _modelLabels(node):
+        """(labels (n,) or None, slices (n,) int64 or None) of a model: its point arrays ``Label`` and ``Slice`` or
+        ``FrameID`` (bitemesh.algorithms.convert.point_labels)."""
+        from bitemesh.algorithms.convert import point_labels
+        polydata = node.GetPolyData()
+        if polydata is None:
+            return None, None
+        return point_labels(polydata, f"inputNode: the model '{node.GetName()}'")
+
+    @staticmethod
+    def _worldPolyData(node):
+        """The polydata of a model through its parent transforms (world coordinates), with its point arrays."""
         from bitemesh.core.errors import InvalidInputError
         polydata = node.GetPolyData()
         if polydata is None or polydata.GetNumberOfPoints() == 0:
@@ -459,13 +606,21 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             raise InvalidInputError(f"inputNode: the model '{node.GetName()}' holds {what}; give a surface model "
                                     "(or points sampled on the surface)")
         transform = _toWorld(node)
-        if transform is not None:
-            moved = vtkTransformPolyDataFilter()
-            moved.SetTransform(transform)
-            moved.SetInputData(polydata)
-            moved.Update()
-            polydata = moved.GetOutput()
-        points = numpy_support.vtk_to_numpy(polydata.GetPoints().GetData()).astype(np.float64).reshape(-1, 3)
+        if transform is None:
+            return polydata
+        moved = vtkTransformPolyDataFilter()
+        moved.SetTransform(transform)
+        moved.SetInputData(polydata)
+        moved.Update()
+        return moved.GetOutput()
+
+    def _modelPoints(self, node):
+        """(points, normals or None) of a surface model in world coordinates; normals from the model or computed
+        from its polygons (auto-oriented outward); None when they are missing or unusable (bitemesh estimates them).
+        """
+        from bitemesh.algorithms.convert import point_coordinates
+        polydata = self._worldPolyData(node)
+        points = point_coordinates(polydata)
         normals = polydata.GetPointData().GetNormals()
         if normals is None and polydata.GetNumberOfPolys() > 0:
             computed = vtkPolyDataNormals()
@@ -584,6 +739,20 @@ def contourNormals(points: np.ndarray, name: str = "curve") -> np.ndarray:
     if np.einsum("ij,ij->", normals, centred) < 0:
         normals = -normals
     return normals
+
+
+def contourLabel(node) -> str:
+    """The label of a closed curve or point list: its attribute :data:`LABEL_ATTRIBUTE`, else its name without a
+    trailing copy number ("LV_ENDO_2" -> "LV_ENDO")."""
+    from bitemesh.core.errors import InvalidInputError
+    label = (node.GetAttribute(LABEL_ATTRIBUTE) or "").strip()
+    if not label:
+        name = (node.GetName() or "").strip()
+        label = COPY_NUMBER.sub("", name) or name
+    if not label:
+        raise InvalidInputError(f"inputNode: the {node.GetClassName()} '{node.GetID()}' has no name; name it after "
+                                f"its surface (e.g. LV_ENDO) or set its attribute {LABEL_ATTRIBUTE}")
+    return label
 
 
 def closedLength(points: np.ndarray) -> float:
