@@ -40,6 +40,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
 from bitemesh.core import labelled
+from bitemesh.core.grid import sample_function
 from bitemesh.core.implicit import fit_mpu
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
 from bitemesh.core.pipeline import implicit_grid, mesh_from_grid
@@ -188,7 +189,9 @@ def mpu_implicit(points, labels, slices, **options):
         good = np.isfinite(normals).all(axis=1)
         mpu = fit_mpu(surface_points[good], normals[good])
         grid = function.surfaces[name]
-        surfaces[name] = labelled.SampledSurface.sample(mpu, grid.lower, grid.upper, grid.spacing)
+        step = grid.spacing[0]
+        surfaces[name] = sample_function(mpu, grid.origin, grid.upper, step, exact_within=labelled.SURFACE_BAND * step,
+                                         levels=labelled.SURFACE_LEVELS)
     return dataclasses.replace(function, surfaces=surfaces), lower, upper
 
 

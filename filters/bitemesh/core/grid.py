@@ -49,6 +49,10 @@ class ImplicitGrid:
         """(k,) coordinates of the last node."""
         return self.origin + (np.array(self.shape) - 1) * self.spacing
 
+    def __call__(self, x) -> np.ndarray:
+        """The sampled function as an implicit function: :meth:`evaluate`."""
+        return self.evaluate(x)
+
     def node_coordinates(self, flat_indices: np.ndarray) -> np.ndarray:
         """(m, k) coordinates of the nodes with the given C-order flat indices."""
         index = np.stack(np.unravel_index(flat_indices, self.shape), axis=1)
@@ -105,7 +109,8 @@ def grid_shape(lower, upper, spacing, *, max_memory_mb: float) -> tuple:
 
 def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, spacing, *,
                     margin: float = 0.0, max_memory_mb: float = 4096.0, chunk: int = 1 << 18,
-                    exact_within: float | None = None, progress: ProgressCallback = None) -> ImplicitGrid:
+                    exact_within: float | None = None, levels: int = 1,
+                    progress: ProgressCallback = None) -> ImplicitGrid:
     """Sample ``function`` on a grid over [lower - margin, upper + margin].
 
     Parameters
@@ -117,6 +122,10 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
     exact_within : evaluate ``function`` only at the nodes where a grid twice as coarse, interpolated, gives
         |f| < exact_within (input units), and keep the interpolation elsewhere; None evaluates every node.  The
         steps downstream need f exactly only near f = 0 (its sign and the projection onto it).
+    levels : with exact_within, how many grids, each twice as fine as the one before, lead to this one: the first is
+        evaluated everywhere, each next one exactly only within exact_within x (its spacing / h) of f = 0.  Each
+        level saves about half the evaluations of the one before; a bubble of f smaller than the coarser
+        spacings may be missed.
     progress : callable(fraction, message), optional, called once per chunk of ``chunk`` points
     """
     lower = np.asarray(lower, float) - margin
@@ -131,7 +140,8 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
     else:
         coarse_shape = tuple((n + 2) // 2 for n in shape)  # reaches the fine grid's last node
         coarse = sample_function(function, lower, lower + (np.array(coarse_shape) - 1) * 2 * spacing_array,
-                                 2 * spacing_array, max_memory_mb=max_memory_mb, chunk=chunk)
+                                 2 * spacing_array, max_memory_mb=max_memory_mb, chunk=chunk,
+                                 exact_within=2 * exact_within if levels > 1 else None, levels=levels - 1)
         fine = np.stack(np.meshgrid(*[np.arange(n) / 2.0 for n in shape], indexing="ij"), axis=0)
         values = ndimage.map_coordinates(coarse.values, fine.reshape(len(shape), -1), order=1).reshape(-1)
         nodes = np.flatnonzero(np.abs(values) < exact_within)

@@ -17,7 +17,7 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    spurious bubbles where short- and long-axis contours disagree.  A cavity also gets a point inside it at the
    centre of each of its valves (:data:`BIVME_OUTLETS`), so that it opens through the base instead of closing in
    a dome just above the last short-axis slice.  Each RBF is sampled once on a fine grid, exactly near its zero
-   level (:class:`SampledSurface`), so the domain is cheap to evaluate on the grid I.
+   level (:func:`bitemesh.core.grid.sample_function` with levels), so the domain is cheap to evaluate on the grid I.
 5. The domain: a CSG expression (:func:`parse_domain`) of the surfaces, ``-`` difference, ``+`` union, ``&``
    intersection, by min/max of the implicit values (:func:`evaluate_domain`; a difference keeps a thinnest wall
    where two surfaces interpolated independently would cross), cut by a base plane (:func:`fit_base_plane`).
@@ -607,76 +607,10 @@ def fit_contour_rbf(points, normals, *, kernel: str = "linear", offset: float = 
 
 # --- fast evaluation on many points ---------------------------------------------------------------------------------
 
-@dataclass(frozen=True, eq=False)
-class SampledSurface:
-    """An implicit function sampled on a fine grid, exactly near its zero level; trilinear in between.
-
-    The grid is filled coarse to fine (spacings ``spacing`` x 2^levels, ..., x 2, x 1): the coarsest level is
-    evaluated everywhere, each finer level is interpolated from the one before and evaluated exactly only at its
-    nodes within ``band`` x (the coarser spacing) of the zero level.  Away from the surface the values are
-    interpolated (the sign is right; the magnitude about the distance); a bubble of f smaller than a coarse cell
-    may be missed, which is wanted.  Outside the grid, f is at most minus the distance to it.
-
-    Attributes
-    ----------
-    values : (n_x, n_y, n_z) float64, f at ``lower + index * spacing``
-    lower : (3,) float64; spacing : float, input units
-    exact_evaluations : int, how many nodes were evaluated exactly
-    """
-
-    values: np.ndarray
-    lower: np.ndarray
-    spacing: float
-    exact_evaluations: int = 0
-
-    @property
-    def upper(self) -> np.ndarray:
-        return self.lower + (np.array(self.values.shape) - 1) * self.spacing
-
-    @classmethod
-    def sample(cls, function, lower, upper, spacing: float, *, levels: int = 2, band: float = 1.5,
-               max_nodes: int = 1 << 25, progress: ProgressCallback = None) -> SampledSurface:
-        """Sample ``function`` ((m, 3) -> (m,)) over the box [lower, upper] (enlarged to whole coarse cells).
-
-        The spacing grows, if needed, so that the grid has at most ``max_nodes`` nodes (256 MiB of values).
-        """
-        lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-        spacing = max(float(spacing), float(np.prod(upper - lower) / max_nodes) ** (1 / 3))
-        coarse = spacing * 2 ** levels
-        shape = tuple(np.maximum(np.ceil((upper - lower) / coarse).astype(int), 1) + 1)
-        step = coarse
-        values = function(_nodes(lower, step, shape)).reshape(shape)
-        exact = values.size
-        for level in range(levels):
-            report(progress, (level + 1) / (levels + 1), f"sampling the surface: level {level + 1} of {levels}")
-            values = _upsample(values)
-            near = np.flatnonzero(np.abs(values) < band * step)
-            step /= 2
-            where = lower + np.stack(np.unravel_index(near, values.shape), axis=1) * step
-            values.reshape(-1)[near] = function(where)
-            exact += len(near)
-        return cls(values=values, lower=lower, spacing=step, exact_evaluations=exact)
-
-    @cached_property
-    def grid(self) -> ImplicitGrid:
-        """The same samples as the pipeline's grid type (its evaluation is the one used)."""
-        return ImplicitGrid(origin=self.lower, spacing=np.full(self.values.ndim, self.spacing), values=self.values)
-
-    def __call__(self, x) -> np.ndarray:
-        """(m,) trilinear f at (m, 3) points; outside the grid, at most minus the distance to it."""
-        return self.grid.evaluate(x)
-
-
-def _upsample(values: np.ndarray) -> np.ndarray:
-    """The grid with every cell halved, new nodes linearly interpolated (shape n -> 2 n - 1 per axis)."""
-    for axis in range(values.ndim):
-        moved = np.moveaxis(values, axis, 0)
-        finer = np.empty((2 * len(moved) - 1, *moved.shape[1:]))
-        finer[::2] = moved
-        finer[1::2] = 0.5 * (moved[:-1] + moved[1:])
-        values = np.moveaxis(finer, 0, axis)
-    return np.ascontiguousarray(values)
-
+#: each surface is sampled on a grid of at most this many nodes (256 MiB): its spacing grows if needed.
+MAX_SURFACE_NODES = 1 << 25
+#: and exactly only within this x its spacing of its zero level, on grids 2 and 4 times coarser first.
+SURFACE_BAND, SURFACE_LEVELS = 3.0, 2
 
 def _nodes(lower, spacing, shape) -> np.ndarray:
     """(prod(shape), 3) coordinates of the grid nodes, C order (axis 0 is x)."""
@@ -997,7 +931,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     min_wall : float, input units, the thinnest wall between a surface and what is subtracted from it (see
         :func:`evaluate_domain`); 0 lets walls open where the surfaces cross
     gap_factor : float, of :func:`contour_normals`
-    resolution : float, input units, the spacing of the grid each surface is sampled on (:class:`SampledSurface`);
+    resolution : float, input units, the spacing of the grid each surface is sampled on (an ImplicitGrid);
         default 0.35 x the median spacing of the surface's points (1 mm for contours traced on 1.4 mm pixels), at
         least 1/400 of its bounding-box diagonal
     progress : callable(fraction, message), optional
@@ -1057,8 +991,10 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         else:
             step = check_number(resolution, "resolution", low=0, low_open=True)
         margin = 0.15 * np.ptp(points[index], axis=0) + 4 * step
-        functions[name] = SampledSurface.sample(
-            rbf, points[index].min(axis=0) - margin, points[index].max(axis=0) + margin, step,
+        lower, upper = points[index].min(axis=0) - margin, points[index].max(axis=0) + margin
+        step = max(step, float(np.prod(upper - lower) / MAX_SURFACE_NODES) ** (1 / 3))
+        functions[name] = sample_function(
+            rbf, lower, upper, step, exact_within=SURFACE_BAND * step, levels=SURFACE_LEVELS,
             progress=sub_progress(progress, 0.05 + 0.9 * (number + 0.3) / len(used), 0.05 + 0.9 * (number + 1) / len(used)))
         surface_points[name], surface_normals[name], fits[name] = points[index], normals, rbf
     function = LabelledImplicit(surfaces=functions, tree=tree, expression=expression, base=base,
@@ -1077,9 +1013,9 @@ def _domain_box(function: LabelledImplicit):
     Raises InvalidInputError when no node is inside: the surfaces enclose nothing, or the domain is empty.
     """
     grids = list(function.surfaces.values())
-    lower = np.min([grid.lower for grid in grids], axis=0)
+    lower = np.min([grid.origin for grid in grids], axis=0)
     upper = np.max([grid.upper for grid in grids], axis=0)
-    step = 4 * min(grid.spacing for grid in grids)
+    step = 4 * min(grid.spacing.min() for grid in grids)
     shape = tuple(np.ceil((upper - lower) / step).astype(int) + 1)
     nodes = _nodes(lower, step, shape)
     inside = np.zeros(len(nodes), bool)
