@@ -20,6 +20,7 @@ Usage (from the repository root)::
 
     python benchmarks/bivme.py                         # defaults, 136,000 cells
     python benchmarks/bivme.py --cells 10000
+    python benchmarks/bivme.py --cells 155000 --seeds 5 [--optimize]   # one line per seed (the demo's setting)
     python benchmarks/bivme.py --candidates --cells 30000 --output benchmarks/bivme-candidates.md
 
 The data folder is ../shared/data/bivme_patient1 beside the clone, or $BITEMESH_DATA/bivme_patient1, or
@@ -42,7 +43,7 @@ sys.path.insert(0, str(HERE.parent / "filters"))
 from bitemesh.core import labelled
 from bitemesh.core.grid import sample_function
 from bitemesh.core.implicit import fit_mpu
-from bitemesh.core.parameters import BitingParameters, ImplicitParameters
+from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
 from bitemesh.core.pipeline import implicit_grid, mesh_from_grid
 from bitemesh.core.quality import (
     boundary_euler_characteristic,
@@ -229,7 +230,7 @@ def leave_one_slice_out(points, labels, slices, options):
 # --- one run -----------------------------------------------------------------------------------------------------
 
 def measure(folder: Path, cells: int, options: dict, *, method: str = "rbf", loso: bool = False, seed: int = 0,
-            save=None) -> dict:
+            optimize: bool = False, save=None) -> dict:
     points, labels, slices = read_labelled_points(folder / "GPFile_000.txt", slices=True)
     clock = time.perf_counter()
     if method == "mpu":
@@ -241,7 +242,7 @@ def measure(folder: Path, cells: int, options: dict, *, method: str = "rbf", los
                    "meshing": sum(result.seconds.values())}
     else:
         result = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells, seed=seed),
-                                       **options)
+                                       optimize=OptimizeParameters() if optimize else None, **options)
         function, lower, upper = result.function, result.function.lower, result.function.upper
         meshing = sum(value for key, value in result.seconds.items() if not key.startswith("implicit"))
         seconds = {"fit": result.seconds["implicit fit"], "sampling": result.seconds["implicit sampling"],
@@ -331,6 +332,18 @@ def describe(row: dict) -> str:
     return "\n".join(lines)
 
 
+def seed_table(rows: list) -> str:
+    """One markdown line per seed: topology, distances to the guide points, volume, quality, time."""
+    lines = ["| seed | cells | Euler char. | boundaries | components | guide mean / max (mm) | biv-me surfaces (mm) "
+             "| volume (ml) | mean Q | min dihedral | time (s) |", "|" + "---|" * 11]
+    for seed, row in enumerate(rows):
+        lines.append(f"| {seed} | {row['cells']:,} | {row['euler']} | {row['boundaries']} | {row['components']} | "
+                     f"{row['guide_mean']:.3f} / {row['guide_max']:.2f} | {row.get('reference_mean', np.nan):.2f} | "
+                     f"{row['volume'] / 1000:.1f} | "
+                     f"{row['q_mean']:.3f} | {row['dihedral_min']:.1f} | {sum(row['seconds'].values()):.0f} |")
+    return "\n".join(lines)
+
+
 #: implicit methods and their tuning (the library's defaults: linear kernel, offset 4 mm, min_wall 2.5 mm, valve
 #: outlets), then ablations of the domain's construction
 CANDIDATES = {
@@ -358,6 +371,8 @@ def main(argv=None) -> None:
     parser.add_argument("--base-offset", type=float, default=None)
     parser.add_argument("--min-wall", type=float, default=None)
     parser.add_argument("--seed", type=int, default=0, help="seed of the biting")
+    parser.add_argument("--seeds", type=int, help="one line per seed 0 .. SEEDS-1 (topology, distances, quality)")
+    parser.add_argument("--optimize", action="store_true", help="also run the MeshOptimizer")
     parser.add_argument("--save", help="write the mesh here (.vtu)")
     parser.add_argument("--output", help="also write the report (markdown) here")
     args = parser.parse_args(argv)
@@ -377,8 +392,15 @@ def main(argv=None) -> None:
         for key in ("kernel", "offset", "smoothing", "base_offset", "min_wall"):
             if getattr(args, key) is not None:
                 options[key] = getattr(args, key)
-        row = measure(folder, args.cells, options, loso=args.loso, save=args.save, seed=args.seed)
-        text = f"## {options}\n\n```\n{describe(row)}\n```\n"
+        title = f"{options}{' optimized' if args.optimize else ''}, {args.cells:,} cells asked"
+        if args.seeds:
+            rows = [measure(folder, args.cells, options, seed=seed, optimize=args.optimize)
+                    for seed in range(args.seeds)]
+            text = f"## {title}, seeds 0-{args.seeds - 1}\n\n{seed_table(rows)}\n"
+        else:
+            row = measure(folder, args.cells, options, loso=args.loso, save=args.save, seed=args.seed,
+                          optimize=args.optimize)
+            text = f"## {title}\n\n```\n{describe(row)}\n```\n"
         print(text)
         out.append(text)
     if args.output:

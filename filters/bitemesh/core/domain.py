@@ -17,11 +17,13 @@ from .parameters import SpuriousParameters
 from .quality import check_valid_domain, radius_ratio
 from .progress import ProgressCallback, report
 from .spurious import outside_cells
-from .topology import connected_components, facet_table, non_manifold_faces
+from .topology import connected_components, euler_characteristic, facet_table, non_manifold_faces
 
 #: rounds of repair before giving up, and the first rounds in which a pinch may be mended by filling.
 MAX_REPAIR_ROUNDS = 30
 FILL_ROUNDS = 5
+#: an enclosed void of less volume than this many cells (of the median volume) is below the mesh's resolution.
+SMALL_VOID = 10
 #: cells with a radius ratio below this are flat.
 FLAT_QUALITY = 0.02
 #: cells with a radius ratio below this have no volume to speak of (a finite-element solver cannot use them).
@@ -29,7 +31,8 @@ DEGENERATE = 1e-6
 
 
 def enclosed_inside_voids(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """(m,) bool, the dropped cells that form voids closed off from the hull and lie inside (mean f > 0 there).
+    """(m,) bool, the dropped cells that form voids closed off from the hull and lie inside (mean f > 0 there), or
+    are smaller than :data:`SMALL_VOID` cells (a pocket of a cavity thinner than a cell, cut off from it).
 
     A cavity that f says is outside (a ventricle, the hole of a shell) stays open.
     """
@@ -42,9 +45,11 @@ def enclosed_inside_voids(grid: ImplicitGrid, points: np.ndarray, cells: np.ndar
     touches_hull = np.bincount(labels, weights=on_hull) > 0
     volume = signed_measures(points, cells[dropped])
     centroid_value = grid.evaluate(points[cells[dropped]].mean(axis=1))
-    mean_value = np.bincount(labels, weights=volume * centroid_value) / np.bincount(labels, weights=volume)
+    void_volume = np.bincount(labels, weights=volume)
+    mean_value = np.bincount(labels, weights=volume * centroid_value) / void_volume
+    small = void_volume < SMALL_VOID * np.median(signed_measures(points, cells[keep])) if keep.any() else False
     fill = np.zeros(len(cells), bool)
-    fill[dropped] = (~touches_hull & (mean_value > 0))[labels]
+    fill[dropped] = (~touches_hull & ((mean_value > 0) | small))[labels]
     return fill
 
 
@@ -88,30 +93,59 @@ def vertex_incidence(n_points: int, cells: np.ndarray) -> sparse.csr_matrix:
                              shape=(n_points, len(cells)))
 
 
+def fans(incidence: sparse.csr_matrix, members: np.ndarray, facet_size: int):
+    """(count, labels) of the groups of the cells ``members`` joined through shared facets (``facet_size``
+    vertices in common)."""
+    local = incidence[:, members]
+    shared = (sparse.csr_matrix(local.T) @ local).toarray()
+    return csgraph.connected_components(shared >= facet_size, directed=False)
+
+
+def euler_change(incidence: sparse.csr_matrix, cells: np.ndarray, keep: np.ndarray, changed: np.ndarray,
+                 value: bool) -> int:
+    """How much setting ``keep[changed] = value`` changes the Euler characteristic of the kept complex.
+
+    Only faces of the changed cells come or go, so the cells around their vertices suffice.  -1: a tunnel opens
+    (or two parts join twice); +1: a loop breaks (or a void closes).
+    """
+    near = np.flatnonzero(incidence[np.unique(cells[changed])].sum(axis=0).A1 > 0)
+    after = keep[near].copy()
+    after[np.isin(near, changed)] = value
+    return euler_characteristic(cells[near[after]]) - euler_characteristic(cells[near[keep[near]]])
+
+
 def unpinch(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, faces: list, *, fill: bool) -> np.ndarray:
     """``keep`` mended around each face where the domain is not a manifold.
 
-    The kept cells around a face fall into fans (two share a facet, of k vertices, that then holds the face).
-    Either every fan but the one of largest volume goes (with a single fan, a vertex whose link is an annulus,
-    all go), or, with ``fill``, the missing Delaunay cells around the face come in, which makes it a manifold
-    point: whichever changes less volume.  Flat cells never come in (the peel would take them out again).
+    The kept cells around a face fall into fans (two share a facet, of k vertices, that then holds the face),
+    and so do the missing ones (the sides of the gap).  Either every fan but the one of largest volume goes (with
+    a single fan, a vertex whose link is an annulus, all go), or, with ``fill``, the missing Delaunay cells around
+    the face come in, which makes it a manifold point, or, around a vertex whose link is an annulus (a vertex on
+    both sides of a wall one cell thick), those of one side: whichever changes less volume, unless it opens a
+    tunnel (lowers the Euler characteristic: removing the annulus punches a hole through the wall, a fill can
+    put a pillar across a thin cavity) and another choice does not.  Flat cells never come in (the peel would
+    take them out again).
     """
     incidence = vertex_incidence(len(points), cells)
     volume = signed_measures(points, cells)
     flat = radius_ratio(points, cells) < FLAT_QUALITY
     result = keep.copy()
+    facet = cells.shape[1] - 1
     for face in (f for group in faces for f in group):
         around = np.flatnonzero(incidence[face].sum(axis=0).A1 == len(face))
         members, gap = around[keep[around]], around[~keep[around]]
-        local = incidence[:, members]
-        shared = (sparse.csr_matrix(local.T) @ local).toarray()
-        n_fans, labels = csgraph.connected_components(shared >= cells.shape[1] - 1, directed=False)
+        n_fans, labels = fans(incidence, members, facet)
         largest = np.argmax(np.bincount(labels, weights=volume[members])) if n_fans > 1 else -1
-        removed = members[labels != largest]
-        if fill and not flat[gap].any() and volume[gap].sum() < volume[removed].sum():
-            result[gap] = True
-        else:
-            result[removed] = False
+        choices = [(members[labels != largest], False)]
+        if fill and not flat[gap].any():
+            choices.append((gap, True))
+        if fill and n_fans == 1 and len(gap):
+            n_sides, sides = fans(incidence, gap, facet)
+            choices += [(gap[sides == side], True) for side in range(n_sides)
+                        if n_sides > 1 and not flat[gap[sides == side]].any()]
+        cost = [(euler_change(incidence, cells, result, *choice) < 0, volume[choice[0]].sum()) for choice in choices]
+        changed, value = choices[min(range(len(choices)), key=cost.__getitem__)]
+        result[changed] = value
     return result
 
 
@@ -143,9 +177,13 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
             break
         # filling first, then only removing: the rounds that only remove cannot cycle
         keep = unpinch(points, cells, keep, pinched, fill=round_ < FILL_ROUNDS)
+        if round_ < FILL_ROUNDS:   # a fill next to a removal can close off a void
+            keep |= enclosed_inside_voids(grid, points, cells, keep)
     else:
         raise MeshingError(f"the boundary is still not a manifold after {MAX_REPAIR_ROUNDS} rounds of repair; "
                            "try a smaller radius or a finer grid_spacing")
+    # filling a whole enclosed void of a manifold domain leaves it a manifold
+    keep |= enclosed_inside_voids(grid, points, cells, keep)
     report(progress, 1.0, "repairing the boundary")
     mesh = compact(points, cells[keep])
     problems = check_valid_domain(mesh)

@@ -17,8 +17,8 @@ from scipy.sparse import csgraph
 
 from .errors import InvalidInputError, check_number
 from .mesh import Mesh, circumspheres, facets_of, signed_measures
-from .topology import (boundary_facets, connected_components, distinct_faces, facet_table,  # noqa: F401
-                       neighbour_pairs, unique_rows)
+from .topology import (boundary_facets, connected_components, distinct_faces, euler_characteristic,  # noqa: F401
+                       facet_table, neighbour_pairs, unique_rows)
 
 
 def _ridge_facets(n_vertices: int) -> np.ndarray:
@@ -297,7 +297,7 @@ def boundary_euler_characteristic(mesh: Mesh) -> int:
     """
     _, cells = _check_mesh(mesh)
     facets = boundary_facets(cells)
-    return sum((-1) ** d * len(distinct_faces(facets, d + 1)) for d in range(facets.shape[1]))
+    return euler_characteristic(facets)
 
 
 def count_boundary_components(mesh: Mesh) -> int:

@@ -86,6 +86,11 @@ def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     return unique_rows(faces_of(simplices, size).reshape(-1, size))[0]
 
 
+def euler_characteristic(simplices: np.ndarray) -> int:
+    """Euler characteristic (vertices - edges + triangles - ...) of the complex that ``simplices`` (m, k + 1) span."""
+    return sum((-1) ** (size - 1) * len(distinct_faces(simplices, size)) for size in range(1, simplices.shape[1] + 1))
+
+
 def count_faces(simplices: np.ndarray, size: int, n_points: int) -> np.ndarray:
     """(n_points,) how many distinct faces with ``size`` vertices of ``simplices`` hold each point."""
     return np.bincount(distinct_faces(simplices, size).ravel(), minlength=n_points)
