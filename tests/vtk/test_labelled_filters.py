@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bitemesh.algorithms import (BitingSampler, DelaunayTetra, MeshFromPoints, PointsToImplicit, QualityFilter,
-                                 SpuriousCellFilter)
+from bitemesh.algorithms import MeshFromPoints, PointsToImplicit
 from bitemesh.algorithms.convert import image_to_grid, unstructured_to_mesh, vtk_points
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.labelled import run_labelled
@@ -22,6 +21,7 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from tests.core.test_labelled import ELLIPSOIDS, SCALE, SHELL_DOMAIN, sample_shell
 from tests.meshcheck import assert_valid_domain
+from tests.vtk.test_filters import chain
 
 CELLS = 6000
 #: the closed shell: the outer ellipsoid minus both cavities, mm^3
@@ -71,21 +71,10 @@ def test_mesh_from_points_meshes_labelled_contours_as_the_core_does(closed_shell
 def test_the_five_filter_chain_meshes_labelled_contours(closed_shell):
     *_, data = closed_shell
     radius = (5.4 * SHELL_VOLUME / CELLS) ** (1 / 3)
-    implicit = PointsToImplicit()
-    implicit.SetInputData(data)
+    pipeline = chain(data, radius=radius, grid_spacing=radius / GRID_PER_RADIUS)
+    implicit, biting, quality = pipeline.implicit, pipeline.biting, pipeline.quality
     implicit.SetDomain(SHELL_DOMAIN)
     implicit.SetBasePlane("none")
-    implicit.SetGridSpacing(radius / GRID_PER_RADIUS)
-    biting = BitingSampler()
-    biting.SetInputConnection(implicit.GetOutputPort())
-    biting.SetRadius(radius)
-    tetra = DelaunayTetra()
-    tetra.SetInputConnection(biting.GetOutputPort())
-    carve = SpuriousCellFilter()
-    carve.SetInputConnection(0, tetra.GetOutputPort())
-    carve.SetInputConnection(1, implicit.GetOutputPort())
-    quality = QualityFilter()
-    quality.SetInputConnection(carve.GetOutputPort())
     mesh = unstructured_to_mesh(quality.update())
     assert_valid_domain(mesh, euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03,
                         mean_quality=0.75)
