@@ -107,6 +107,16 @@ def centroid(mesh):
     return (corners.mean(axis=1) * volumes[:, None]).sum(axis=0) / volumes.sum()
 
 
+def translation(scene, shift) -> object:
+    """A linear transform node that moves its children by ``shift`` (3,) mm."""
+    transform = scene.AddNewNodeByClass("vtkMRMLLinearTransformNode")
+    matrix = vtkMatrix4x4()
+    for axis in range(3):
+        matrix.SetElement(axis, 3, float(shift[axis]))
+    transform.SetMatrixTransformToParent(matrix)
+    return transform
+
+
 def ball_segmentation(scene, direction, spacing=(0.8, 0.6, 1.2), origin=(10.0, -20.0, 5.0), dims=(40, 50, 28)):
     """A ball segment imported from a label map with the given geometry; returns it and the ball's RAS centre."""
     spacing = np.asarray(spacing)
@@ -232,13 +242,8 @@ def test_optimize_relaxes_a_segment_in_place(scene, logic):
 
 def test_segmentation_follows_its_parent_transform(scene, logic):
     segmentation, centre, _ = ball_segmentation(scene, np.eye(3))
-    transform = scene.AddNewNodeByClass("vtkMRMLLinearTransformNode")
     shift = np.array([5.0, -7.0, 11.0])
-    matrix = vtkMatrix4x4()
-    for axis in range(3):
-        matrix.SetElement(axis, 3, shift[axis])
-    transform.SetMatrixTransformToParent(matrix)
-    segmentation.SetAndObserveTransformNodeID(transform.GetID())
+    segmentation.SetAndObserveTransformNodeID(translation(scene, shift).GetID())
     model = output_model(scene)
     logic.process(segmentation, model, radius=3.0)
     assert np.linalg.norm(centroid(mesh_of(model)) - (centre + shift)) < 0.5
@@ -326,12 +331,7 @@ def test_model_points_and_normals_through_its_transform(scene, logic):
     source.Update()
     surface = scene.AddNewNodeByClass("vtkMRMLModelNode", "surface")
     surface.SetAndObservePolyData(source.GetOutput())
-    transform = scene.AddNewNodeByClass("vtkMRMLLinearTransformNode")
-    matrix = vtkMatrix4x4()
-    for axis in range(3):
-        matrix.SetElement(axis, 3, CENTRE[axis])
-    transform.SetMatrixTransformToParent(matrix)
-    surface.SetAndObserveTransformNodeID(transform.GetID())
+    surface.SetAndObserveTransformNodeID(translation(scene, CENTRE).GetID())
     model = output_model(scene)
     logic.process(surface, model, cells=2000)
     mesh = mesh_of(model)
