@@ -27,19 +27,17 @@ from __future__ import annotations
 import numbers
 import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from .core.errors import InvalidInputError, check_number
-from .core.grid import ImplicitGrid, sample_function
-from .core.mesh import Mesh
+from .core.grid import ImplicitGrid
 from .core.parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
                               optimize_parameters)
-from .core.pipeline import GRID_PER_RADIUS, MeshingResult, mesh_from_grid, radius_for_cells
 from .core.progress import ProgressCallback, report, sub_progress
-from .core.quality import cell_quality
+from .core.spine import Frame, MeshingResult, Source, mesh_source
 
 #: voxels of background added on every side, so that a label touching the image border still closes.
 PAD_VOXELS = 2
@@ -313,19 +311,9 @@ def _remove_staircase(values: np.ndarray, mask: np.ndarray, sigma: float) -> np.
 # --------------------------------------------------------------------------------------------- meshing
 
 
-@dataclass(frozen=True, eq=False)
-class LabelMapMeshingResult(MeshingResult):
-    """A :class:`MeshingResult` whose mesh and nodes are in physical space.
-
-    Attributes (beyond MeshingResult's)
-    -----------------------------------
-    to_physical : (k + 1, k + 1) float64, homogeneous map from the frame of ``implicit`` (the index frame scaled
-        by the voxel size) to the frame of ``mesh`` and ``nodes`` (LPS, RAS or Slicer's world)
-    labels : the labels meshed (empty: every nonzero label)
-    """
-
-    to_physical: np.ndarray = None
-    labels: tuple = ()
+#: the result of :func:`mesh_label_grid`: mesh and nodes in physical space, ``implicit`` in the local frame (index x
+#: spacing) that ``to_physical`` maps to physical space, ``labels`` the labels meshed.
+LabelMapMeshingResult = MeshingResult
 
 
 def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
@@ -390,36 +378,12 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
 
     report(progress, 0.05, "signed distance of the labels")
     grid = label_map_to_grid(mask, first * spacing, spacing, smoothing=smoothing)
-    radius = biting.radius or radius_for_cells(grid.inside_volume(), biting.cells, dim)
-    size = float(np.max(grid.upper - grid.origin))
-    check_number(radius, "radius", low=0, low_open=True, high=size,
-                 hint="radius is R, the node spacing; it cannot exceed the size of the labels' bounding box")
-    # The grid I: the voxel grid when its spacing is between R / 8 and R / 4, else resampled to R / 4 (or to
-    # grid_spacing when given): coarser voxels cannot carry R, finer ones only cost time and memory.
-    target = implicit.grid_spacing or radius / GRID_PER_RADIUS
-    if implicit.grid_spacing is not None or not target / 2 <= np.max(spacing) <= target:
-        report(progress, 0.1, f"resampling the distance on a {target:.3g} grid")
-        grid = sample_function(grid.evaluate, grid.origin, grid.upper, target,
-                               max_memory_mb=implicit.max_memory_mb, progress=sub_progress(progress, 0.1, 0.3))
     seconds["distance"] = seconds.get("distance", 0.0) + time.perf_counter() - clock
-    fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 1.0), seconds, optimize)
-
     # Local frame (index x spacing) -> physical: the unit columns of the matrix, then its translation.
-    to_physical = np.eye(dim + 1)
-    to_physical[:dim, :dim] = matrix[:dim, :dim] / spacing[None, :]
-    to_physical[:dim, dim] = matrix[:dim, dim]
-    linear, shift = to_physical[:dim, :dim], to_physical[:dim, dim]
-    mesh = result.mesh
-    cells = mesh.cells
-    if np.linalg.det(linear) < 0:   # a reflection: swap two vertices of every cell to keep them positive
-        cells = cells.copy()
-        cells[:, [0, 1]] = cells[:, [1, 0]]
-    mesh = Mesh(mesh.points @ linear.T + shift, cells, dict(mesh.cell_data))
-    if not np.allclose(linear.T @ linear, np.eye(dim), atol=1e-9):   # not a rotation: lengths and angles change
-        mesh = mesh.with_cell_data(**cell_quality(mesh))
-    return LabelMapMeshingResult(mesh=mesh, implicit=result.implicit, nodes=result.nodes @ linear.T + shift,
-                                 radius=result.radius, seconds=seconds, to_physical=to_physical, labels=chosen)
+    frame = Frame(matrix[:dim, :dim] / spacing[None, :], matrix[:dim, dim])
+    source = Source(grid, grid.origin, grid.upper, frame, grid=grid)
+    result = mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.1, 1.0), seconds)
+    return replace(result, labels=chosen)
 
 
 def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spacing=None, ras=False,

@@ -49,8 +49,7 @@ from .implicit import grid_layout
 from .mesh import Mesh
 from .parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
                          optimize_parameters)
-from .pipeline import (COARSE_GRID_NODES, GRID_PER_RADIUS, MeshingResult, implicit_grid, mesh_from_grid,
-                       radius_for_cells, timed)
+from .spine import GRID_PER_RADIUS, Frame, MeshingResult, Source, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
 from .topology import boundary_facets
 
@@ -1057,12 +1056,8 @@ def sample_labelled(function: LabelledImplicit, lower, upper, implicit: Implicit
                            exact_within=EXACT_WITHIN * spacing, progress=progress)
 
 
-@dataclass(frozen=True, eq=False)
-class LabelledMeshingResult(MeshingResult):
-    """A :class:`~bitemesh.core.pipeline.MeshingResult` and the domain's implicit function (for
-    :func:`boundary_surfaces`)."""
-
-    function: LabelledImplicit = None
+#: the result of :func:`run_labelled`; its ``function`` is the LabelledImplicit (for :func:`boundary_surfaces`).
+LabelledMeshingResult = MeshingResult
 
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
@@ -1080,31 +1075,17 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     the MeshOptimizer on the valid domain.  ``options`` go to
     :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
     """
-    implicit = ImplicitParameters() if implicit is None else implicit
-    biting = BitingParameters() if biting is None else biting
-    spurious = SpuriousParameters() if spurious is None else spurious
     seconds = {}
     with timed(seconds, "implicit fit"):
         function, lower, upper = labelled_implicit(points, labels, domain, base_plane, slices=slices,
                                                    surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
                                                    else min_wall, progress=sub_progress(progress, 0.0, 0.3),
                                                    **options)
-    with timed(seconds, "implicit sampling"):
-        radius = biting.radius
-        if radius is None:
-            size = float(np.max(upper - lower))
-            coarse = max(size / COARSE_GRID_NODES, implicit.grid_spacing or 0.0)
-            volume = sample_function(function, lower, upper, coarse, margin=2 * coarse,
-                                     max_memory_mb=implicit.max_memory_mb).inside_volume()
-            radius = radius_for_cells(volume, biting.cells, 3)
-        if min_wall is None:
-            function = function.with_min_wall(thinnest_wall(radius))
-        grid, radius = implicit_grid(function, lower, upper, implicit, radius, biting.cells,
-                                     progress=sub_progress(progress, 0.3, 0.5))
-    fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.5, 1.0), seconds, optimize)
-    return LabelledMeshingResult(mesh=result.mesh, implicit=result.implicit, nodes=result.nodes, radius=result.radius,
-                                 seconds=result.seconds, function=function)
+    at_radius = (lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None else None
+    source = Source(function, lower, upper, Frame.identity(3), samples=np.vstack(list(function.points.values())),
+                    at_radius=at_radius)
+    return mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
+                       spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds)
 
 
 def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, radius=None,

@@ -1,0 +1,263 @@
+"""The one meshing spine: each source of data hands over f in a local frame, and one function meshes it.
+
+A source (scattered points in :mod:`~bitemesh.core.pipeline`, labelled contours in :mod:`~bitemesh.core.labelled`,
+voxels in :mod:`bitemesh.labelmap`) returns a :class:`Source`: the implicit function f (f > 0 inside) in a local
+frame, the box that holds {f > 0}, the data's own surface samples and the map back to the user's coordinates.
+:func:`mesh_source` owns everything after that: choosing R, sampling the grid I, biting, Delaunay, the spurious
+test and the repair, the MeshOptimizer, the quality, and mapping the mesh back.
+"""
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+from .biting import bite
+from .delaunay import delaunay
+from .domain import carve_domain
+from .errors import check_number
+from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
+from .mesh import Mesh
+from .optimize import optimize_mesh
+from .parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
+from .progress import ProgressCallback, report, sub_progress
+from .quality import cell_quality
+
+#: cells per unit measure x R^k of a biting mesh (measured on a sphere, a torus and a die: 5.1 to 5.7 in 3D).
+CELLS_PER_VOLUME = {2: 2.3, 3: 5.4}
+#: grid spacing h = R / GRID_PER_RADIUS when the grid spacing is not given.
+GRID_PER_RADIUS = 4.0
+#: nodes per axis of the coarse grid that measures the volume when R is chosen from a cell count.
+COARSE_GRID_NODES = 64
+#: the default grid has at least this many nodes along the data's longest side, whatever R.
+MIN_GRID_NODES = 40
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """The affine map from a source's local frame to the user's coordinates: ``user = local @ linear.T + shift``.
+
+    Attributes
+    ----------
+    linear : (k, k) float64, invertible
+    shift : (k,) float64, user units
+    """
+
+    linear: np.ndarray
+    shift: np.ndarray
+
+    @classmethod
+    def identity(cls, dim: int) -> Frame:
+        return cls(np.eye(dim), np.zeros(dim))
+
+    @property
+    def dim(self) -> int:
+        return len(self.shift)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(k + 1, k + 1) the homogeneous matrix of the map."""
+        matrix = np.eye(self.dim + 1)
+        matrix[:-1, :-1], matrix[:-1, -1] = self.linear, self.shift
+        return matrix
+
+    @property
+    def scale(self) -> float:
+        """User units per local unit (the k-th root of the linear part's |determinant|)."""
+        return float(abs(np.linalg.det(self.linear)) ** (1.0 / self.dim))
+
+    @property
+    def is_similarity(self) -> bool:
+        """True when the map keeps angles (a rotation, a reflection or a uniform scaling, and a shift)."""
+        gram = self.linear.T @ self.linear
+        return bool(np.allclose(gram, self.scale**2 * np.eye(self.dim), rtol=0, atol=1e-9 * self.scale**2))
+
+    def is_identity(self) -> bool:
+        return bool(np.array_equal(self.linear, np.eye(self.dim)) and not self.shift.any())
+
+    def to_user(self, points: np.ndarray) -> np.ndarray:
+        """(n, k) local points in user coordinates."""
+        return points if self.is_identity() else points @ self.linear.T + self.shift
+
+    def mesh_to_user(self, mesh: Mesh) -> Mesh:
+        """``mesh`` (local frame, positively oriented, quality arrays) in user coordinates: a reflection swaps two
+        vertices of every cell back to positive, and the quality arrays are recomputed when angles change."""
+        if self.is_identity():
+            return mesh
+        cells = mesh.cells
+        if np.linalg.det(self.linear) < 0:
+            cells = cells.copy()
+            cells[:, [0, 1]] = cells[:, [1, 0]]
+        moved = Mesh(self.to_user(mesh.points), cells, dict(mesh.cell_data))
+        if not self.is_similarity:
+            return moved.with_cell_data(**cell_quality(moved))
+        factor = abs(np.linalg.det(self.linear))
+        if "Volume" in moved.cell_data and not np.isclose(factor, 1.0, rtol=1e-12, atol=0):
+            moved = moved.with_cell_data(Volume=moved.cell_data["Volume"] * factor)
+        return moved
+
+
+@dataclass(frozen=True, eq=False)
+class Source:
+    """What a source of data hands to :func:`mesh_source`, in its local frame.
+
+    Attributes
+    ----------
+    function : callable (m, k) -> (m,), f > 0 inside, about the signed distance (local units) near f = 0
+    lower, upper : (k,) float64, a box holding {f > 0} (local units); the grid I covers it and a margin
+    frame : the map from the local frame to the user's coordinates
+    samples : (n, k) float64, the data's points on the surface (local units), or None
+    grid : f already sampled on a grid (voxels), or None; it sizes R and serves as the grid I when its spacing
+        suits R (between R / 8 and R / 4), else it is resampled
+    at_radius : callable R -> function, the f to mesh once R (local units) is known (labelled contours: the
+        thinnest wall follows R), or None for ``function`` itself
+    """
+
+    function: Callable[[np.ndarray], np.ndarray]
+    lower: np.ndarray
+    upper: np.ndarray
+    frame: Frame
+    samples: Optional[np.ndarray] = None
+    grid: Optional[ImplicitGrid] = None
+    at_radius: Optional[Callable[[float], Callable]] = None
+
+    @property
+    def size(self) -> float:
+        """The longest side of the box (local units)."""
+        return float(np.max(np.asarray(self.upper) - np.asarray(self.lower)))
+
+
+@dataclass(frozen=True, eq=False)
+class MeshingResult:
+    """What a run of the spine produced.
+
+    Attributes
+    ----------
+    mesh : the valid mesh in user coordinates, with the quality arrays as cell data
+    implicit : f on the grid I, in the source's local frame (``frame`` maps it to user coordinates)
+    nodes : (n, k) float64, every node the biting placed, user coordinates (the mesh keeps those its cells use)
+    radius : R used (user units)
+    seconds : step name -> wall-clock seconds
+    frame : the source's local frame -> user coordinates
+    function : the f that was meshed (local frame): e.g. a LabelledImplicit, whose surfaces name the boundary
+    labels : the labels meshed, for a label map (empty: every nonzero label, or not a label map)
+    """
+
+    mesh: Mesh
+    implicit: ImplicitGrid
+    nodes: np.ndarray
+    radius: float
+    seconds: dict = field(default_factory=dict)
+    frame: Optional[Frame] = None
+    function: Optional[Callable] = None
+    labels: tuple = ()
+
+    @property
+    def to_physical(self) -> np.ndarray:
+        """(k + 1, k + 1) homogeneous map from the frame of ``implicit`` to the frame of ``mesh``."""
+        return (self.frame or Frame.identity(self.mesh.dim)).matrix
+
+
+def radius_for_cells(measure: float, cells: int, dim: int) -> float:
+    """R that gives about ``cells`` cells in a domain of area (2D) or volume (3D) ``measure``."""
+    return float((CELLS_PER_VOLUME[dim] * measure / cells) ** (1.0 / dim))
+
+
+@contextmanager
+def timed(seconds: dict, name: str):
+    """Add the wall-clock seconds of the ``with`` block to ``seconds[name]``."""
+    clock = time.perf_counter()
+    yield
+    seconds[name] = seconds.get(name, 0.0) + time.perf_counter() - clock
+
+
+def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: SpuriousParameters = SpuriousParameters(),
+                   progress: ProgressCallback = None, seconds: dict | None = None,
+                   optimize: OptimizeParameters | None = None) -> MeshingResult:
+    """Mesh {f > 0} of a sampled implicit function; R is ``biting.radius`` or chosen for ``biting.cells`` cells.
+
+    With ``optimize``, the MeshOptimizer step (relaxation, sliver removal) runs on the valid domain.
+    """
+    seconds = {} if seconds is None else seconds
+    radius = biting.radius or radius_for_cells(grid.inside_volume(), biting.cells, grid.dim)
+    carved = 0.9 if optimize is None else 0.6
+    with timed(seconds, "biting"):
+        nodes = bite(grid, radius, order=biting.order, seed=biting.seed, progress=sub_progress(progress, 0, 0.3))
+    with timed(seconds, "delaunay"):
+        cells = delaunay(nodes)
+    report(progress, 0.45, "delaunay")
+    with timed(seconds, "spurious cells"):
+        mesh = carve_domain(grid, nodes, cells, spurious, progress=sub_progress(progress, 0.45, carved))
+    if optimize is not None:
+        with timed(seconds, "optimize"):
+            mesh = optimize_mesh(grid, mesh, optimize, progress=sub_progress(progress, carved, 0.97))
+    with timed(seconds, "quality"):
+        mesh = mesh.with_cell_data(**cell_quality(mesh))
+    report(progress, 1.0, "quality")
+    return MeshingResult(mesh=mesh, implicit=grid, nodes=nodes, radius=radius, seconds=seconds)
+
+
+def choose_radius(source: Source, cells: int, implicit: ImplicitParameters) -> float:
+    """R (local units) for about ``cells`` cells, from the volume of {f > 0}: counted on the source's own grid, or
+    on a coarse grid of :data:`COARSE_GRID_NODES` nodes along the box's longest side."""
+    if source.grid is not None:
+        volume = source.grid.inside_volume()
+    else:
+        coarse = max(source.size / COARSE_GRID_NODES, _local(implicit.grid_spacing, source) or 0.0)
+        volume = sample_function(source.function, source.lower, source.upper, coarse, margin=2 * coarse,
+                                 max_memory_mb=implicit.max_memory_mb).inside_volume()
+    return radius_for_cells(volume, cells, source.frame.dim)
+
+
+def sample_grid(source: Source, function, radius: float, implicit: ImplicitParameters,
+                progress: ProgressCallback = None) -> ImplicitGrid:
+    """The grid I for node spacing R (local units): spacing ``grid_spacing`` or R / 4 (at least 1/40 of the box's
+    longest side), exact near f = 0; a source's own grid when its spacing is between R / 8 and R / 4."""
+    spacing = _local(implicit.grid_spacing, source)
+    if source.grid is not None:
+        target = spacing or radius / GRID_PER_RADIUS
+        if spacing is None and target / 2 <= np.max(source.grid.spacing) <= target:
+            return source.grid
+        report(progress, 0.0, f"resampling the distance on a {target * source.frame.scale:.3g} grid")
+        return sample_function(source.grid.evaluate, source.grid.origin, source.grid.upper, target,
+                               max_memory_mb=implicit.max_memory_mb, progress=progress)
+    spacing = spacing or min(radius / GRID_PER_RADIUS, source.size / MIN_GRID_NODES)
+    margin = _local(implicit.margin, source)
+    margin = 3 * spacing if margin is None else margin
+    return sample_function(function, source.lower, source.upper, spacing, margin=margin,
+                           max_memory_mb=implicit.max_memory_mb, exact_within=EXACT_WITHIN * spacing,
+                           progress=progress)
+
+
+def _local(value, source: Source):
+    """A length in user units (or None) in the source's local units."""
+    return None if value is None else value / source.frame.scale
+
+
+def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
+                biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
+                optimize: OptimizeParameters | None = None, progress: ProgressCallback = None,
+                seconds: dict | None = None) -> MeshingResult:
+    """Mesh a source: choose R, sample the grid I, bite, Delaunay, carve the valid domain, optimize (unless
+    ``optimize`` is None), quality, and map the mesh to user coordinates.
+
+    Lengths in the parameters (radius, grid_spacing, margin) are in user units.
+    """
+    seconds = {} if seconds is None else seconds
+    with timed(seconds, "implicit sampling"):
+        radius = _local(biting.radius, source)
+        if radius is None:
+            radius = choose_radius(source, biting.cells, implicit)
+        size = source.size if source.grid is None else float(np.max(source.grid.upper - source.grid.origin))
+        check_number(radius * source.frame.scale, "radius", low=0, low_open=True, high=size * source.frame.scale,
+                     hint="radius is R, the node spacing; it cannot exceed the size of the data's bounding box")
+        function = source.function if source.at_radius is None else source.at_radius(radius)
+        grid = sample_grid(source, function, radius, implicit, sub_progress(progress, 0.0, 0.3))
+    fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
+    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 1.0), seconds, optimize)
+    frame = source.frame
+    return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
+                         radius=radius * frame.scale, seconds=seconds, frame=frame, function=function)
