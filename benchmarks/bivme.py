@@ -44,7 +44,7 @@ from bitemesh.core import labelled
 from bitemesh.core.grid import sample_function
 from bitemesh.core.implicit import fit_mpu
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
-from bitemesh.core.pipeline import implicit_grid, mesh_from_grid
+from bitemesh.core.spine import Frame, Source, mesh_source
 from bitemesh.core.quality import (
     boundary_euler_characteristic,
     check_valid_domain,
@@ -236,10 +236,10 @@ def measure(folder: Path, cells: int, options: dict, *, method: str = "rbf", los
     if method == "mpu":
         function, lower, upper = mpu_implicit(points, labels, slices, **options)
         fitted = time.perf_counter()
-        grid, radius = implicit_grid(function, lower, upper, ImplicitParameters(), None, cells)
-        result = mesh_from_grid(grid, BitingParameters(radius=radius, cells=cells, seed=seed))
-        seconds = {"fit": fitted - clock, "sampling": time.perf_counter() - fitted - sum(result.seconds.values()),
-                   "meshing": sum(result.seconds.values())}
+        result = mesh_source(Source(function, lower, upper, Frame.identity(3)), ImplicitParameters(),
+                             BitingParameters(cells=cells, seed=seed))
+        meshing = sum(value for key, value in result.seconds.items() if not key.startswith("implicit"))
+        seconds = {"fit": fitted - clock, "sampling": result.seconds["implicit sampling"], "meshing": meshing}
     else:
         result = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells, seed=seed),
                                        optimize=OptimizeParameters() if optimize else None, **options)

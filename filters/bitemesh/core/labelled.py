@@ -938,7 +938,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     Returns
     -------
     f : LabelledImplicit, callable (m, 3) -> (m,), f > 0 inside
-    lower, upper : (3,) float64, a box holding the domain (for ``pipeline.implicit_grid``)
+    lower, upper : (3,) float64, a box holding the domain (the Source's box)
     """
     points = check_points(points, dims=(3,))
     labels = _as_labels(labels, len(points))
@@ -1064,11 +1064,11 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
                  implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                  spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
                  progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
-    """Every step on labelled contour points: :func:`labelled_implicit`, then the pipeline's ``implicit_grid`` and
-    ``mesh_from_grid``.
+    """Every step on labelled contour points: :func:`labelled_implicit`, then the spine
+    (:func:`~bitemesh.core.spine.mesh_source`).
 
     R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain (as
-    ``implicit_grid`` does); parameters left None take their defaults; ``min_wall`` defaults to
+    the spine does); parameters left None take their defaults; ``min_wall`` defaults to
     :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would open in
     holes).  ``implicit`` gives
     the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``optimize`` (None: skipped) runs
