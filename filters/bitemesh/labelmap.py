@@ -310,6 +310,24 @@ def _remove_staircase(values: np.ndarray, mask: np.ndarray, sigma: float) -> np.
 
 # --------------------------------------------------------------------------------------------- meshing
 
+#: the noise level of a label map's surface, in voxels: a staircase between voxel centres (the fidelity check
+#: allows R + 3 x this).
+STAIRCASE_NOISE = 0.5
+
+
+def mask_faces(mask: np.ndarray, origin, spacing) -> np.ndarray:
+    """(n, k) the centres of the voxel faces between the mask and its outside: the label map's surface samples.
+
+    ``origin`` is the position of ``mask[0, ..., 0]``'s centre, ``spacing`` the voxel size (local frame)."""
+    padded = np.pad(mask, 1)
+    faces = []
+    for axis in range(mask.ndim):
+        change = np.diff(padded, axis=axis) != 0
+        index = np.argwhere(change).astype(np.float64) - 1.0
+        index[:, axis] += 0.5
+        faces.append(index)
+    return np.asarray(origin) + np.vstack(faces) * np.asarray(spacing)
+
 
 #: the result of :func:`mesh_label_grid`: mesh and nodes in physical space, ``implicit`` in the local frame (index x
 #: spacing) that ``to_physical`` maps to physical space, ``labels`` the labels meshed.
@@ -381,7 +399,9 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     seconds["distance"] = seconds.get("distance", 0.0) + time.perf_counter() - clock
     # Local frame (index x spacing) -> physical: the unit columns of the matrix, then its translation.
     frame = Frame(matrix[:dim, :dim] / spacing[None, :], matrix[:dim, dim])
-    source = Source(grid, grid.origin, grid.upper, frame, grid=grid)
+    voxel = float(np.max(spacing))
+    source = Source(grid, grid.origin, grid.upper, frame, grid=grid, samples=mask_faces(mask, first * spacing, spacing),
+                    noise=STAIRCASE_NOISE * voxel, gap=float(np.linalg.norm(spacing)))
     result = mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.1, 1.0), seconds)
     return replace(result, labels=chosen)
 

@@ -9,7 +9,8 @@ from .mesh import signed_measures
 
 
 def delaunay(nodes: np.ndarray) -> np.ndarray:
-    """Triangulate (n, k) nodes (k = 2 or 3).
+    """Triangulate (n, k) nodes (k = 2 or 3), centred first so that coordinates far from the origin keep their
+    precision.
 
     Returns
     -------
@@ -18,12 +19,13 @@ def delaunay(nodes: np.ndarray) -> np.ndarray:
     nodes = check_points(nodes, "nodes")
     if len(nodes) < nodes.shape[1] + 1:
         raise InvalidInputError(f"nodes must hold at least {nodes.shape[1] + 1} points, got {len(nodes)}")
+    centred = nodes - 0.5 * (nodes.min(axis=0) + nodes.max(axis=0))   # qhull's tolerances are absolute
     try:
-        cells = Delaunay(nodes).simplices.astype(np.int64)
+        cells = Delaunay(centred).simplices.astype(np.int64)
     except QhullError as error:
         raise InvalidInputError(f"nodes are degenerate (all on a line or a plane?): qhull says "
                                 f"{str(error).splitlines()[0]}") from None
-    measure = signed_measures(nodes, cells)
+    measure = signed_measures(centred, cells)
     flipped = measure < 0
     cells[flipped, :2] = cells[flipped, 1::-1]
     return cells[measure != 0]

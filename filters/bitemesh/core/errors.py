@@ -19,6 +19,10 @@ class MeshingError(BitemeshError, RuntimeError):
     """Valid input, but the mesher could not produce a valid mesh from it."""
 
 
+class BitemeshWarning(UserWarning):
+    """A result that bitemesh hands on although it misses a bound the user allowed it to miss."""
+
+
 class Cancelled(BitemeshError):
     """The user asked to stop (a VTK abort, a Slicer cancel button, Ctrl-C in the CLI)."""
 

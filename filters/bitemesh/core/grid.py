@@ -85,8 +85,28 @@ class ImplicitGrid:
         return float(np.count_nonzero(self.values > 0) * np.prod(self.spacing))
 
 
+def grid_shape_unchecked(lower, upper, spacing) -> tuple:
+    """Node counts of a grid with the given spacing from ``lower`` that reaches ``upper`` (to rounding)."""
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    spacing = np.broadcast_to(np.asarray(spacing, float), lower.shape)
+    return tuple(int(n) for n in np.floor((upper - lower) / spacing + 1e-9).astype(np.int64) + 1)
+
+
+def available_memory_mb() -> float | None:
+    """MiB of memory the system can give without swapping (Linux: MemAvailable), or None where unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as stream:
+            for line in stream:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def grid_shape(lower, upper, spacing, *, max_memory_mb: float) -> tuple:
-    """Node counts of a grid with the given spacing covering [lower, upper]; refuse one that would not fit.
+    """Node counts of a grid with the given spacing covering [lower, upper]; refuse one that would need more
+    memory than ``max_memory_mb`` or than the system has available.
 
     Parameters
     ----------
@@ -94,16 +114,19 @@ def grid_shape(lower, upper, spacing, *, max_memory_mb: float) -> tuple:
     spacing : (k,) float64 or float, grid spacing h
     max_memory_mb : the memory the grid may take, in MiB
     """
-    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    spacing = np.broadcast_to(np.asarray(spacing, float), lower.shape)
-    shape = tuple(int(n) for n in np.floor((upper - lower) / spacing + 1e-9).astype(np.int64) + 1)
+    shape = grid_shape_unchecked(lower, upper, spacing)
     needed_mb = np.prod(np.array(shape, dtype=np.float64)) * BYTES_PER_NODE / 2**20
-    if needed_mb > max_memory_mb:
-        suggested = float(np.max(spacing) * (needed_mb / max_memory_mb) ** (1 / len(shape)))
+    available = available_memory_mb()
+    limit = min(max_memory_mb, available or np.inf)
+    if needed_mb > limit:
+        spacing = np.broadcast_to(np.asarray(spacing, float), np.shape(lower))
+        suggested = float(np.max(spacing) * (needed_mb / limit) ** (1 / len(shape)))
+        which = (f"max_memory_mb = {max_memory_mb:g}" if limit == max_memory_mb
+                 else f"the {available:.0f} MiB of memory this machine has free")
         raise InvalidInputError(
             f"grid_spacing {float(np.min(spacing)):.4g} needs a grid of {' x '.join(map(str, shape))} nodes "
-            f"(about {needed_mb:.0f} MiB), more than max_memory_mb = {max_memory_mb:g}; "
-            f"use grid_spacing >= {suggested:.4g} or raise max_memory_mb")
+            f"(about {needed_mb:.0f} MiB), more than {which}; use grid_spacing >= {suggested:.4g}"
+            + (" or raise max_memory_mb" if limit == max_memory_mb else ""))
     return shape
 
 

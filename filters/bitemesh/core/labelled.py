@@ -47,8 +47,8 @@ from .errors import InvalidInputError, check_choice, check_number, check_points
 from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
 from .implicit import grid_layout
 from .mesh import Mesh
-from .parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
-                         optimize_parameters)
+from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
+                         SpuriousParameters, optimize_parameters)
 from .spine import GRID_PER_RADIUS, Frame, MeshingResult, Source, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
 from .topology import boundary_facets
@@ -776,8 +776,7 @@ class LabelledImplicit:
     min_wall : float, input units, the thinnest wall a difference keeps (see :func:`evaluate_domain`)
     lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
     points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
-        where none)
-    fits : name -> the exact implicit of each surface (:class:`ContourRBF`), which ``surfaces`` samples
+        where none); slices : name -> (n,) their slice ids
     """
 
     surfaces: dict
@@ -789,7 +788,7 @@ class LabelledImplicit:
     upper: np.ndarray
     points: dict
     normals: dict
-    fits: dict = field(default_factory=dict)
+    slices: dict = field(default_factory=dict)
 
     @property
     def names(self) -> tuple:
@@ -817,6 +816,43 @@ class LabelledImplicit:
     def with_min_wall(self, min_wall: float) -> LabelledImplicit:
         """The same surfaces, with another thinnest wall (input units)."""
         return replace(self, min_wall=check_number(min_wall, "min_wall", low=0))
+
+    def moved(self, shift) -> LabelledImplicit:
+        """The same domain translated by ``shift`` (3,): every sampled surface, the base plane, the box, the points."""
+        shift = np.asarray(shift, dtype=np.float64)
+        return replace(self, surfaces={name: replace(grid, origin=grid.origin + shift)
+                                       for name, grid in self.surfaces.items()},
+                       base=None if self.base is None else (self.base[0] + shift, self.base[1]),
+                       lower=self.lower + shift, upper=self.upper + shift,
+                       points={name: points + shift for name, points in self.points.items()})
+
+    def surface_samples(self) -> np.ndarray:
+        """(n, 3) the points of every surface that lie below the base plane (those above it are cut away)."""
+        samples = np.vstack(list(self.points.values()))
+        return samples if self.base is None else samples[(samples - self.base[0]) @ self.base[1] <= 0]
+
+    def contour_gap(self) -> float:
+        """The gap the contours leave between their slices: over every surface point, the distance to the nearest
+        point of the same surface on another slice; its 99th percentile (input units)."""
+        gaps = []
+        for name, points in self.points.items():
+            slices = self.slices.get(name)
+            if slices is None or len(np.unique(slices)) < 2:
+                continue
+            for number in np.unique(slices):
+                mine = slices == number
+                gaps.append(cKDTree(points[~mine]).query(points[mine])[0])
+        return float(np.percentile(np.concatenate(gaps), 99)) if gaps else 0.0
+
+    def tracing_noise(self) -> float:
+        """The uncertainty of traced contours: half the median distance between neighbouring contour points
+        (input units), about the pixel size they were traced and resampled at."""
+        spacing = [cKDTree(points).query(points, k=2)[0][:, 1] for points in self.points.values() if len(points) > 1]
+        return 0.5 * float(np.median(np.concatenate(spacing))) if spacing else 0.0
+
+    def is_base(self, x) -> np.ndarray:
+        """(m,) True where the base plane, not a surface, gives f at (m, 3) points."""
+        return self.active_surface(x) == len(self.surfaces)
 
 
 def boundary_surfaces(mesh, function: LabelledImplicit):
@@ -968,7 +1004,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     if base is not None:
         base = (base[0] + check_number(base_offset, "base_offset") * base[1], base[1])
 
-    functions, surface_points, surface_normals, fits = {}, {}, {}, {}
+    functions, surface_points, surface_normals, surface_slices = {}, {}, {}, {}
     for number, name in enumerate(used):
         report(progress, 0.05 + 0.9 * number / len(used), f"fitting surface {name}")
         index = _distinct(points, np.flatnonzero(np.isin(labels, surfaces[name])))
@@ -995,11 +1031,11 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         functions[name] = sample_function(
             rbf, lower, upper, step, exact_within=SURFACE_BAND * step, levels=SURFACE_LEVELS,
             progress=sub_progress(progress, 0.05 + 0.9 * (number + 0.3) / len(used), 0.05 + 0.9 * (number + 1) / len(used)))
-        surface_points[name], surface_normals[name], fits[name] = points[index], normals, rbf
+        surface_points[name], surface_normals[name], surface_slices[name] = points[index], normals, slices[index]
     function = LabelledImplicit(surfaces=functions, tree=tree, expression=expression, base=base,
                                 min_wall=check_number(min_wall, "min_wall", low=0), lower=points[in_any].min(axis=0),
                                 upper=points[in_any].max(axis=0), points=surface_points, normals=surface_normals,
-                                fits=fits)
+                                slices=surface_slices)
     lower, upper = _domain_box(function)
     report(progress, 1.0, "surfaces fitted")
     function = replace(function, lower=lower, upper=upper)
@@ -1063,7 +1099,8 @@ LabelledMeshingResult = MeshingResult
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
                  implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                  spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
-                 progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
+                 fidelity: FidelityParameters | None = None, progress: ProgressCallback = None,
+                 **options) -> LabelledMeshingResult:
     """Every step on labelled contour points: :func:`labelled_implicit`, then the spine
     (:func:`~bitemesh.core.spine.mesh_source`).
 
@@ -1074,18 +1111,33 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``optimize`` (None: skipped) runs
     the MeshOptimizer on the valid domain.  ``options`` go to
     :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
+
+    The contours are fitted and meshed centred on their bounding box (in mm still); ``result.function`` is the
+    domain's LabelledImplicit moved back to the input's coordinates, like the mesh.  The fidelity check compares
+    the mesh with the surface points below the base plane, the base plane's cap left out (``fidelity``: its
+    bounds, default FidelityParameters()).
     """
+    points = check_points(points, dims=(3,))
+    frame = Frame.around(points, scaled=False)   # millimetres stay millimetres: the defaults are in mm
+    if base_plane is not None and not isinstance(base_plane, str):
+        try:
+            point, normal = base_plane
+            base_plane = (np.asarray(point, dtype=np.float64) - frame.shift, normal)
+        except (TypeError, ValueError):
+            pass   # labelled_implicit refuses it with its message
     seconds = {}
     with timed(seconds, "implicit fit"):
-        function, lower, upper = labelled_implicit(points, labels, domain, base_plane, slices=slices,
+        function, lower, upper = labelled_implicit(points - frame.shift, labels, domain, base_plane, slices=slices,
                                                    surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
                                                    else min_wall, progress=sub_progress(progress, 0.0, 0.3),
                                                    **options)
     at_radius = (lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None else None
-    source = Source(function, lower, upper, Frame.identity(3), samples=np.vstack(list(function.points.values())),
-                    at_radius=at_radius)
-    return mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
-                       spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds)
+    source = Source(function, lower, upper, frame, samples=function.surface_samples(), at_radius=at_radius,
+                    noise=function.tracing_noise(), gap=function.contour_gap(), open_boundary=function.is_base if function.base is not None else None)
+    result = mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
+                         spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
+                         fidelity or FidelityParameters())
+    return replace(result, function=result.function.moved(frame.shift))
 
 
 def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, radius=None,

@@ -65,6 +65,8 @@ class ImplicitParameters(Parameters):
     margin: Optional[float] = parameter(None, "extra grid around the data; default 3 grid spacings",
                                         unit="input units", low=0)
     max_memory_mb: float = parameter(4096.0, "largest grid the mesher may allocate", unit="MiB", low=1)
+    outliers: str = parameter("drop", "points far from the others or off the surface their neighbours sample: drop "
+                              "them (and say how many), or keep them", choices=("drop", "keep"))
 
 
 @dataclass(frozen=True)
@@ -134,6 +136,18 @@ class OptimizeParameters(Parameters):
                                     high=60, high_open=True)
     min_quality: float = parameter(0.3, "the sliver removal also goes on until no cell has a smaller radius ratio Q",
                                    low=0, high=1, high_open=True)
+
+
+@dataclass(frozen=True)
+class FidelityParameters(Parameters):
+    """Fidelity: how closely the mesh boundary must follow the input points (see bitemesh.core.fidelity)."""
+
+    far_samples: float = parameter(0.5, "the largest share of input points that may lie farther than R + 3 x noise "
+                                   "from the mesh boundary", unit="%", low=0, high=100)
+    unsupported_area: float = parameter(2.0, "the largest share of the boundary's area that may lie farther than R "
+                                        "+ half the data's gap from every input point", unit="%", low=0, high=100)
+    allow_unfaithful: int = parameter(0, "1 keeps a mesh that misses these bounds, with a warning, instead of "
+                                      "refusing it", low=0, high=1, integer=True)
 
 
 @dataclass(frozen=True)

@@ -5,34 +5,72 @@
 """
 from __future__ import annotations
 
-from .errors import check_points
-from .implicit import fit_implicit
+import numpy as np
+
+from .errors import InvalidInputError, check_points
+from .implicit import MIN_POINTS, fit_implicit
 from .mesh import Mesh
-from .parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
-                         optimize_parameters)
+from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
+                         SpuriousParameters, optimize_parameters)
+from .samples import PLANE_NEIGHBOURS, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
                     Frame, MeshingResult, Source, mesh_from_grid, mesh_source, radius_for_cells, timed)
 
 
+def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
+                  progress: ProgressCallback = None) -> Source:
+    """Scattered points as a :class:`Source`: outliers dropped (unless ``implicit.outliers`` is "keep"), the points
+    centred and scaled to unit size (:meth:`Frame.around`), f fitted there (MPU or RBF), and the samples' spacing
+    and noise measured for the fidelity check.
+
+    Parameters
+    ----------
+    points : (n, k) float64, input units; normals : (n, k) float64 outward normals, or None to estimate them
+    implicit : method, error_bound (input units) and outliers of :class:`ImplicitParameters`
+    """
+    points = check_points(points)
+    if len(points) < MIN_POINTS:
+        raise InvalidInputError(f"points: need at least {MIN_POINTS} points, got {len(points)}")
+    if normals is not None:
+        normals = np.asarray(normals, dtype=np.float64)
+        if normals.shape != points.shape:
+            raise InvalidInputError(f"normals must have the shape of points {points.shape}, got {normals.shape}")
+    notes = []
+    if implicit.outliers == "drop" and len(points) > 2 * PLANE_NEIGHBOURS:
+        outlier = find_outliers(points)
+        if outlier.any():
+            points = points[~outlier]
+            normals = None if normals is None else normals[~outlier]
+            notes.append(f"dropped {int(outlier.sum())} outliers of {len(outlier)} points ({outlier.mean():.1%}): "
+                         "far from the others or off the surface their neighbours sample (outliers='keep' keeps "
+                         "them)")
+    frame = Frame.around(points)
+    local = frame.to_local(points)
+    error_bound = None if implicit.error_bound is None else implicit.error_bound / frame.scale
+    function = fit_implicit(local, normals, method=implicit.method, error_bound=error_bound, progress=progress)
+    distinct = np.unique(local, axis=0)
+    return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local,
+                  noise=noise_level(distinct), gap=2 * sample_spacing(distinct), notes=tuple(notes))
+
+
 def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
         biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
-        progress: ProgressCallback = None, optimize: OptimizeParameters | None = None) -> MeshingResult:
+        progress: ProgressCallback = None, optimize: OptimizeParameters | None = None,
+        fidelity: FidelityParameters = FidelityParameters()) -> MeshingResult:
     """Every step of the method on scattered points, with the parameters of each step (``optimize``: None skips
-    the MeshOptimizer)."""
-    points = check_points(points)
+    the MeshOptimizer): :func:`points_source`, then the spine (:func:`~bitemesh.core.spine.mesh_source`)."""
     seconds = {}
     with timed(seconds, "implicit fit"):
-        function = fit_implicit(points, normals, method=implicit.method, error_bound=implicit.error_bound,
-                                progress=sub_progress(progress, 0.0, 0.3))
-    source = Source(function, points.min(axis=0), points.max(axis=0), Frame.identity(points.shape[1]),
-                    samples=points)
-    return mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.3, 1.0), seconds)
+        source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.3))
+    return mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.3, 1.0), seconds,
+                       fidelity)
 
 
 def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="mpu", error_bound=None,
-                     grid_spacing=None, margin=None, max_memory_mb=4096.0, threshold=0.4, min_component=0.01,
-                     order="boundary", seed=0, optimize=False, progress: ProgressCallback = None) -> Mesh:
+                     grid_spacing=None, margin=None, max_memory_mb=4096.0, outliers="drop", threshold=0.4,
+                     min_component=0.01, order="boundary", seed=0, optimize=False, far_samples=0.5,
+                     unsupported_area=2.0, allow_unfaithful=0, progress: ProgressCallback = None) -> Mesh:
     """A valid tetrahedral (triangular in 2D) mesh of the shape sampled by scattered points.
 
     Parameters
@@ -42,8 +80,8 @@ def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="
     radius : R, node spacing (input units); default: chosen for about ``cells`` cells
     optimize : True also runs the MeshOptimizer (relaxation, sliver removal) with its defaults, or give its
         OptimizeParameters
-    The other parameters are those of :class:`ImplicitParameters`, :class:`BitingParameters` and
-    :class:`SpuriousParameters`, with the same names.
+    The other parameters are those of :class:`ImplicitParameters`, :class:`BitingParameters`,
+    :class:`SpuriousParameters` and :class:`FidelityParameters`, with the same names.
 
     Returns
     -------
@@ -51,7 +89,9 @@ def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="
     """
     return run(points, normals,
                ImplicitParameters(method=method, error_bound=error_bound, grid_spacing=grid_spacing, margin=margin,
-                                  max_memory_mb=max_memory_mb),
+                                  max_memory_mb=max_memory_mb, outliers=outliers),
                BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
                SpuriousParameters(threshold=threshold, min_component=min_component), progress,
-               optimize_parameters(optimize)).mesh
+               optimize_parameters(optimize),
+               FidelityParameters(far_samples=far_samples, unsupported_area=unsupported_area,
+                                  allow_unfaithful=allow_unfaithful)).mesh

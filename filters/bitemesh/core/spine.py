@@ -18,11 +18,14 @@ import numpy as np
 from .biting import bite
 from .delaunay import delaunay
 from .domain import carve_domain
-from .errors import check_number
-from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
+from .errors import InvalidInputError, check_number
+from .fidelity import Fidelity, check_fidelity, measure_fidelity
+from .grid import (BYTES_PER_NODE, EXACT_WITHIN, ImplicitGrid, available_memory_mb, grid_shape_unchecked,
+                   sample_function)
 from .mesh import Mesh
 from .optimize import optimize_mesh
-from .parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
+from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
+                         SpuriousParameters)
 from .progress import ProgressCallback, report, sub_progress
 from .quality import cell_quality
 
@@ -34,6 +37,10 @@ GRID_PER_RADIUS = 4.0
 COARSE_GRID_NODES = 64
 #: the default grid has at least this many nodes along the data's longest side, whatever R.
 MIN_GRID_NODES = 40
+#: the coarse grid that measures the volume is refined at most this many times (see choose_radius).
+COARSE_REFINEMENTS = 3
+#: the grid I reaches at least this many grid spacings beyond the data's box.
+MIN_MARGIN = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,6 +59,16 @@ class Frame:
     @classmethod
     def identity(cls, dim: int) -> Frame:
         return cls(np.eye(dim), np.zeros(dim))
+
+    @classmethod
+    def around(cls, points: np.ndarray, *, scaled: bool = True) -> Frame:
+        """The frame centred on the points' bounding box and, when ``scaled``, with their bounding-box diagonal as
+        its unit: every fit, grid, Delaunay and tolerance then works on coordinates of about unit size, however far
+        from the origin and however large or small the data are (coordinates of 1e7 leave qhull 1e-9 of each
+        unit's precision)."""
+        lower, upper = points.min(axis=0), points.max(axis=0)
+        diagonal = float(np.linalg.norm(upper - lower)) if scaled else 1.0
+        return cls(np.eye(points.shape[1]) * (diagonal if diagonal > 0 else 1.0), 0.5 * (lower + upper))
 
     @property
     def dim(self) -> int:
@@ -81,6 +98,10 @@ class Frame:
     def to_user(self, points: np.ndarray) -> np.ndarray:
         """(n, k) local points in user coordinates."""
         return points if self.is_identity() else points @ self.linear.T + self.shift
+
+    def to_local(self, points: np.ndarray) -> np.ndarray:
+        """(n, k) user points in local coordinates."""
+        return points if self.is_identity() else np.linalg.solve(self.linear, (points - self.shift).T).T
 
     def mesh_to_user(self, mesh: Mesh) -> Mesh:
         """``mesh`` (local frame, positively oriented, quality arrays) in user coordinates: a reflection swaps two
@@ -114,6 +135,11 @@ class Source:
         suits R (between R / 8 and R / 4), else it is resampled
     at_radius : callable R -> function, the f to mesh once R (local units) is known (labelled contours: the
         thinnest wall follows R), or None for ``function`` itself
+    noise : the samples' noise level (local units); gap : the largest gap the data leaves between its samples
+        (local units), e.g. the spacing of contour slices
+    open_boundary : callable (f, k) points -> (f,) bool, where the boundary is made by the method rather than the
+        data (a base plane), or None
+    notes : what the source did to the data that the user should hear of (points dropped, columns read)
     """
 
     function: Callable[[np.ndarray], np.ndarray]
@@ -123,6 +149,10 @@ class Source:
     samples: Optional[np.ndarray] = None
     grid: Optional[ImplicitGrid] = None
     at_radius: Optional[Callable[[float], Callable]] = None
+    noise: float = 0.0
+    gap: float = 0.0
+    open_boundary: Optional[Callable[[np.ndarray], np.ndarray]] = None
+    notes: tuple = ()
 
     @property
     def size(self) -> float:
@@ -144,6 +174,8 @@ class MeshingResult:
     frame : the source's local frame -> user coordinates
     function : the f that was meshed (local frame): e.g. a LabelledImplicit, whose surfaces name the boundary
     labels : the labels meshed, for a label map (empty: every nonzero label, or not a label map)
+    fidelity : how closely the boundary follows the source's samples (user units), or None without samples
+    notes : what was done to the data on the way (points dropped, ...), one sentence each
     """
 
     mesh: Mesh
@@ -154,6 +186,8 @@ class MeshingResult:
     frame: Optional[Frame] = None
     function: Optional[Callable] = None
     labels: tuple = ()
+    fidelity: Optional[Fidelity] = None
+    notes: tuple = ()
 
     @property
     def to_physical(self) -> np.ndarray:
@@ -202,31 +236,89 @@ def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: Spuri
 
 def choose_radius(source: Source, cells: int, implicit: ImplicitParameters) -> float:
     """R (local units) for about ``cells`` cells, from the volume of {f > 0}: counted on the source's own grid, or
-    on a coarse grid of :data:`COARSE_GRID_NODES` nodes along the box's longest side."""
+    on a coarse grid of :data:`COARSE_GRID_NODES` nodes along the box's longest side, refined (up to
+    :data:`COARSE_REFINEMENTS` times, each at most 4 x finer) while it is coarser than the R it gives: a plate or a
+    rod thinner than the coarse spacing hardly shows on it, and R would come out far too small."""
+    dim = source.frame.dim
     if source.grid is not None:
-        volume = source.grid.inside_volume()
-    else:
-        coarse = max(source.size / COARSE_GRID_NODES, _local(implicit.grid_spacing, source) or 0.0)
+        return radius_for_cells(source.grid.inside_volume(), cells, dim)
+    finest = _local(implicit.grid_spacing, source) or 0.0
+    affordable = implicit.max_memory_mb * 2**20 / BYTES_PER_NODE   # nodes
+    coarse = max(source.size / COARSE_GRID_NODES, finest,
+                 2 * float(np.prod(np.asarray(source.upper) - np.asarray(source.lower)) / affordable) ** (1 / dim))
+    for refinement in range(COARSE_REFINEMENTS + 1):
         volume = sample_function(source.function, source.lower, source.upper, coarse, margin=2 * coarse,
-                                 max_memory_mb=implicit.max_memory_mb).inside_volume()
-    return radius_for_cells(volume, cells, source.frame.dim)
+                                 max_memory_mb=implicit.max_memory_mb,
+                                 exact_within=EXACT_WITHIN * coarse).inside_volume()
+        radius = radius_for_cells(volume, cells, dim)
+        finer = max(radius, coarse / 4, finest)
+        shape = grid_shape_unchecked(source.lower - 2 * finer, source.upper + 2 * finer, finer)
+        if coarse <= radius or finer >= coarse or refinement == COARSE_REFINEMENTS \
+                or np.prod(np.array(shape, float)) > affordable:
+            break
+        coarse = finer
+    if volume == 0:
+        raise InvalidInputError(
+            f"f is positive nowhere on a grid of spacing {coarse * source.frame.scale:.3g} over the data: nothing "
+            "is inside; check that the normals point outward, or give radius (the shape may be thinner than that)")
+    return radius
+
+
+def grid_layout(source: Source, radius: float, implicit: ImplicitParameters):
+    """(spacing, margin) of the grid I for node spacing R, local units: ``grid_spacing`` or R / 4 (at least 1/40
+    of the box's longest side); ``margin`` or 3 spacings, and at least :data:`MIN_MARGIN` spacings, so that f < 0
+    is seen all around the data."""
+    spacing = _local(implicit.grid_spacing, source) or min(radius / GRID_PER_RADIUS, source.size / MIN_GRID_NODES)
+    margin = _local(implicit.margin, source)
+    return spacing, max(3 * spacing if margin is None else margin, MIN_MARGIN * spacing)
+
+
+def check_grid(source: Source, radius: float, implicit: ImplicitParameters, biting: BitingParameters) -> None:
+    """Refuse, before any sampling, node spacing R (local units) and a grid I that do not fit the data or the
+    memory, naming the parameter to change in user units."""
+    scale = source.frame.scale
+    size = source.size if source.grid is None else float(np.max(source.grid.upper - source.grid.origin))
+    named = "radius" if biting.radius is not None else f"radius (chosen for cells = {biting.cells})"
+    check_number(radius * scale, named, low=0, low_open=True, high=size * scale,
+                 hint="radius is R, the node spacing; it cannot exceed the size of the data's bounding box"
+                      + ("" if biting.radius is not None else "; ask for more cells"))
+    if implicit.grid_spacing is not None and implicit.grid_spacing > radius * scale / 2:
+        raise InvalidInputError(
+            f"grid_spacing {implicit.grid_spacing:g} is too coarse for {named} = {radius * scale:.4g}: the grid "
+            f"must resolve R, grid_spacing <= R / 2 = {radius * scale / 2:.4g}; omit grid_spacing (default R / 4) "
+            "or raise radius")
+    if source.grid is not None:
+        return
+    spacing, margin = grid_layout(source, radius, implicit)
+    shape = grid_shape_unchecked(source.lower - margin, source.upper + margin, spacing)
+    needed = np.prod(np.array(shape, dtype=np.float64)) * BYTES_PER_NODE / 2**20
+    available = available_memory_mb()
+    limit = min(implicit.max_memory_mb, available or np.inf)
+    if needed > limit:
+        factor = float((needed / limit) ** (1 / len(shape)))
+        which = (f"max_memory_mb = {implicit.max_memory_mb:g}" if limit == implicit.max_memory_mb
+                 else f"the {available:.0f} MiB of memory this machine has free")
+        hint = (f"grid_spacing >= {implicit.grid_spacing * factor:.4g}" if implicit.grid_spacing is not None
+                else f"radius >= {radius * scale * factor:.4g}" if biting.radius is not None
+                else f"cells <= {int(biting.cells / factor ** len(shape))}")
+        raise InvalidInputError(
+            f"the grid I at spacing {spacing * scale:.4g} needs {' x '.join(map(str, shape))} nodes (about "
+            f"{needed:.0f} MiB), more than {which}; use {hint}"
+            + (" or raise max_memory_mb" if limit == implicit.max_memory_mb else ""))
 
 
 def sample_grid(source: Source, function, radius: float, implicit: ImplicitParameters,
                 progress: ProgressCallback = None) -> ImplicitGrid:
-    """The grid I for node spacing R (local units): spacing ``grid_spacing`` or R / 4 (at least 1/40 of the box's
-    longest side), exact near f = 0; a source's own grid when its spacing is between R / 8 and R / 4."""
-    spacing = _local(implicit.grid_spacing, source)
+    """The grid I for node spacing R (local units, see :func:`grid_layout`), exact near f = 0; a source's own grid
+    when its spacing is between R / 8 and R / 4 (and grid_spacing is not given), else resampled from it."""
     if source.grid is not None:
-        target = spacing or radius / GRID_PER_RADIUS
-        if spacing is None and target / 2 <= np.max(source.grid.spacing) <= target:
+        target = _local(implicit.grid_spacing, source) or radius / GRID_PER_RADIUS
+        if implicit.grid_spacing is None and target / 2 <= np.max(source.grid.spacing) <= target:
             return source.grid
         report(progress, 0.0, f"resampling the distance on a {target * source.frame.scale:.3g} grid")
         return sample_function(source.grid.evaluate, source.grid.origin, source.grid.upper, target,
                                max_memory_mb=implicit.max_memory_mb, progress=progress)
-    spacing = spacing or min(radius / GRID_PER_RADIUS, source.size / MIN_GRID_NODES)
-    margin = _local(implicit.margin, source)
-    margin = 3 * spacing if margin is None else margin
+    spacing, margin = grid_layout(source, radius, implicit)
     return sample_function(function, source.lower, source.upper, spacing, margin=margin,
                            max_memory_mb=implicit.max_memory_mb, exact_within=EXACT_WITHIN * spacing,
                            progress=progress)
@@ -240,9 +332,10 @@ def _local(value, source: Source):
 def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
                 biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
                 optimize: OptimizeParameters | None = None, progress: ProgressCallback = None,
-                seconds: dict | None = None) -> MeshingResult:
+                seconds: dict | None = None, fidelity: FidelityParameters = FidelityParameters()) -> MeshingResult:
     """Mesh a source: choose R, sample the grid I, bite, Delaunay, carve the valid domain, optimize (unless
-    ``optimize`` is None), quality, and map the mesh to user coordinates.
+    ``optimize`` is None), quality, measure the fidelity to the source's samples (refused beyond the bounds of
+    ``fidelity``, see :func:`~bitemesh.core.fidelity.check_fidelity`), and map the mesh to user coordinates.
 
     Lengths in the parameters (radius, grid_spacing, margin) are in user units.
     """
@@ -251,13 +344,20 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
         radius = _local(biting.radius, source)
         if radius is None:
             radius = choose_radius(source, biting.cells, implicit)
-        size = source.size if source.grid is None else float(np.max(source.grid.upper - source.grid.origin))
-        check_number(radius * source.frame.scale, "radius", low=0, low_open=True, high=size * source.frame.scale,
-                     hint="radius is R, the node spacing; it cannot exceed the size of the data's bounding box")
+        check_grid(source, radius, implicit, biting)
         function = source.function if source.at_radius is None else source.at_radius(radius)
         grid = sample_grid(source, function, radius, implicit, sub_progress(progress, 0.0, 0.3))
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 1.0), seconds, optimize)
+    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 0.97), seconds, optimize)
     frame = source.frame
+    measured = None
+    if source.samples is not None:
+        report(progress, 0.97, "measuring the fidelity")
+        with timed(seconds, "fidelity"):
+            measured = measure_fidelity(result.mesh, source.samples, radius, source.noise, source.gap,
+                                        source.open_boundary).scaled(frame.scale)
+        check_fidelity(measured, fidelity)
+    report(progress, 1.0, "done")
     return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
-                         radius=radius * frame.scale, seconds=seconds, frame=frame, function=function)
+                         radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,
+                         fidelity=measured, notes=source.notes)

@@ -1,0 +1,192 @@
+"""Fidelity: how closely a mesh's boundary follows the samples it was made from, measured both ways.
+
+- **samples to the boundary**: the distance of every input sample to the boundary surface (triangles; segments
+  in 2D).  A mesh that lost a part of the shape, or filled a cavity, leaves samples far from its boundary.
+- **the boundary to the samples**: the distance of every boundary facet (its centroid, weighted by its area) to
+  the nearest sample.  A surface that the data does not support (a blob around outliers, a sheet from wrong
+  normals) lies far from every sample.
+
+The bounds follow from what a correct mesh can do.  Its boundary is a piecewise linear surface with edges about R
+long on the zero level of f, which itself lies within the noise of the samples: a sample is within about R plus a
+few noise levels of it (features smaller than R are rounded).  Between samples the boundary is at most half the
+data's largest gap from them (contours on slices leave gaps of the slice spacing), plus R.  :func:`check_fidelity`
+refuses a mesh when more than a small fraction of either measure exceeds its bound.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .errors import BitemeshWarning, MeshingError
+from .mesh import Mesh
+from .parameters import FidelityParameters
+from .topology import boundary_facets
+
+#: a sample may be this many noise levels, plus R, from the boundary.
+NOISE_LEVELS = 3.0
+#: facets whose centroids are nearest to a sample are searched first, this many.
+_CANDIDATES = 16
+#: at most this many samples are compared with the boundary (a deterministic subsample).
+MAX_SAMPLES = 200_000
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """How closely a mesh's boundary follows its samples (lengths in user units, shares in percent).
+
+    Attributes
+    ----------
+    samples : number of samples compared
+    noise : the samples' noise level (see :func:`bitemesh.core.samples.noise_level`)
+    to_boundary_mean, to_boundary_p95, to_boundary_max : distances of the samples to the boundary
+    far_bound : R + 3 x noise, the distance beyond which a sample counts as far
+    far_samples : percent of the samples farther than ``far_bound`` from the boundary
+    from_samples_mean, from_samples_max : distances of the boundary (area-weighted mean) to the nearest sample
+    support_bound : R + half the data's largest gap, the distance beyond which the boundary counts as unsupported
+    unsupported_area : percent of the boundary's area farther than ``support_bound`` from every sample
+    """
+
+    samples: int
+    noise: float
+    to_boundary_mean: float
+    to_boundary_p95: float
+    to_boundary_max: float
+    far_bound: float
+    far_samples: float
+    from_samples_mean: float
+    from_samples_max: float
+    support_bound: float
+    unsupported_area: float
+
+    def describe(self) -> str:
+        """One line for a summary: both measures and their bounds."""
+        return (f"samples to boundary mean {self.to_boundary_mean:.3g}, 95% {self.to_boundary_p95:.3g}, max "
+                f"{self.to_boundary_max:.3g} ({self.far_samples:.2f}% beyond {self.far_bound:.3g}); boundary to "
+                f"samples mean {self.from_samples_mean:.3g}, max {self.from_samples_max:.3g} "
+                f"({self.unsupported_area:.2f}% of its area beyond {self.support_bound:.3g})")
+
+    def scaled(self, factor: float) -> Fidelity:
+        """The same measures with every length multiplied by ``factor`` (local frame -> user units)."""
+        lengths = ("noise", "to_boundary_mean", "to_boundary_p95", "to_boundary_max", "far_bound",
+                   "from_samples_mean", "from_samples_max", "support_bound")
+        return Fidelity(**{**self.__dict__, **{name: getattr(self, name) * factor for name in lengths}})
+
+
+def closest_on_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(m, k) the point of each facet nearest to each point: triangles (corners (m, 3, 3)) or, in 2D, segments
+    (corners (m, 2, 2)); ``points`` (m, k) pairs with ``corners`` row by row."""
+    a, b = corners[:, 0], corners[:, 1]
+    if corners.shape[1] == 2:
+        edge = b - a
+        t = np.einsum("mi,mi->m", points - a, edge) / np.maximum(np.einsum("mi,mi->m", edge, edge), 1e-300)
+        return a + np.clip(t, 0.0, 1.0)[:, None] * edge
+    c = corners[:, 2]
+    ab, ac = b - a, c - a
+    # barycentric minimisation over the triangle: the unconstrained projection, then the three edges if outside
+    d00, d01, d11 = (np.einsum("mi,mi->m", u, v) for u, v in ((ab, ab), (ab, ac), (ac, ac)))
+    ap = points - a
+    d20, d21 = np.einsum("mi,mi->m", ap, ab), np.einsum("mi,mi->m", ap, ac)
+    denominator = np.maximum(d00 * d11 - d01 * d01, 1e-300)
+    v = (d11 * d20 - d01 * d21) / denominator
+    w = (d00 * d21 - d01 * d20) / denominator
+    best = a + v[:, None] * ab + w[:, None] * ac
+    inside = (v >= 0) & (w >= 0) & (v + w <= 1)
+    nearest = np.where(inside[:, None], best, np.inf)
+    for start, end in ((a, b), (b, c), (c, a)):
+        on_edge = closest_on_facets(points, np.stack([start, end], axis=1))
+        closer = ~inside & (np.linalg.norm(points - on_edge, axis=1) < np.linalg.norm(points - nearest, axis=1))
+        nearest[closer] = on_edge[closer]
+    return nearest
+
+
+def distances_to_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(n,) exact distance of each point to the nearest of the facets ``corners`` (f, k, k).
+
+    The facets with the nearest centroids are tried first; a point whose answer could still be beaten by a facet
+    further out (its centroid within the answer plus the largest facet's radius) tries those too.
+    """
+    centroids = corners.mean(axis=1)
+    reach = float(np.linalg.norm(corners - centroids[:, None], axis=2).max())
+    tree = cKDTree(centroids)
+    count = min(_CANDIDATES, len(centroids))
+    near_distance, near = tree.query(points, k=count)
+    near_distance, near = near_distance.reshape(len(points), count), near.reshape(len(points), count)
+    rows = np.repeat(np.arange(len(points)), count)
+    found = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[near.ravel()]), axis=1)
+    best = found.reshape(len(points), count).min(axis=1)
+    unsure = np.flatnonzero(near_distance[:, -1] < best + reach) if count < len(centroids) else []
+    for index in unsure:
+        candidates = np.array(tree.query_ball_point(points[index], best[index] + reach), dtype=np.int64)
+        repeated = np.repeat(points[index][None], len(candidates), axis=0)
+        best[index] = np.linalg.norm(repeated - closest_on_facets(repeated, corners[candidates]), axis=1).min()
+    return best
+
+
+def facet_measures(corners: np.ndarray) -> np.ndarray:
+    """(f,) area of each triangle (length of each segment in 2D)."""
+    if corners.shape[1] == 2:
+        return np.linalg.norm(corners[:, 1] - corners[:, 0], axis=1)
+    return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+
+
+def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: float, gap: float,
+                     open_boundary=None) -> Fidelity:
+    """Compare the boundary of ``mesh`` with ``samples`` both ways (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : a valid mesh; samples : (n, k) float64, points on the surface the data gives (same units)
+    radius : R; noise : the samples' noise level; gap : the data's largest gap between samples
+    open_boundary : callable (f, k) facet centroids -> (f,) bool, the facets that the method makes rather than the
+        data (a base plane), left out of the boundary-to-samples measure; or None
+    """
+    facets = boundary_facets(mesh.cells)
+    corners = mesh.points[facets]
+    step = max(1, len(samples) // MAX_SAMPLES)
+    samples = samples[::step]
+    to_boundary = distances_to_facets(samples, corners)
+    far_bound = radius + NOISE_LEVELS * noise
+    centroids = corners.mean(axis=1)
+    area = facet_measures(corners)
+    if open_boundary is not None:
+        area = np.where(open_boundary(centroids), 0.0, area)
+    from_samples = cKDTree(samples).query(centroids)[0]
+    support_bound = radius + 0.5 * gap
+    total = max(float(area.sum()), 1e-300)
+    return Fidelity(
+        samples=len(samples), noise=float(noise),
+        to_boundary_mean=float(to_boundary.mean()), to_boundary_p95=float(np.percentile(to_boundary, 95)),
+        to_boundary_max=float(to_boundary.max()), far_bound=float(far_bound),
+        far_samples=100.0 * float(np.mean(to_boundary > far_bound)),
+        from_samples_mean=float((from_samples * area).sum() / total),
+        from_samples_max=float(from_samples[area > 0].max(initial=0.0)), support_bound=float(support_bound),
+        unsupported_area=100.0 * float(area[from_samples > support_bound].sum() / total))
+
+
+def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "") -> list:
+    """The bounds of ``parameters`` that ``fidelity`` exceeds, as messages; raise :class:`MeshingError` naming them
+    unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`."""
+    problems = []
+    if fidelity.far_samples > parameters.far_samples:
+        problems.append(
+            f"{fidelity.far_samples:.1f}% of the input points lie farther than {fidelity.far_bound:.3g}{units} "
+            f"(R + 3 x noise) from the mesh boundary (allowed: far_samples = {parameters.far_samples:g}%; up to "
+            f"{fidelity.to_boundary_max:.3g}{units}): the mesh lost part of the shape")
+    if fidelity.unsupported_area > parameters.unsupported_area:
+        problems.append(
+            f"{fidelity.unsupported_area:.1f}% of the boundary's area lies farther than "
+            f"{fidelity.support_bound:.3g}{units} (R + half the data's gap) from every input point (allowed: "
+            f"unsupported_area = {parameters.unsupported_area:g}%; up to {fidelity.from_samples_max:.3g}{units}): "
+            "the mesh has surfaces the data does not support")
+    if problems:
+        text = ("the mesh does not follow the data: " + "; ".join(problems)
+                + ". Likely causes: outliers, normals that do not point outward, a wrong column layout, or parts "
+                "thinner than R; check the input, lower radius, or set allow_unfaithful (--allow-unfaithful) to "
+                "keep the mesh anyway")
+        if not parameters.allow_unfaithful:
+            raise MeshingError(text)
+        warnings.warn(text, BitemeshWarning, stacklevel=2)
+    return problems
