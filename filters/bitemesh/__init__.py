@@ -1,22 +1,23 @@
 """bitemesh: tetrahedral meshes from scattered points, after Schaerer et al. ("biting" node placement).
 
-The core (``bitemesh.core``) needs only numpy and scipy; file I/O and the VTK filters load VTK when used.
+The core (``bitemesh.core``) needs only numpy and scipy; file I/O and the VTK filters load VTK when used.  Every
+name below loads on first use, so that ``import bitemesh`` (and the ``bitemesh`` command's start, which Ctrl-C may
+interrupt) costs nothing.
 """
-from .core.errors import BitemeshError, Cancelled, InvalidInputError, MeshingError
-from .core.mesh import Mesh
-from .core.pipeline import mesh_from_points, run
-from .core.quality import quality_summary
-
 __version__ = "0.1.0"
 FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFilter", "MeshOptimizer",
            "QualityFilter", "MeshFromPoints")
-__all__ = ["BitemeshError", "Cancelled", "InvalidInputError", "Mesh", "MeshingError", "mesh_from_points",
-           "quality_summary", "run", *FILTERS]
+#: name -> the module that defines it.
+_CORE = {"BitemeshError": "core.errors", "BitemeshWarning": "core.errors", "Cancelled": "core.errors",
+         "InvalidInputError": "core.errors", "MeshingError": "core.errors", "Mesh": "core.mesh",
+         "mesh_from_points": "core.pipeline", "run": "core.pipeline", "quality_summary": "core.quality",
+         **{name: "algorithms" for name in FILTERS}}
+__all__ = sorted(_CORE)
 
 
 def __getattr__(name):
-    """The VTK filters load VTK only when first asked for: ``from bitemesh import PointsToImplicit``."""
-    if name in FILTERS:
-        from . import algorithms
-        return getattr(algorithms, name)
+    """``bitemesh.run``, ``from bitemesh import PointsToImplicit``: the module is imported when first asked for."""
+    if name in _CORE:
+        from importlib import import_module
+        return getattr(import_module(f".{_CORE[name]}", __name__), name)
     raise AttributeError(f"module 'bitemesh' has no attribute {name!r}")

@@ -34,8 +34,8 @@ import numpy as np
 
 from .core.errors import InvalidInputError, check_number
 from .core.grid import ImplicitGrid
-from .core.parameters import (BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters,
-                              optimize_parameters)
+from .core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
+                              SpuriousParameters, optimize_parameters)
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.spine import Frame, MeshingResult, Source, mesh_source
 
@@ -337,8 +337,9 @@ LabelMapMeshingResult = MeshingResult
 def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                     implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                     spurious: SpuriousParameters | None = None,
-                    optimize: OptimizeParameters | None = None, smoothing: float = SMOOTHING_VOXELS,
-                    progress: ProgressCallback = None, seconds: dict | None = None) -> LabelMapMeshingResult:
+                    optimize: OptimizeParameters | None = None, fidelity: FidelityParameters | None = None,
+                    smoothing: float = SMOOTHING_VOXELS, progress: ProgressCallback = None,
+                    seconds: dict | None = None) -> LabelMapMeshingResult:
     """Mesh the chosen labels of a voxel array and place the mesh with a homogeneous index-to-physical matrix.
 
     The one path from voxels to a mesh, shared by :func:`label_map_mesh` (files) and the Slicer module (segments).
@@ -354,6 +355,7 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
         margin do not apply to label maps
     biting, spurious, optimize : BitingParameters, SpuriousParameters and OptimizeParameters, as for
         :func:`~bitemesh.core.pipeline.mesh_from_grid`; None: the defaults (``optimize`` None: no MeshOptimizer)
+    fidelity : FidelityParameters, the bounds of the fidelity check against the voxel faces (default: its defaults)
     smoothing : see :func:`label_map_to_grid`
 
     Returns
@@ -402,7 +404,8 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     voxel = float(np.max(spacing))
     source = Source(grid, grid.origin, grid.upper, frame, grid=grid, samples=mask_faces(mask, first * spacing, spacing),
                     noise=STAIRCASE_NOISE * voxel, gap=float(np.linalg.norm(spacing)))
-    result = mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.1, 1.0), seconds)
+    result = mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.1, 1.0), seconds,
+                         fidelity or FidelityParameters())
     return replace(result, labels=chosen)
 
 

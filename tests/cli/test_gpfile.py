@@ -72,12 +72,12 @@ def test_a_headerless_csv_with_string_labels_and_named_columns_in_any_order(tmp_
 
 @pytest.mark.parametrize("text, message", [
     ("x,y,z\n1,2,3\n", r"the header \['x', 'y', 'z'\] names no label column"),
-    ("x,y,z,label\n1,2,3,EPI\n1,two,3,EPI\n", r"line 3 has the coordinate 'two', not a number"),
-    ("x,y,z,label\n1,2,3,EPI\n1,2,3\n", r"line 3 has 3 fields, the header has 4"),
+    ("x,y,z,label\n1,2,3,EPI\n1,two,3,EPI\n", r"line 3 has the non-numeric coordinate 'two'"),
+    ("x,y,z,label\n1,2,3,EPI\n1,2,3\n", r"line 3 has 3 columns but line 2 has 4"),
     ("1 2 3\n", r"line 1 has 3 fields; a labelled point needs x y z label \[slice\]"),
     ("x,y,z,label\n", r"the file has a header but no points"),
     ("x,y,z,label\n1,2,3, \n", r"1 points have an empty label"),
-    ("x,y,z,label,slice\n1,2,3,A,first\n", r"line 2 has the slice id 'first', not an integer"),
+    ("x,y,z,label,slice\n1,2,3,A,first\n", r"line 2 has the non-numeric slice id 'first'"),
     ("x,y,z,label\n1,2,nan,A\n", r"NaN or infinite"),
 ])
 def test_a_bad_labelled_table_says_which_line(tmp_path, text, message):
@@ -136,9 +136,9 @@ def test_a_vtp_with_a_label_array_reads(tmp_path, labels, expected):
 
 
 def test_a_vtp_without_a_label_array_names_its_arrays(tmp_path):
-    write_vtp(tmp_path / "unlabelled.vtp", np.eye(3), {"Region": np.array([1, 2, 3], dtype=np.int32)})
+    write_vtp(tmp_path / "unlabelled.vtp", np.eye(3), {"Weight": np.array([1, 2, 3], dtype=np.int32)})
     with pytest.raises(InvalidInputError, match=r"no one-component point array named 'Label' \(point arrays "
-                                                r"present: Region\)"):
+                                                r"present: Weight\)"):
         read_labelled_points(tmp_path / "unlabelled.vtp")
 
 

@@ -33,7 +33,7 @@ from pathlib import Path
 import bitemesh
 import numpy as np
 from bitemesh import algorithms
-from bitemesh.algorithms.convert import nodes_to_polydata, unstructured_to_mesh
+from bitemesh.convert import nodes_to_polydata, unstructured_to_mesh
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
 from bitemesh.core.quality import boundary_euler_characteristic, check_valid_domain, connected_components
@@ -50,7 +50,7 @@ FILTERS = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "Points
 #: the README's Programmable Filter script (Output Data Set Type: vtkUnstructuredGrid); CELLS is substituted.
 PROGRAMMABLE_SCRIPT = """
 import bitemesh
-from bitemesh.algorithms.convert import mesh_to_unstructured
+from bitemesh.convert import mesh_to_unstructured
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
 points = vtk_to_numpy(self.GetInput().GetPoints().GetData())     # (n, 3): the input's points

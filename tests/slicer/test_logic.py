@@ -21,7 +21,7 @@ from xml.etree import ElementTree  # noqa: E402
 import bitemesh  # noqa: E402
 import numpy as np  # noqa: E402
 from bitemesh import Cancelled, InvalidInputError  # noqa: E402
-from bitemesh.algorithms.convert import (  # noqa: E402
+from bitemesh.convert import (  # noqa: E402
     cell_types,
     nodes_to_polydata,
     point_coordinates,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from bitemesh.algorithms import MeshFromPoints, PointsToImplicit
-from bitemesh.algorithms.convert import image_to_grid, unstructured_to_mesh, vtk_points
+from bitemesh.convert import image_to_grid, unstructured_to_mesh, vtk_points
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.labelled import run_labelled
 from bitemesh.core.parameters import BitingParameters

@@ -25,7 +25,7 @@ from ..core.parameters import (BitingParameters, ImplicitParameters, LabelledPar
 from ..core.pipeline import radius_for_cells, run
 from ..core.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
-from .convert import (field_array, grid_to_image, image_to_grid, mesh_to_unstructured, nodes_to_polydata,
+from ..convert import (field_array, grid_to_image, image_to_grid, mesh_to_unstructured, nodes_to_polydata,
                       point_array, point_coordinates, point_labels, unstructured_to_mesh)
 
 

@@ -1,23 +1,39 @@
-"""The ``bitemesh`` command: one module per subcommand (mesh, quality, demo)."""
+"""The ``bitemesh`` command: one module per subcommand (mesh, quality, demo).
+
+Nothing heavy is imported before :func:`main` runs, and everything it imports runs under its Ctrl-C guard: an
+interrupt at any moment ends with one line and exit code 130.
+"""
 from __future__ import annotations
 
-import argparse
+import logging
 import os
 import sys
-
-from .. import __version__
-from ..core.errors import BitemeshError, Cancelled
-from . import demo, mesh, quality
-
-COMMANDS = (mesh, quality, demo)
+import warnings
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _Notes(logging.Handler):
+    """The "bitemesh" logger's records on stderr, one line each: ``bitemesh: note: ...``."""
+
+    def emit(self, record):
+        kind = "note" if record.levelno < logging.WARNING else "warning"
+        print(f"bitemesh: {kind}: {record.getMessage()}", file=sys.stderr)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"bitemesh: warning: {message}", file=sys.stderr)
+
+
+def build_parser():
+    import argparse
+
+    from .. import __version__
+    from . import demo, mesh, quality
+
     parser = argparse.ArgumentParser(prog="bitemesh", description="Tetrahedral meshes from scattered points "
                                      "(implicit surface, biting node placement, Delaunay).")
     parser.add_argument("--version", action="version", version=f"bitemesh {__version__}")
     subcommands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in COMMANDS:
+    for command in (mesh, quality, demo):
         command.add_parser(subcommands)
     return parser
 
@@ -25,6 +41,27 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     """Run the command line; return the exit code (0 done, 1 bad input or failure, 2 usage, 130 interrupted,
     141 output pipe closed)."""
+    logger = logging.getLogger("bitemesh")
+    handler = _Notes()
+    logger.addHandler(handler)
+    previous_level = logger.level
+    logger.setLevel(logging.INFO)
+    shown = warnings.showwarning
+    warnings.showwarning = _show_warning
+    try:
+        return _run(argv)
+    except KeyboardInterrupt:
+        print("\nbitemesh: cancelled", file=sys.stderr)
+        return 130
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous_level)
+        warnings.showwarning = shown
+
+
+def _run(argv) -> int:
+    from ..core.errors import BitemeshError, Cancelled
+
     args = build_parser().parse_args(argv)
     try:
         args.run(args)
@@ -37,7 +74,7 @@ def main(argv=None) -> int:
         except (OSError, ValueError):  # stdout is not a file descriptor (captured, redirected in Python)
             pass
         return 141
-    except (Cancelled, KeyboardInterrupt):
+    except Cancelled:
         print("\nbitemesh: cancelled", file=sys.stderr)
         return 130
     except BitemeshError as error:

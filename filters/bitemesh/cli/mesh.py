@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from dataclasses import fields
 
-from ..core.parameters import LabelledParameters, OptimizeParameters
+from ..core.errors import InvalidInputError
+from ..core.parameters import LabelledParameters, OptimizeParameters, TableParameters
 from ..core.pipeline import run as run_pipeline
 from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points
 from ..labelmap import LABEL_MAP_EXTENSIONS
@@ -21,6 +22,7 @@ def add_parser(subcommands) -> None:
                     "(MEDIT).")
     parser.add_argument("input", help="the scattered points, or a label map")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
+    add_parameter_options(parser, (TableParameters,))
     add_parameter_options(parser)
     add_optimize_options(parser)
     add_parameter_options(parser, (LabelledParameters,))
@@ -48,28 +50,39 @@ def optimize_parameters(args):
 
 def run(args) -> None:
     check_output(args.output)
+    columns = parameters_from_args(args, (TableParameters,))[0].columns or None
+    label_map = args.input.lower().endswith(LABEL_MAP_EXTENSIONS)
+    labelled = not label_map and (looks_labelled(args.input) or (columns and "label" in columns.lower()))
+    given = [flag for flag, on in (("--config", args.config), *((f"--{name.replace('_', '-')}", True)
+                                                                 for name in labelled_flags(args))) if on]
+    if given and not labelled:
+        raise InvalidInputError(
+            f"{given[0]} applies to labelled contours, and '{args.input}' has no label column or Label array (a "
+            "biv-me GPFile, a table whose header names a label column, a VTP with a Label point array); leave "
+            f"{given[0]} out to mesh the points as one surface")
+    if columns and label_map:
+        raise InvalidInputError(f"--columns applies to text tables, not to the label map '{args.input}'")
+    implicit, biting, spurious, fidelity = parameters_from_args(args)
+    steps = {"implicit": implicit, "biting": biting, "spurious": spurious, "fidelity": fidelity,
+             "optimize": optimize_parameters(args)}
     bar = ProgressBar()
     try:
-        if args.input.lower().endswith(LABEL_MAP_EXTENSIONS):
-            result = mesh_label_map(args, bar)
-        elif args.config or labelled_flags(args) or looks_labelled(args.input):
-            result = mesh_labelled_points(args, bar)
+        if label_map:
+            result = mesh_label_map(args, steps, bar)
+        elif labelled:
+            result = mesh_labelled_points(args, steps, bar, columns=columns)
         else:
-            result = run_pipeline(*read_points(args.input), *parameters_from_args(args), progress=bar,
-                                  optimize=optimize_parameters(args))
+            result = run_pipeline(*read_points(args.input, columns), progress=bar, **steps)
     finally:
         bar.close()
     write_and_report(result, args.output)
 
 
-def mesh_label_map(args, progress):
-    from ..labelmap import label_map_mesh
-    implicit, biting, spurious = parameters_from_args(args)
-    return label_map_mesh(args.input, labels=set(args.label) if args.label else None, radius=biting.radius,
-                          cells=biting.cells, grid_spacing=implicit.grid_spacing, ras=args.ras, order=biting.order,
-                          seed=biting.seed, threshold=spurious.threshold, min_component=spurious.min_component,
-                          max_memory_mb=implicit.max_memory_mb, optimize=optimize_parameters(args),
-                          progress=progress)
+def mesh_label_map(args, steps: dict, progress):
+    from ..labelmap import mesh_label_grid, read_label_map
+    label_map = read_label_map(args.input)
+    return mesh_label_grid(label_map.labels, label_map.index_to_physical(ras=args.ras),
+                           labels=set(args.label) if args.label else None, progress=progress, **steps)
 
 
 def labelled_flags(args) -> dict:
@@ -83,12 +96,10 @@ def labelled_flags(args) -> dict:
     return given
 
 
-def mesh_labelled_points(args, progress, path=None):
+def mesh_labelled_points(args, steps: dict, progress, path=None, columns=None):
     """Labelled contour points (``path``, default the input) to the mesh of the domain of ``--domain``."""
     from ..core.labelled import run_labelled
-    points, labels, slices = read_labelled_points(path or args.input, slices=True)
+    points, labels, slices = read_labelled_points(path or args.input, slices=True, columns=columns)
     options = read_labelled_config(args.config) if args.config else {}
     options.update(labelled_flags(args))   # a flag given wins over the config file
-    implicit, biting, spurious = parameters_from_args(args)
-    return run_labelled(points, labels, slices=slices, implicit=implicit, biting=biting, spurious=spurious,
-                        optimize=optimize_parameters(args), progress=progress, **options)
+    return run_labelled(points, labels, slices=slices, progress=progress, **steps, **options)

@@ -7,11 +7,11 @@ from dataclasses import fields
 from pathlib import Path
 
 from ..core.errors import InvalidInputError
-from ..core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from ..core.parameters import BitingParameters, FidelityParameters, ImplicitParameters, SpuriousParameters
 from ..core.quality import quality_summary
 from ..io import MESH_EXTENSIONS, write_mesh
 
-STEP_PARAMETERS = (ImplicitParameters, BitingParameters, SpuriousParameters)
+STEP_PARAMETERS = (ImplicitParameters, BitingParameters, SpuriousParameters, FidelityParameters)
 
 
 def describe(metadata: dict, default) -> str:
@@ -23,7 +23,8 @@ def describe(metadata: dict, default) -> str:
         low, high, low_open, high_open = metadata["range"]
         text += f"; range {'(' if low_open else '['}{'-inf' if low is None else low}, " \
                 f"{'inf' if high is None else high}{')' if high_open else ']'}"
-    return text + (f"; default {default}" if default not in (None, "") else "")
+    text += f"; default {default}" if default not in (None, "") else ""
+    return text.replace("%", "%%")   # argparse formats help texts with %
 
 
 def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
@@ -31,11 +32,20 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
     for cls in parameter_classes:
         group = parser.add_argument_group(cls.__doc__.split(":")[0])
         for item in fields(cls):
+            flag = f"--{item.name.replace('_', '-')}"
+            if is_switch(item):   # a 0/1 parameter whose default is 0: a flag that sets it to 1
+                group.add_argument(flag, dest=item.name, action="store_const", const=1, default=0,
+                                   help=item.metadata["help"].removeprefix("1 ").strip().replace("%", "%%"))
+                continue
             text = "choices" in item.metadata or "text" in item.metadata
             kind = str if text else int if item.metadata["integer"] else float
-            group.add_argument(f"--{item.name.replace('_', '-')}", dest=item.name, type=kind,
-                               choices=item.metadata.get("choices"), default=item.default,
-                               help=describe(item.metadata, item.default))
+            group.add_argument(flag, dest=item.name, type=kind, choices=item.metadata.get("choices"),
+                               default=item.default, help=describe(item.metadata, item.default))
+
+
+def is_switch(item) -> bool:
+    """True for a parameter that is an integer 0 or 1, 0 by default."""
+    return item.metadata.get("integer") and item.metadata.get("range", ())[:2] == (0, 1) and item.default == 0
 
 
 def parameters_from_args(args, parameter_classes=STEP_PARAMETERS) -> list:
@@ -76,10 +86,13 @@ class ProgressBar:
 
 
 def write_and_report(result, output, note: str = "") -> None:
-    """Write the mesh of a pipeline result, then print R, the quality summary and the time per step."""
+    """Write the mesh of a pipeline result, then print R, the quality summary, the fidelity and the time per
+    step."""
     write_mesh(result.mesh, output)
     print(f"wrote {output} (radius R = {result.radius:.4g}{note})")
     print(quality_summary(result.mesh))
+    if result.fidelity is not None:
+        print(f"fidelity: {result.fidelity.describe()}")
     print("time per step:")
     print_timings(result.seconds)
 

@@ -1,15 +1,20 @@
 """``bitemesh quality MESH``: the quality summary of a mesh, and optionally its radius-ratio histogram."""
 from __future__ import annotations
 
-from ..core.errors import InvalidInputError
-from ..core.quality import quality_histogram, quality_summary, radius_ratio
-from ..io import read_mesh
+from pathlib import Path
+
+from ..core.errors import InvalidInputError, MeshingError
+from ..core.quality import check_valid_domain, quality_histogram, quality_summary, radius_ratio
+from ..io import atomic_output, read_mesh
 
 
 def add_parser(subcommands) -> None:
     parser = subcommands.add_parser("quality", help="print the quality of a mesh",
                                     description="Radius ratio Q = 3 r_in / R_circ (1 is regular), angles, volume "
-                                                "and edge lengths of a .vtu/.vtk/.msh/.inp/.mesh mesh.")
+                                                "and edge lengths of a .vtu/.vtk/.msh/.inp/.mesh mesh, and its "
+                                                "defects as a finite-element domain (inverted, flat or duplicated "
+                                                "cells, unused points, a boundary that is not a closed manifold): "
+                                                "exit code 1 when it has any.")
     parser.add_argument("mesh", help="the mesh to measure")
     parser.add_argument("--histogram", metavar="OUT.png", help="also draw the radius-ratio histogram (matplotlib)")
     parser.add_argument("--bins", type=int, default=20, help="histogram bins; default 20")
@@ -17,11 +22,19 @@ def add_parser(subcommands) -> None:
 
 
 def run(args) -> None:
-    mesh = read_mesh(args.mesh)
+    mesh = read_mesh(args.mesh, orient=False)   # as the file has it: inverted cells are defects to report
     print(quality_summary(mesh))
     if args.histogram:
         save_histogram(radius_ratio(mesh.points, mesh.cells), args.histogram, args.bins, title=args.mesh)
         print(f"wrote {args.histogram}")
+    problems = check_valid_domain(mesh)
+    if problems:
+        print("defects:")
+        for problem in problems:
+            print(f"  {problem}")
+        raise MeshingError(f"{args.mesh} is not a valid finite-element domain: {len(problems)} kinds of defect "
+                           f"({problems[0]}{', ...' if len(problems) > 1 else ''})")
+    print("defects: none (a valid domain: no inverted, flat or duplicated cell, a closed manifold boundary)")
 
 
 def save_histogram(q, path: str, bins: int, title: str) -> None:
@@ -39,8 +52,9 @@ def save_histogram(q, path: str, bins: int, title: str) -> None:
              title=f"{title}: mean Q {q.mean():.3f}, std {q.std():.3f}")
     figure.tight_layout()
     try:
-        figure.savefig(path, dpi=100)
-    except (OSError, ValueError) as error:  # a missing directory, an image format matplotlib cannot write
-        raise InvalidInputError(f"--histogram {path}: {getattr(error, 'strerror', None) or error}") from None
+        with atomic_output(path, "the histogram") as temporary:
+            figure.savefig(temporary, dpi=100, format=Path(path).suffix.lstrip(".").lower() or "png")
+    except ValueError as error:  # an image format matplotlib cannot write
+        raise InvalidInputError(f"--histogram {path}: {error}") from None
     finally:
         pyplot.close(figure)

@@ -139,6 +139,15 @@ class OptimizeParameters(Parameters):
 
 
 @dataclass(frozen=True)
+class TableParameters(Parameters):
+    """Reading a point table: which column is what."""
+
+    columns: str = parameter("", "the role of each column of a text table, comma-separated: x, y, z, nx, ny, nz, "
+                             "label, slice or skip (e.g. x,y,z,skip,skip,skip for a table with colours); default: "
+                             "from the header's names, else from the column count", text=True)
+
+
+@dataclass(frozen=True)
 class FidelityParameters(Parameters):
     """Fidelity: how closely the mesh boundary must follow the input points (see bitemesh.core.fidelity)."""
 

@@ -249,7 +249,7 @@ def loadLabelledPoints(path, name=None, scene=None, coordinateSystem="LPS"):
     file gives slices, ``Slice`` (int64).
     """
     _requireBitemesh()
-    from bitemesh.algorithms.convert import nodes_to_polydata
+    from bitemesh.convert import nodes_to_polydata
     from bitemesh.core.errors import check_choice
     from bitemesh.io import read_labelled_points
 
@@ -537,7 +537,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         slices : (n,) int64 slice ids (-1: unknown), or None when no point has one (bitemesh then finds the slice
             planes)
         """
-        from bitemesh.algorithms.convert import point_coordinates
+        from bitemesh.convert import point_coordinates
         from bitemesh.core.errors import InvalidInputError
         parts, nextSlice = [], 0
         for node in nodes:
@@ -589,8 +589,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
     @staticmethod
     def _modelLabels(node):
         """(labels (n,) or None, slices (n,) int64 or None) of a model: its point arrays ``Label`` and ``Slice`` or
-        ``FrameID`` (bitemesh.algorithms.convert.point_labels)."""
-        from bitemesh.algorithms.convert import point_labels
+        ``FrameID`` (bitemesh.convert.point_labels)."""
+        from bitemesh.convert import point_labels
         polydata = node.GetPolyData()
         if polydata is None:
             return None, None
@@ -618,7 +618,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         """(points, normals or None) of a surface model in world coordinates; normals from the model or computed
         from its polygons (auto-oriented outward); None when they are missing or unusable (bitemesh estimates them).
         """
-        from bitemesh.algorithms.convert import point_coordinates
+        from bitemesh.convert import point_coordinates
         polydata = self._worldPolyData(node)
         points = point_coordinates(polydata)
         normals = polydata.GetPointData().GetNormals()
@@ -668,7 +668,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
 
     def _writeOutputs(self, mesh, radius, summary, outputModelNode, bins):
         """The mesh into the model node (coloured by radius ratio), the histogram into table and plot nodes."""
-        from bitemesh.algorithms.convert import field_array, mesh_to_unstructured
+        from bitemesh.convert import field_array, mesh_to_unstructured
         from bitemesh.core.quality import quality_histogram
 
         grid = mesh_to_unstructured(mesh)

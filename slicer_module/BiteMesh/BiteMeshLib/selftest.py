@@ -80,7 +80,7 @@ def addBallSegmentation(scene, radius: float = 12.0, spacing=(0.8, 0.6, 1.2), or
 
 def meshOf(modelNode):
     """The bitemesh Mesh held by a model node."""
-    from bitemesh.algorithms.convert import unstructured_to_mesh
+    from bitemesh.convert import unstructured_to_mesh
     return unstructured_to_mesh(modelNode.GetMesh())
 
 

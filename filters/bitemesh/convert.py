@@ -10,16 +10,13 @@ from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray, vtkPoints, vtk
 from vtkmodules.vtkCommonDataModel import (VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkImageData, vtkPolyData,
                                            vtkUnstructuredGrid)
 
-from ..core.errors import InvalidInputError
-from ..core.grid import ImplicitGrid
-from ..core.mesh import Mesh
+from .core.columns import role
+from .core.errors import InvalidInputError
+from .core.grid import ImplicitGrid
+from .core.mesh import Mesh
 
 #: the point array of the implicit image: f > 0 inside.
 IMPLICIT_ARRAY = "Implicit"
-#: point-data array names (lower case) of the contour label and the optional slice id of labelled points (a
-#: GPFile read as a table gives "contour type" and "frameID").
-LABEL_ARRAYS = ("label", "labels", "contour type", "contour_type")
-SLICE_ARRAYS = ("slice", "sliceid", "slice_id", "frameid")
 
 
 def point_coordinates(dataset) -> np.ndarray:
@@ -36,13 +33,14 @@ def point_array(dataset, name: str):
     return None if array is None else numpy_support.vtk_to_numpy(array).copy()
 
 
-def named_point_array(dataset, names):
-    """The first one-component point-data array (numbers or strings) whose lower-case name is in ``names``, as a
+def named_point_array(dataset, kind: str):
+    """The first one-component point-data array (numbers or strings) whose name means ``kind`` ("label" or
+    "slice", see :mod:`bitemesh.core.columns`: a GPFile read as a table gives "contour type" and "frameID"), as a
     numpy copy; None when there is none."""
     data = dataset.GetPointData()
     for index in range(data.GetNumberOfArrays()):
         array = data.GetAbstractArray(index)
-        if (array.GetName() or "").lower() not in names or array.GetNumberOfComponents() != 1:
+        if role(array.GetName() or "") != kind or array.GetNumberOfComponents() != 1:
             continue
         if array.IsA("vtkStringArray"):
             return np.array([array.GetValue(i) for i in range(array.GetNumberOfTuples())], dtype=str)
@@ -57,11 +55,11 @@ def point_labels(dataset, what: str = "the input"):
     Raises InvalidInputError (naming ``what``) for labels that are non-integer numbers or slices that are not
     integers.
     """
-    labels = named_point_array(dataset, LABEL_ARRAYS)
+    labels = named_point_array(dataset, "label")
     if labels is not None and labels.dtype.kind == "f" and not (np.isfinite(labels).all()
                                                                 and np.all(labels == np.round(labels))):
         raise InvalidInputError(f"{what}: the Label array holds non-integer numbers; labels are integers or strings")
-    slices = named_point_array(dataset, SLICE_ARRAYS) if labels is not None else None
+    slices = named_point_array(dataset, "slice") if labels is not None else None
     if slices is not None:
         if slices.dtype.kind not in "iuf" or not np.all(np.isfinite(slices.astype(float))) \
                 or np.any(slices.astype(float) != np.round(slices.astype(float))):

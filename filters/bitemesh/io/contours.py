@@ -1,0 +1,236 @@
+"""Labelled contour points (a biv-me GPFile, a table with a label column, a VTK file with a Label array) and the
+small config file that says which domain to mesh from them."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InvalidInputError, check_points
+from .files import existing_file, vtk_silenced
+from .pointsets import _vtk_reader
+from ..core.columns import NAMES, role
+from .tables import _is_number, _split, column_roles, read_table, table_points
+
+LABELLED_TEXT_EXTENSIONS = (".txt", ".csv", ".tsv")
+LABELLED_VTK_EXTENSIONS = (".vtp", ".vtk", ".vtu")
+LABELLED_EXTENSIONS = LABELLED_TEXT_EXTENSIONS + LABELLED_VTK_EXTENSIONS
+#: the names a label column may have (see bitemesh.core.columns).
+LABEL_COLUMNS = tuple(name for name, given in NAMES.items() if given == "label")
+
+
+def read_labelled_points(path, *, slices: bool = False, columns: str | None = None):
+    """Read contour points with a label per point: a biv-me GPFile, a CSV table, or a VTK file with a Label array.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.txt``, ``.csv``, ``.tsv``: a table, one point per row, fields separated by tabs (a biv-me GPFile:
+        header ``x y z contour type frameID weight time frame``), commas, semicolons or spaces.  With a header row,
+        the columns are found by name: ``x``, ``y``, ``z`` (else the first three), the label (``label``,
+        ``contour type``, ``type``, ``region`` or ``surface``; else the fourth column) and, optionally, the slice
+        (``frameID`` or ``slice``).  Without a header: ``x y z label [slice]``.  Labels are strings or integers;
+        ``#`` starts a comment line.
+        ``.vtp``, ``.vtk``, ``.vtu``: the points of the dataset and its point-data array ``Label`` (integer or
+        string), and optionally ``Slice`` or ``FrameID``.
+    slices : bool
+        Also return the slice id of each point.
+    columns : comma-separated role of each column of a table (x, y, z, label, slice, skip), e.g.
+        "x,y,z,label,skip"; default: from the header's names (see :mod:`bitemesh.io.tables`)
+
+    Returns
+    -------
+    points : (n, 3) float64, input units
+    labels : (n,) str array (integer labels as their decimal text, "1")
+    slice_ids : (n,) int64, only with ``slices=True``; None when the file has no slice column or array
+
+    Raises
+    ------
+    InvalidInputError
+        Missing, empty or unreadable file, unknown extension, no label column or array, a malformed row (the
+        message names the file and the line), an empty label, or no points.
+    """
+    path = existing_file(path, "labelled points", LABELLED_EXTENSIONS)
+    if path.suffix.lower() in LABELLED_TEXT_EXTENSIONS:
+        points, labels, slice_ids = _read_labelled_table(path, columns)
+    elif columns:
+        raise InvalidInputError(f"columns applies to text tables, not to '{path}'")
+    else:
+        points, labels, slice_ids = _read_labelled_vtk(path)
+    labels = _label_text(labels)
+    empty = labels == ""
+    if empty.any():
+        raise InvalidInputError(f"cannot read labelled points from '{path}': {int(empty.sum())} points have an "
+                                f"empty label (first: point {int(np.argmax(empty))})")
+    return (points, labels, slice_ids) if slices else (points, labels)
+
+
+def looks_labelled(path) -> bool:
+    """True when ``path`` holds labelled points for :func:`read_labelled_points`: a table whose header names a
+    label column (a GPFile's ``contour type``) or whose first row's fourth field is not a number, or a VTK file
+    with a ``Label`` point array.  False for anything else, including unreadable files (let the reader say why)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    try:
+        if suffix in LABELLED_TEXT_EXTENSIONS:
+            with open(path, encoding="utf-8-sig", errors="replace") as stream:
+                lines = [line for line in (stream.readline() for _ in range(100)) if line.split("#", 1)[0].strip()]
+            first = next((i for i, line in enumerate(lines) if _is_number(_split(line, None)[0].split(",")[0]
+                                                                         .split(";")[0], True)), None)
+            if first is None:
+                return False
+            if first:
+                header = lines[first - 1]
+                return any(role(name) == "label" for mark in ("\t", ";", ",", None) for name in _split(header, mark))
+            fields = next((_split(lines[0], mark) for mark in ("\t", ";", ",") if mark in lines[0]),
+                          _split(lines[0], None))
+            return len(fields) >= 4 and not _is_number(fields[3], True)
+        if suffix in LABELLED_VTK_EXTENSIONS:
+            with vtk_silenced():
+                reader = _vtk_reader(path)
+                reader.GetExecutive().Update()
+                dataset = reader.GetOutputDataObject(0)
+            from ..convert import point_labels
+            return dataset is not None and hasattr(dataset, "GetPointData") and point_labels(dataset)[0] is not None
+    except (OSError, InvalidInputError):
+        return False
+    return False
+
+
+def _label_text(labels) -> np.ndarray:
+    """Labels as a str array; numbers that are whole ("2", "2.0", 2) become their integer text ("2")."""
+    text = np.array([str(label).strip() for label in np.asarray(labels).tolist()], dtype=object)
+    try:
+        values = np.array([float(label) for label in text])
+    except ValueError:
+        return text.astype(str)
+    if np.isfinite(values).all() and np.all(values == np.round(values)):
+        return np.array([str(int(value)) for value in values], dtype=str)
+    return text.astype(str)
+
+
+def _read_labelled_table(path: Path, columns):
+    table = read_table(path)
+    roles = column_roles(table, columns, labelled=True)
+    if "label" not in roles:
+        table.fail(f"the header {table.names} names no label column; name it one of {', '.join(LABEL_COLUMNS)}")
+    points, _ = table_points(table, [role if role in ("x", "y", "z") else "skip" for role in roles])
+    labels = table.texts(roles.index("label"))
+    slice_ids = None
+    if "slice" in roles:
+        values = table.numbers(roles.index("slice"), "slice id")
+        whole = np.isfinite(values) & (values == np.round(values))
+        if not whole.all():
+            table.fail(f"line {table.lines[np.argmax(~whole)]} has the slice id "
+                       f"{table.rows[np.argmax(~whole)][roles.index('slice')]!r}, not an integer")
+        slice_ids = values.astype(np.int64)
+    return check_points(points, f"points of '{path}'", dims=(3,)), labels, slice_ids
+
+
+def _read_labelled_vtk(path: Path):
+    with vtk_silenced():
+        reader = _vtk_reader(path)
+        succeeded = reader.GetExecutive().Update()
+        dataset = reader.GetOutputDataObject(0)
+    if not succeeded or reader.GetErrorCode() or dataset is None or not hasattr(dataset, "GetPoints") \
+            or dataset.GetPoints() is None or dataset.GetNumberOfPoints() == 0:
+        raise InvalidInputError(
+            f"cannot read labelled points from '{path}': the {reader.GetClassName()} read no points; is the file "
+            "truncated, or not of the format its extension says?")
+    from ..convert import point_coordinates, point_labels
+
+    points = check_points(point_coordinates(dataset), f"points of '{path}'", dims=(3,))
+    labels, slice_ids = point_labels(dataset, f"cannot read labelled points from '{path}'")
+    if labels is None:
+        data = dataset.GetPointData()
+        present = [data.GetArrayName(i) for i in range(data.GetNumberOfArrays())]
+        raise InvalidInputError(
+            f"cannot read labelled points from '{path}': it has no one-component point array named 'Label' "
+            f"(point arrays present: {', '.join(map(str, present)) or 'none'})")
+    return points, labels, slice_ids
+
+
+#: the keys a labelled-domain config file may hold, with the type each value must have.
+LABELLED_CONFIG_KEYS = {"domain": "str", "surfaces": "{name: [labels]}", "base_plane":
+                        "'auto', 'valves', 'none', null or {point: [x, y, z], normal: [x, y, z]}",
+                        "base_offset": "number", "outlets": "{surface: [valve labels]}", "min_wall": "number",
+                        "kernel": "str", "offset": "number"}
+
+
+def read_labelled_config(path) -> dict:
+    """Read a small JSON or TOML file that says which domain to mesh from labelled contours.
+
+    Example (JSON)::
+
+        {"surfaces": {"EPI": ["SAX_LV_EPICARDIAL", "LAX_LV_EPICARDIAL"], "LV_ENDO": ["SAX_LV_ENDOCARDIAL"]},
+         "domain": "EPI - LV_ENDO", "base_plane": {"point": [0, 0, 0], "normal": [0, 0, 1]}, "min_wall": 2.0}
+
+    Keys (all optional): see :data:`LABELLED_CONFIG_KEYS`; they are the keyword arguments of
+    :func:`bitemesh.core.labelled.labelled_implicit` and ``run_labelled``.
+
+    Returns
+    -------
+    dict of those keyword arguments, ``base_plane`` as None, a string or a (point, normal) pair
+
+    Raises
+    ------
+    InvalidInputError
+        Missing or unreadable file, a syntax error (with the parser's message), an unknown key (the message lists
+        the known ones) or a value of the wrong type.
+    """
+    path = existing_file(path, "a labelled-domain config", (".json", ".toml"))
+    try:
+        text = path.read_text(encoding="utf-8")
+        if path.suffix.lower() == ".json":
+            import json
+            config = json.loads(text)
+        else:
+            try:
+                import tomllib
+            except ImportError:   # Python < 3.11
+                raise InvalidInputError(f"cannot read '{path}': TOML needs Python 3.11 or later; use JSON") from None
+            config = tomllib.loads(text)
+    except InvalidInputError:
+        raise
+    except (OSError, ValueError) as error:
+        raise InvalidInputError(f"cannot read a labelled-domain config from '{path}': {error}") from None
+    if not isinstance(config, dict):
+        raise InvalidInputError(f"'{path}' must hold a table (an object) of settings, got {type(config).__name__}")
+    unknown = sorted(set(config) - set(LABELLED_CONFIG_KEYS))
+    if unknown:
+        raise InvalidInputError(f"'{path}': unknown key(s) {', '.join(unknown)}; known keys: "
+                                f"{', '.join(LABELLED_CONFIG_KEYS)}")
+
+    def fail(key):
+        raise InvalidInputError(f"'{path}': {key} must be {LABELLED_CONFIG_KEYS[key]}, got {config[key]!r}")
+
+    def label_lists(key):
+        value = config[key]
+        if not isinstance(value, dict) or not all(
+                isinstance(members, (str, int)) or (isinstance(members, list) and members
+                                                    and all(isinstance(m, (str, int)) for m in members))
+                for members in value.values()):
+            fail(key)
+        return {str(name): [str(m) for m in (members if isinstance(members, list) else [members])]
+                for name, members in value.items()}
+
+    result = {}
+    for key, value in config.items():
+        if key in ("domain", "kernel"):
+            if not isinstance(value, str):
+                fail(key)
+            result[key] = value
+        elif key in ("base_offset", "min_wall", "offset"):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                fail(key)
+            result[key] = float(value)
+        elif key in ("surfaces", "outlets"):
+            result[key] = label_lists(key)
+        else:   # base_plane
+            if value is None or value in ("auto", "valves", "none"):
+                result[key] = None if value in (None, "none") else value
+            elif isinstance(value, dict) and set(value) == {"point", "normal"}:
+                result[key] = (value["point"], value["normal"])
+            else:
+                fail(key)
+    return result

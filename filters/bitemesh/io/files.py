@@ -1,0 +1,107 @@
+"""What every reader and writer shares: checking an input file, writing an output atomically, keeping VTK and
+meshio from printing.
+
+VTK is imported lazily, from ``vtkmodules.*`` only, so that this package loads in ParaView 5.11 and Slicer.
+"""
+from __future__ import annotations
+
+import contextlib
+import io as _stdio
+import logging
+import os
+import secrets
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InvalidInputError
+
+#: notes on what a reader did with a file (columns ignored, a volume mesh's boundary taken) go to this logger.
+logger = logging.getLogger("bitemesh")
+
+
+def supported(extensions) -> str:
+    return ", ".join(extensions)
+
+
+def existing_file(path, what: str, extensions) -> Path:
+    """``path`` as a Path after checking that it is a readable, non-empty file with a known extension."""
+    path = Path(path)
+    name = path.name.lower()
+    if not any(name.endswith(extension) for extension in extensions):
+        raise InvalidInputError(
+            f"cannot read {what} from '{path}': unknown extension {path.suffix or '(none)'!r}; "
+            f"supported extensions: {supported(extensions)}")
+    if not path.exists():
+        raise InvalidInputError(f"cannot read {what} from '{path}': the file does not exist")
+    if not path.is_file():
+        raise InvalidInputError(f"cannot read {what} from '{path}': it is not a regular file")
+    try:
+        with open(path, "rb") as stream:
+            empty = not stream.read(1)
+    except OSError as error:
+        raise InvalidInputError(f"cannot read {what} from '{path}': {error.strerror or error}") from None
+    if empty:
+        raise InvalidInputError(f"cannot read {what} from '{path}': the file is empty")
+    return path
+
+
+@contextlib.contextmanager
+def atomic_output(path, what: str = "a mesh"):
+    """Yield a temporary path beside ``path`` (same folder, same extension) to write to; once the block completes,
+    rename it onto ``path`` in one step (atomic on POSIX and Windows).  If the block fails or is interrupted
+    (Ctrl-C, a full disk), the temporary file is removed and ``path`` keeps what it held before, or stays absent.
+
+    Raises InvalidInputError when the folder does not exist or the rename fails.
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise InvalidInputError(f"cannot write {what} to '{path}': the directory '{path.parent}' does not exist")
+    suffix = "".join(path.suffixes[-2:]) if path.name.lower().endswith(".nii.gz") else path.suffix
+    temporary = path.with_name(f".{path.stem}.{secrets.token_hex(4)}.partial{suffix}")
+    try:
+        yield temporary
+        os.replace(temporary, path)
+    except OSError as error:
+        raise InvalidInputError(f"cannot write {what} to '{path}': {error.strerror or error}; the previous file, if "
+                                "any, is unchanged") from None
+    finally:
+        with contextlib.suppress(OSError):
+            temporary.unlink()
+
+
+@contextlib.contextmanager
+def vtk_silenced():
+    """Stop VTK from printing errors and warnings (readers print instead of raising); restore afterwards."""
+    from vtkmodules.vtkCommonCore import vtkObject
+
+    previous = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
+    try:
+        yield
+    finally:
+        vtkObject.SetGlobalWarningDisplay(previous)
+
+
+@contextlib.contextmanager
+def meshio_warnings():
+    """Turn what meshio prints on stderr (through rich) into Python warnings."""
+    captured = _stdio.StringIO()
+    with contextlib.redirect_stderr(captured):
+        yield
+    text = " ".join(captured.getvalue().split())
+    if text:
+        warnings.warn(f"meshio: {text}", stacklevel=3)
+
+
+def unit_rows(vectors: np.ndarray) -> np.ndarray:
+    """Rows scaled to unit length; zero rows stay zero."""
+    lengths = np.linalg.norm(vectors, axis=1, keepdims=True)
+    return np.divide(vectors, lengths, out=np.zeros_like(vectors), where=lengths > 0)
+
+
+def native(array) -> np.ndarray:
+    """``array`` in native byte order (meshio's legacy VTK reader returns big-endian arrays)."""
+    array = np.asarray(array)
+    return array.astype(array.dtype.newbyteorder("="), copy=False) if array.dtype.byteorder not in "=|" else array
