@@ -68,13 +68,15 @@ def point_labels(dataset, what: str = "the input"):
     return labels, slices
 
 
+def _as_3d(points: np.ndarray) -> np.ndarray:
+    points = np.asarray(points, dtype=np.float64)
+    return np.column_stack([points, np.zeros(len(points))]) if points.shape[1] == 2 else points
+
+
 def vtk_points(coordinates: np.ndarray) -> vtkPoints:
     """vtkPoints holding (n, 2) or (n, 3) coordinates (2D gets z = 0)."""
-    coordinates = np.asarray(coordinates, dtype=np.float64)
-    if coordinates.shape[1] == 2:
-        coordinates = np.column_stack([coordinates, np.zeros(len(coordinates))])
     points = vtkPoints()
-    points.SetData(numpy_support.numpy_to_vtk(np.ascontiguousarray(coordinates), deep=True))
+    points.SetData(numpy_support.numpy_to_vtk(np.ascontiguousarray(_as_3d(coordinates)), deep=True))
     return points
 
 
@@ -180,3 +182,41 @@ def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
         if array is not None and array.GetName():
             data[array.GetName()] = numpy_support.vtk_to_numpy(array)[chosen].copy()
     return Mesh(points, table, data)
+
+
+#: field-data arrays on the implicit image that carry the data's surface samples to the SpuriousCellFilter, which
+#: checks the mesh's fidelity against them: (n, 3) samples, their noise level and gap, the base plane (6 values).
+SAMPLE_ARRAYS = ("Samples", "SampleNoise", "SampleGap", "BasePlane")
+
+
+def attach_samples(image, samples: np.ndarray, noise: float, gap: float, base=None) -> None:
+    """Put the data's surface samples (n, k) on ``image``'s field data (see :data:`SAMPLE_ARRAYS`)."""
+    array = numpy_support.numpy_to_vtk(np.ascontiguousarray(_as_3d(samples)), deep=True)
+    array.SetName("Samples")
+    data = image.GetFieldData()
+    data.AddArray(array)
+    data.AddArray(field_array("SampleNoise", [noise]))
+    data.AddArray(field_array("SampleGap", [gap]))
+    if base is not None:
+        data.AddArray(field_array("BasePlane", np.concatenate(base)))
+
+
+def attached_samples(image, dim: int):
+    """(samples (n, dim), noise, gap, base plane (point, normal) or None) from ``image``'s field data, or None
+    when it carries no samples."""
+    data = image.GetFieldData() if image is not None else None
+    array = data.GetArray("Samples") if data is not None else None
+    if array is None:
+        return None
+    samples = numpy_support.vtk_to_numpy(array).astype(np.float64).reshape(-1, 3)[:, :dim]
+    scalar = {name: data.GetArray(name).GetValue(0) for name in ("SampleNoise", "SampleGap") if data.GetArray(name)}
+    base = data.GetArray("BasePlane")
+    base = None if base is None else numpy_support.vtk_to_numpy(base).astype(np.float64).reshape(2, 3)
+    return samples, scalar.get("SampleNoise", 0.0), scalar.get("SampleGap", 0.0), base
+
+
+def add_field_values(dataset, values: dict, prefix: str = "") -> None:
+    """One one-value field-data array per number of ``values`` (name -> number), named ``prefix`` + CamelCase."""
+    for name, value in values.items():
+        camel = "".join(part.capitalize() for part in name.split("_"))
+        dataset.GetFieldData().AddArray(field_array(prefix + camel, [float(value)]))

@@ -594,6 +594,7 @@ VTK_9_2_API = {
     "InsertNextValue", "SetData", "GetOffsetsArray", "GetConnectivityArray",  # vtkCellArray: VTK 9.0
     "GetInstance", "DisplayErrorText", "DisplayWarningText", "GetVTKMajorVersion", "GetVTKMinorVersion",
     "GetCellTypes",  # called only where vtkVersion says 9.6 or later
+    "DisplayText", "PassData",  # vtkOutputWindow (VTK 4), vtkFieldData (VTK 5)
     # string point arrays (Label): run in ParaView 5.11's pvpython (VTK 9.2.20230111)
     "GetAbstractArray", "GetNumberOfComponents", "GetNumberOfTuples", "IsA", "GetValue",
 }

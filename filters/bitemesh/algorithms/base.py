@@ -6,6 +6,9 @@ Facts this relies on (verified on VTK 9.2 and 9.7): an exception escaping ``Requ
 """
 from __future__ import annotations
 
+import contextlib
+import logging
+import warnings
 from dataclasses import fields
 
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
@@ -13,7 +16,7 @@ from vtkmodules.vtkCommonCore import vtkCommand, vtkOutputWindow
 from vtkmodules.vtkCommonDataModel import vtkDataObject
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
-from ..core.errors import BitemeshError, Cancelled
+from ..core.errors import BitemeshError, BitemeshWarning, Cancelled
 
 
 def camel(name: str) -> str:
@@ -111,15 +114,49 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
             self.clear_outputs(outInfo)
             return 1
         try:
-            self.check_abort()  # an abort asked at the executive's first progress event, or left set (VTK >= 9.4)
-            self.execute(request, inInfo, outInfo)
-            self.check_abort()  # an abort asked while a step that reports no progress ran
+            with self.passing_on_notes():
+                self.check_abort()  # an abort asked at the executive's first progress event, or left set
+                self.execute(request, inInfo, outInfo)
+                self.check_abort()  # an abort asked while a step that reports no progress ran
         except Exception as error:  # noqa: BLE001 - every error must reach the user with its message
             self.last_error = error
             self._failed_run = run  # rerunning needs a change: a parameter, an input, Modified(), SetAbortExecute(0)
             self.clear_outputs(outInfo)
             self.report_error(error)
         return 1
+
+    @contextlib.contextmanager
+    def passing_on_notes(self):
+        """While a run executes, what the core says to the user goes to VTK's output window: the "bitemesh"
+        logger's notes as text (points dropped, columns read), a BitemeshWarning (a mesh kept although it missed a
+        bound it was allowed to miss) as a warning; other warnings go on as they came."""
+        name = type(self).__name__
+        window = vtkOutputWindow.GetInstance()
+
+        class Notes(logging.Handler):
+            def emit(self, record):
+                window.DisplayText(f"{name}: note: {record.getMessage()}\n")
+
+        handler = Notes(logging.INFO)
+        logger = logging.getLogger("bitemesh")
+        previous = logger.level
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", BitemeshWarning)
+                yield
+        finally:
+            logger.removeHandler(handler)
+            logger.setLevel(previous)
+            for warning in caught:
+                if issubclass(warning.category, BitemeshWarning):
+                    if self.HasObserver(vtkCommand.WarningEvent):
+                        self.InvokeEvent(vtkCommand.WarningEvent, f"{name}: {warning.message}")
+                    else:
+                        window.DisplayWarningText(f"Warning: {name}: {warning.message}\n")
+                else:
+                    warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
 
     def run_key(self, inInfo):
         """What a run depends on: this filter's MTime and the MTime of every input data object."""

@@ -16,17 +16,22 @@ from ..core.biting import bite
 from ..core.delaunay import delaunay
 from ..core.domain import carve_domain
 from ..core.errors import InvalidInputError, check_points
+from ..core.fidelity import check_fidelity, measure_fidelity, on_plane
 from ..core.grid import grid_shape
+from ..core.implicit import grid_layout
 from ..core.mesh import Mesh
-from ..core.implicit import grid_layout, points_to_implicit
-from ..core.optimize import optimize_mesh
-from ..core.parameters import (BitingParameters, ImplicitParameters, LabelledParameters, LabelMapParameters,
-                               OptimizeParameters, OptimizeSwitch, QualityParameters, SpuriousParameters)
-from ..core.pipeline import radius_for_cells, run
+from ..core.optimize import mean_edge_length, optimize_mesh
+from ..core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, LabelledParameters,
+                               LabelMapParameters, OptimizeParameters, OptimizeSwitch, QualityParameters,
+                               SpuriousParameters)
+from ..core.pipeline import points_source, radius_for_cells, run, sample_source
+from ..core.progress import sub_progress
 from ..core.quality import cell_quality, quality_histogram, quality_summary
+from ..labelmap import STAIRCASE_NOISE
 from .base import BitemeshAlgorithm, with_parameters
-from ..convert import (field_array, grid_to_image, image_to_grid, mesh_to_unstructured, nodes_to_polydata,
-                      point_array, point_coordinates, point_labels, unstructured_to_mesh)
+from ..convert import (add_field_values, attach_samples, attached_samples, field_array, grid_to_image, image_to_grid,
+                       mesh_to_unstructured, nodes_to_polydata, point_array, point_coordinates, point_labels,
+                       unstructured_to_mesh)
 
 
 def scattered_points(dataset):
@@ -116,7 +121,9 @@ class PointsToImplicit(BitemeshAlgorithm):
         return lower - margin, np.full(len(lower), spacing), shape
 
     def label_grid(self, image: vtkImageData, geometry_only: bool = False):
-        from ..labelmap import PAD_VOXELS, label_map_to_grid
+        """The label map's signed distance on its grid and its voxel faces (the samples); with ``geometry_only``,
+        only the grid's (origin, spacing, shape)."""
+        from ..labelmap import PAD_VOXELS, label_map_to_grid, label_mask, mask_faces
         dims = image.GetDimensions()
         dim = 2 if dims[2] == 1 else 3
         origin, spacing = np.array(image.GetOrigin()[:dim]), np.array(image.GetSpacing()[:dim])
@@ -126,25 +133,34 @@ class PointsToImplicit(BitemeshAlgorithm):
         if scalars is None:
             raise InvalidInputError("the label map has no point scalars (the labels)")
         labels = numpy_support.vtk_to_numpy(scalars).reshape(dims, order="F").reshape(dims[:dim])
-        return label_map_to_grid(labels, origin, spacing, self.parameters(LabelMapParameters).label)
+        label = self.parameters(LabelMapParameters).label
+        return label_map_to_grid(labels, origin, spacing, label), mask_faces(label_mask(labels, label)[0], origin,
+                                                                              spacing)
 
     def execute(self, request, inInfo, outInfo):
         source = vtkDataSet.GetData(inInfo[0])
         fit = None if isinstance(source, vtkImageData) else self.labelled_fit(source)
+        output = vtkImageData.GetData(outInfo)
         if isinstance(source, vtkImageData):
-            grid = self.label_grid(source)
+            grid, samples = self.label_grid(source)
+            grid_to_image(grid, output)
+            attach_samples(output, samples, STAIRCASE_NOISE * float(np.max(grid.spacing)),
+                           float(np.linalg.norm(grid.spacing)))
         elif fit is not None:
             from ..core.labelled import sample_labelled
-            grid = sample_labelled(*fit, self.parameters(ImplicitParameters),
-                                   self.parameters(LabelledParameters).min_wall, progress=self.progress)
+            function = fit[0]
+            grid_to_image(sample_labelled(*fit, self.parameters(ImplicitParameters),
+                                          self.parameters(LabelledParameters).min_wall, progress=self.progress), output)
+            attach_samples(output, function.surface_samples(), function.tracing_noise(), function.contour_gap(),
+                           function.base)
         else:
             parameters = self.parameters(ImplicitParameters)
             points, normals = scattered_points(source)
-            grid = points_to_implicit(points, normals, method=parameters.method,
-                                      error_bound=parameters.error_bound, grid_spacing=parameters.grid_spacing,
-                                      margin=parameters.margin, max_memory_mb=parameters.max_memory_mb,
-                                      progress=self.progress)
-        grid_to_image(grid, vtkImageData.GetData(outInfo))
+            fitted = points_source(points, normals, parameters, sub_progress(self.progress, 0.0, 0.4))
+            frame = fitted.frame
+            grid_to_image(sample_source(fitted, parameters, sub_progress(self.progress, 0.4, 1.0)), output)
+            attach_samples(output, frame.to_user(fitted.samples), fitted.noise * frame.scale,
+                           fitted.gap * frame.scale)
 
 
 @with_parameters(BitingParameters)
@@ -174,8 +190,11 @@ class DelaunayTetra(BitemeshAlgorithm):
         super().__init__(nInputPorts=1, inputType="vtkPointSet", nOutputPorts=1, outputType="vtkUnstructuredGrid")
 
     def execute(self, request, inInfo, outInfo):
-        nodes = node_coordinates(vtkPointSet.GetData(inInfo[0]))
-        mesh_to_unstructured(Mesh(nodes, delaunay(nodes)), vtkUnstructuredGrid.GetData(outInfo))
+        source = vtkPointSet.GetData(inInfo[0])
+        nodes = node_coordinates(source)
+        output = vtkUnstructuredGrid.GetData(outInfo)
+        mesh_to_unstructured(Mesh(nodes, delaunay(nodes)), output)
+        output.GetFieldData().PassData(source.GetFieldData())   # the Radius the BitingSampler used
 
 
 class MeshWithImplicitFilter(BitemeshAlgorithm):
@@ -197,20 +216,34 @@ class MeshWithImplicitFilter(BitemeshAlgorithm):
         return Mesh(mesh.points, mesh.cells), grid
 
 
-@with_parameters(SpuriousParameters)
+@with_parameters(SpuriousParameters, FidelityParameters)
 class SpuriousCellFilter(MeshWithImplicitFilter):
     """All Delaunay cells (port 0) and f on the grid (port 1) -> the valid domain, unused points dropped.
 
     A cell goes when f < 0 at its circumcentre and |f|/|grad f| there exceeds ``Threshold`` x its circumradius
     (the paper's test, on the cells lying on the surface), or when its centroid is outside; then voids inside are
     filled, flat boundary cells peeled, pinched edges and vertices repaired and parts below ``MinComponent``
-    dropped.
+    dropped.  When the image carries the data's samples (PointsToImplicit puts them there), the domain's boundary
+    is compared with them (field data ``Fidelity*``) and refused beyond ``FarSamples`` / ``UnsupportedArea``
+    unless ``AllowUnfaithful``.
     """
 
     def execute(self, request, inInfo, outInfo):
         mesh, grid = self.mesh_and_grid(inInfo)
+        delaunay_mesh = vtkUnstructuredGrid.GetData(inInfo[0])
         domain = carve_domain(grid, mesh.points, mesh.cells, self.parameters(SpuriousParameters), self.progress)
-        mesh_to_unstructured(domain, vtkUnstructuredGrid.GetData(outInfo))
+        output = vtkUnstructuredGrid.GetData(outInfo)
+        mesh_to_unstructured(domain, output)
+        output.GetFieldData().PassData(delaunay_mesh.GetFieldData())
+        attached = attached_samples(vtkImageData.GetData(inInfo[1]), domain.dim)
+        if attached is not None:
+            samples, noise, gap, base = attached
+            radius = output.GetFieldData().GetArray("Radius")
+            radius = radius.GetValue(0) if radius is not None else mean_edge_length(domain.points, domain.cells)
+            fidelity = measure_fidelity(domain, samples, radius, noise, gap,
+                                        None if base is None else on_plane(*base, 0.1 * radius))
+            check_fidelity(fidelity, self.parameters(FidelityParameters))
+            add_field_values(output, asdict(fidelity), "Fidelity")
 
 
 @with_parameters(QualityParameters)
@@ -253,7 +286,7 @@ class MeshOptimizer(MeshWithImplicitFilter):
 
 
 @with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeSwitch, OptimizeParameters,
-                 LabelledParameters)
+                 LabelledParameters, FidelityParameters)
 class MeshFromPoints(BitemeshAlgorithm):
     """The whole method in one filter: scattered points -> a valid mesh with its quality arrays.
 
@@ -269,7 +302,8 @@ class MeshFromPoints(BitemeshAlgorithm):
         source = vtkPointSet.GetData(inInfo[0])
         optimize = self.parameters(OptimizeParameters) if self.parameters(OptimizeSwitch).optimize else None
         steps = {"implicit": self.parameters(ImplicitParameters), "biting": self.parameters(BitingParameters),
-                 "spurious": self.parameters(SpuriousParameters), "optimize": optimize, "progress": self.progress}
+                 "spurious": self.parameters(SpuriousParameters), "optimize": optimize, "progress": self.progress,
+                 "fidelity": self.parameters(FidelityParameters)}
         contours = labelled_contours(source)
         if contours is None:
             result = run(*scattered_points(source), **steps)
@@ -282,6 +316,8 @@ class MeshFromPoints(BitemeshAlgorithm):
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(result.mesh, output)
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))
+        if result.fidelity is not None:
+            add_field_values(output, asdict(result.fidelity), "Fidelity")
 
 
 def planar_as_2d(points: np.ndarray) -> np.ndarray:

@@ -38,7 +38,9 @@ def check_number(value, name: str, *, low=None, high=None, low_open=False, high_
         raise InvalidInputError(f"{name} must be a number, got {value!r}") from None
     too_low = low is not None and (number <= low if low_open else number < low)
     too_high = high is not None and (number >= high if high_open else number > high)
-    if not np.isfinite(number) or too_low or too_high:
+    if not np.isfinite(number):
+        raise InvalidInputError(f"{name} must be a finite number, got {value!r}" + (f"; {hint}" if hint else ""))
+    if too_low or too_high:
         left = "(" if low_open else "["
         right = ")" if high_open else "]"
         span = f"{left}{'-inf' if low is None else low}, {'inf' if high is None else high}{right}"

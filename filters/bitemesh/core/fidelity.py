@@ -166,6 +166,12 @@ def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: floa
         unsupported_area=100.0 * float(area[from_samples > support_bound].sum() / total))
 
 
+def on_plane(point, normal, tolerance: float):
+    """The ``open_boundary`` of a domain cut by a plane: (f, k) centroids -> True within ``tolerance`` of it."""
+    point, normal = np.asarray(point, dtype=np.float64), np.asarray(normal, dtype=np.float64)
+    return lambda centroids: np.abs((centroids - point) @ normal) <= tolerance
+
+
 def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "") -> list:
     """The bounds of ``parameters`` that ``fidelity`` exceeds, as messages; raise :class:`MeshingError` naming them
     unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`."""

@@ -22,7 +22,6 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from .errors import InvalidInputError, check_choice, check_number, check_points
-from .grid import EXACT_WITHIN, ImplicitGrid, grid_shape, sample_function
 from .progress import ProgressCallback, report, sub_progress
 
 logger = logging.getLogger("bitemesh")
@@ -723,26 +722,10 @@ def grid_layout(points, grid_spacing=None, margin=None):
     return lower, upper, spacing, margin
 
 
-def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound=None, grid_spacing=None,
-                       margin=None, max_memory_mb: float = 4096, progress: ProgressCallback = None) -> ImplicitGrid:
-    """Reconstruct f from scattered points (see fit_implicit) and sample it on the grid I of the paper.
-
-    Parameters
-    ----------
-    points, normals, method, error_bound : as for fit_implicit
-    grid_spacing : float, input units; default bounding-box diagonal / 100
-    margin : float, input units, grid extent beyond the bounding box; default 3 x grid_spacing
-    max_memory_mb : float, MiB the grid may take; a larger grid is refused before fitting
-    progress : callable(fraction, message), optional
-
-    Returns
-    -------
-    ImplicitGrid over [lower - margin, upper + margin] of the points, f > 0 inside
-    """
-    points, normals = _prepared(points, normals, method)
-    lower, upper, spacing, margin = grid_layout(points, grid_spacing, margin)
-    max_memory_mb = check_number(max_memory_mb, "max_memory_mb", low=0, low_open=True)
-    grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=max_memory_mb)
-    function = _fit(points, normals, method, error_bound, sub_progress(progress, 0.0, 0.4))
-    return sample_function(function, lower, upper, spacing, margin=margin, max_memory_mb=max_memory_mb,
-                           exact_within=EXACT_WITHIN * spacing, progress=sub_progress(progress, 0.4, 1.0))
+def __getattr__(name):
+    """``points_to_implicit`` lives in :mod:`bitemesh.core.pipeline` (it drops outliers and centres the points
+    first); imported from here as before."""
+    if name == "points_to_implicit":
+        from .pipeline import points_to_implicit
+        return points_to_implicit
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1133,7 +1133,8 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
                                                    **options)
     at_radius = (lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None else None
     source = Source(function, lower, upper, frame, samples=function.surface_samples(), at_radius=at_radius,
-                    noise=function.tracing_noise(), gap=function.contour_gap(), open_boundary=function.is_base if function.base is not None else None)
+                    noise=function.tracing_noise(), gap=function.contour_gap(),
+                    open_boundary=None if function.base is None else function.is_base)
     result = mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
                          spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
                          fidelity or FidelityParameters())

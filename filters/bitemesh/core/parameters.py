@@ -76,7 +76,7 @@ class BitingParameters(Parameters):
     radius: Optional[float] = parameter(
         None, "R, the minimum distance between nodes (close to the mean edge length); default: chosen for about "
         "`cells` cells", unit="input units", low=0, low_open=True)
-    cells: int = parameter(10000, "the number of cells to aim for when radius is not given", low=10,
+    cells: int = parameter(10000, "the number of cells to aim for when radius is not given", low=100,
                            high=50_000_000, integer=True)
     order: str = parameter("boundary", "SelectNode order: the border layer first then inward, or random",
                            choices=("boundary", "random"))

@@ -8,18 +8,20 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InvalidInputError, check_points
-from .implicit import MIN_POINTS, fit_implicit
+from .grid import EXACT_WITHIN, ImplicitGrid, grid_shape, sample_function
+from .implicit import MIN_POINTS, fit_implicit, grid_layout
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
 from .samples import PLANE_NEIGHBOURS, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
-                    Frame, MeshingResult, Source, mesh_from_grid, mesh_source, radius_for_cells, timed)
+                    Frame, MeshingResult, Source, check_grid, check_spacing, mesh_from_grid, mesh_source,
+                    radius_for_cells, timed)
 
 
 def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
-                  progress: ProgressCallback = None) -> Source:
+                  progress: ProgressCallback = None, biting: BitingParameters | None = None) -> Source:
     """Scattered points as a :class:`Source`: outliers dropped (unless ``implicit.outliers`` is "keep"), the points
     centred and scaled to unit size (:meth:`Frame.around`), f fitted there (MPU or RBF), and the samples' spacing
     and noise measured for the fidelity check.
@@ -28,10 +30,10 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     ----------
     points : (n, k) float64, input units; normals : (n, k) float64 outward normals, or None to estimate them
     implicit : method, error_bound (input units) and outliers of :class:`ImplicitParameters`
+    biting : when given with a radius, the grid I it implies is checked against the data and the memory before the
+        fit (a refusal then comes in a moment, not after the fit)
     """
-    points = check_points(points)
-    if len(points) < MIN_POINTS:
-        raise InvalidInputError(f"points: need at least {MIN_POINTS} points, got {len(points)}")
+    points = _enough_points(points)
     if normals is not None:
         normals = np.asarray(normals, dtype=np.float64)
         if normals.shape != points.shape:
@@ -47,11 +49,60 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
                          "them)")
     frame = Frame.around(points)
     local = frame.to_local(points)
+    box = Source(None, local.min(axis=0), local.max(axis=0), frame)
+    check_spacing(box, implicit)
+    if biting is not None and biting.radius is not None:
+        check_grid(box, biting.radius / frame.scale, implicit, biting)
     error_bound = None if implicit.error_bound is None else implicit.error_bound / frame.scale
     function = fit_implicit(local, normals, method=implicit.method, error_bound=error_bound, progress=progress)
     distinct = np.unique(local, axis=0)
     return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local,
                   noise=noise_level(distinct), gap=2 * sample_spacing(distinct), notes=tuple(notes))
+
+
+def _enough_points(points) -> np.ndarray:
+    """``points`` checked (:func:`check_points`) and at least :data:`MIN_POINTS` of them."""
+    points = check_points(points)
+    if len(points) < MIN_POINTS:
+        raise InvalidInputError(f"points: need at least {MIN_POINTS} points, got {len(points)}")
+    return points
+
+
+def sample_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
+                  progress: ProgressCallback = None) -> ImplicitGrid:
+    """A source's f on the grid I of PointsToImplicit, in user coordinates and units: over the data's box
+    enlarged by ``margin`` (default 3 spacings), spacing ``grid_spacing`` (default the box's diagonal / 100)."""
+    frame = source.frame
+    lower, upper, spacing, margin = grid_layout(frame.to_user(np.array([source.lower, source.upper])),
+                                                implicit.grid_spacing, implicit.margin)
+    return sample_function(lambda x: source.function(frame.to_local(x)) * frame.scale, lower, upper, spacing,
+                           margin=margin, max_memory_mb=implicit.max_memory_mb, exact_within=EXACT_WITHIN * spacing,
+                           progress=progress)
+
+
+def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound=None, grid_spacing=None,
+                       margin=None, max_memory_mb: float = 4096, outliers: str = "drop",
+                       progress: ProgressCallback = None) -> ImplicitGrid:
+    """Reconstruct f from scattered points (:func:`points_source`) and sample it on the grid I of the paper.
+
+    Parameters
+    ----------
+    points, normals : as for :func:`points_source`; method, error_bound, outliers : of :class:`ImplicitParameters`
+    grid_spacing : float, input units; default bounding-box diagonal / 100
+    margin : float, input units, grid extent beyond the bounding box; default 3 x grid_spacing
+    max_memory_mb : float, MiB the grid may take; a larger grid is refused before fitting
+    progress : callable(fraction, message), optional
+
+    Returns
+    -------
+    ImplicitGrid over [lower - margin, upper + margin] of the points, f > 0 inside, input units
+    """
+    implicit = ImplicitParameters(method=method, error_bound=error_bound, grid_spacing=grid_spacing, margin=margin,
+                                  max_memory_mb=max_memory_mb, outliers=outliers)
+    lower, upper, spacing, margin = grid_layout(_enough_points(points), grid_spacing, margin)
+    grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=implicit.max_memory_mb)
+    source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.4))
+    return sample_source(source, implicit, sub_progress(progress, 0.4, 1.0))
 
 
 def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
@@ -62,7 +113,7 @@ def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(
     the MeshOptimizer): :func:`points_source`, then the spine (:func:`~bitemesh.core.spine.mesh_source`)."""
     seconds = {}
     with timed(seconds, "implicit fit"):
-        source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.3))
+        source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.3), biting)
     return mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.3, 1.0), seconds,
                        fidelity)
 

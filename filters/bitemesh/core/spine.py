@@ -273,11 +273,26 @@ def grid_layout(source: Source, radius: float, implicit: ImplicitParameters):
     return spacing, max(3 * spacing if margin is None else margin, MIN_MARGIN * spacing)
 
 
+def check_spacing(source: Source, implicit: ImplicitParameters) -> None:
+    """Refuse a grid_spacing too coarse for the data's box: the grid I could not resolve the shape."""
+    size = _extent(source) * source.frame.scale
+    if implicit.grid_spacing is not None and implicit.grid_spacing > size / 4:
+        raise InvalidInputError(
+            f"grid_spacing {implicit.grid_spacing:g} is coarser than a quarter of the data's longest side "
+            f"({size:.4g}): the grid I cannot resolve the shape; use grid_spacing <= {size / 4:.4g} (at most R / 2) "
+            "or omit it (default R / 4)")
+
+
+def _extent(source: Source) -> float:
+    """The longest side of the box that the grid I covers (local units)."""
+    return source.size if source.grid is None else float(np.max(source.grid.upper - source.grid.origin))
+
+
 def check_grid(source: Source, radius: float, implicit: ImplicitParameters, biting: BitingParameters) -> None:
     """Refuse, before any sampling, node spacing R (local units) and a grid I that do not fit the data or the
     memory, naming the parameter to change in user units."""
     scale = source.frame.scale
-    size = source.size if source.grid is None else float(np.max(source.grid.upper - source.grid.origin))
+    size = _extent(source)
     named = "radius" if biting.radius is not None else f"radius (chosen for cells = {biting.cells})"
     check_number(radius * scale, named, low=0, low_open=True, high=size * scale,
                  hint="radius is R, the node spacing; it cannot exceed the size of the data's bounding box"
@@ -295,7 +310,7 @@ def check_grid(source: Source, radius: float, implicit: ImplicitParameters, biti
     available = available_memory_mb()
     limit = min(implicit.max_memory_mb, available or np.inf)
     if needed > limit:
-        factor = float((needed / limit) ** (1 / len(shape)))
+        factor = 1.1 * float((needed / limit) ** (1 / len(shape)))   # 10 % to spare, so that the hint fits
         which = (f"max_memory_mb = {implicit.max_memory_mb:g}" if limit == implicit.max_memory_mb
                  else f"the {available:.0f} MiB of memory this machine has free")
         hint = (f"grid_spacing >= {implicit.grid_spacing * factor:.4g}" if implicit.grid_spacing is not None
@@ -341,6 +356,7 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     """
     seconds = {} if seconds is None else seconds
     with timed(seconds, "implicit sampling"):
+        check_spacing(source, implicit)
         radius = _local(biting.radius, source)
         if radius is None:
             radius = choose_radius(source, biting.cells, implicit)
