@@ -115,7 +115,7 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     chosen = ordered[np.array(selected, dtype=np.int64)]
     if chosen.size < MIN_NODES:
         raise InvalidInputError(
-            f"radius {radius:g} is too large for the shape: it leaves only {chosen.size} nodes "
+            f"radius is too large for the shape: it leaves only {chosen.size} nodes "
             f"(at least {MIN_NODES} are needed); use a smaller radius")
 
     nodes = grid.node_coordinates(chosen) + rng.uniform(-jitter, jitter, (chosen.size, grid.dim)) * spacing

@@ -57,7 +57,10 @@ def check_choice(value, name: str, choices) -> str:
 
 def check_points(points, name: str = "points", *, dims=(2, 3)) -> np.ndarray:
     """Return ``points`` as a C-contiguous (n, k) float64 array with k in ``dims`` and every value finite."""
-    array = np.asarray(points, dtype=np.float64)
+    try:
+        array = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise InvalidInputError(f"{name} must be an (n, k) array of numbers: {error}") from None
     if array.ndim != 2 or array.shape[1] not in dims:
         raise InvalidInputError(
             f"{name} must be an (n, k) array with k in {tuple(dims)}, got shape {array.shape}")
@@ -65,5 +68,5 @@ def check_points(points, name: str = "points", *, dims=(2, 3)) -> np.ndarray:
     if bad.any():
         raise InvalidInputError(
             f"{name} contains {int(bad.sum())} rows with NaN or infinite coordinates "
-            f"(first at row {int(np.argmax(bad))}); remove them before meshing")
+            f"(first: index {int(np.argmax(bad))}, counted from 0); remove them before meshing")
     return np.ascontiguousarray(array)

@@ -5,6 +5,8 @@
 """
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from .errors import InvalidInputError, check_points
@@ -47,6 +49,7 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
             notes.append(f"dropped {int(outlier.sum())} outliers of {len(outlier)} points ({outlier.mean():.1%}): "
                          "far from the others or off the surface their neighbours sample (outliers='keep' keeps "
                          "them)")
+            logger.info(notes[-1])
     frame = Frame.around(points)
     local = frame.to_local(points)
     box = Source(None, local.min(axis=0), local.max(axis=0), frame)
@@ -58,6 +61,9 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     distinct = np.unique(local, axis=0)
     return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local,
                   noise=noise_level(distinct), gap=2 * sample_spacing(distinct), notes=tuple(notes))
+
+
+logger = logging.getLogger("bitemesh")
 
 
 def _enough_points(points) -> np.ndarray:

@@ -322,6 +322,25 @@ def check_grid(source: Source, radius: float, implicit: ImplicitParameters, biti
             + (" or raise max_memory_mb" if limit == implicit.max_memory_mb else ""))
 
 
+def check_inside(grid: ImplicitGrid, radius: float, scale: float, biting: BitingParameters) -> None:
+    """Refuse a grid I with nothing inside, or a shape thinner than R along some axis, in user units: the biting
+    could place no meaningful nodes there."""
+    inside = grid.values > 0
+    if not inside.any():
+        raise InvalidInputError(
+            f"nothing is inside the surface on the grid I (spacing {np.max(grid.spacing) * scale:.3g}): the "
+            "normals may point inward or disagree, or the shape is thinner than the grid spacing or the samples' "
+            "spacing; give outward normals, or a finer grid_spacing")
+    extent = float(np.min(np.ptp(np.argwhere(inside), axis=0) * grid.spacing)) + float(np.max(grid.spacing))
+    if radius > extent:
+        given = biting.radius is not None
+        needed = biting.cells * (radius / (extent / 2)) ** grid.dim
+        raise InvalidInputError(
+            f"{'radius' if given else f'radius (chosen for cells = {biting.cells})'} = {radius * scale:.4g} exceeds "
+            f"the shape's thinnest extent, {extent * scale:.4g}: the shape is too thin for elements that size; give "
+            f"radius <= {extent * scale / 2:.4g}" + ("" if given else f" or cells >= {int(np.ceil(needed))}"))
+
+
 def sample_grid(source: Source, function, radius: float, implicit: ImplicitParameters,
                 progress: ProgressCallback = None) -> ImplicitGrid:
     """The grid I for node spacing R (local units, see :func:`grid_layout`), exact near f = 0; a source's own grid
@@ -363,6 +382,7 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
         check_grid(source, radius, implicit, biting)
         function = source.function if source.at_radius is None else source.at_radius(radius)
         grid = sample_grid(source, function, radius, implicit, sub_progress(progress, 0.0, 0.3))
+        check_inside(grid, radius, source.frame.scale, biting)
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
     result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 0.97), seconds, optimize)
     frame = source.frame

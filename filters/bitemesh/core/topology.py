@@ -23,7 +23,7 @@ def unique_rows(rows: np.ndarray):
     inverse : (r,) int64, the group of each input row
     counts : (u,) int64, the size of each group
     """
-    rows = np.sort(rows.reshape(len(rows), -1), axis=1).astype(np.int64, copy=False)
+    rows = np.sort(rows.reshape(-1, rows.shape[-1]), axis=1).astype(np.int64, copy=False)
     n_points = int(rows.max()) + 1 if rows.size else 1
     if float(n_points) ** rows.shape[1] < 2.0**63:  # an exact int64 key per sorted row: much faster than axis=0
         keys = rows[:, 0].copy()
