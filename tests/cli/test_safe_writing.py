@@ -1,0 +1,130 @@
+"""A file is never lost: a failed or interrupted write leaves the previous file (or none), and Ctrl-C at any moment
+ends with exit code 130 and one line.
+
+Faults are injected for real where the operating system allows it: a file size limit (RLIMIT_FSIZE, as a full
+disk) and SIGINT sent to a running ``bitemesh`` process; and in-process where the moment must be exact (an
+interrupt in the middle of the writer's output).
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bitemesh import cli
+from bitemesh.core import shapes
+from bitemesh.core.mesh import Mesh
+from bitemesh.io import read_mesh, write_mesh
+
+FILTERS = Path(__file__).resolve().parents[2] / "filters"
+POSIX = pytest.mark.skipif(os.name != "posix", reason="RLIMIT_FSIZE and SIGINT to a child are POSIX")
+
+
+@pytest.fixture
+def points_file(tmp_path):
+    points, normals = shapes.sample_surface(shapes.sphere(), spacing=0.1, seed=0)
+    path = tmp_path / "sphere.xyz"
+    np.savetxt(path, np.hstack([points, normals]))
+    return path
+
+
+@pytest.fixture
+def previous(tmp_path):
+    """A good mesh already at the output path, and its bytes."""
+    path = tmp_path / "out.vtu"
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    write_mesh(Mesh(points, np.array([[0, 1, 2, 3]])), path)
+    return path, path.read_bytes()
+
+
+def leftovers(folder: Path) -> list:
+    return [path.name for path in folder.iterdir() if ".partial" in path.name]
+
+
+def bitemesh_process(*arguments, limit=None):
+    """Start ``python -m bitemesh.cli arguments`` (optionally under a file size limit, in bytes)."""
+    def restrict():
+        import resource
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)   # a write past the limit then fails with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    env = {**os.environ, "PYTHONPATH": str(FILTERS)}
+    return subprocess.Popen([sys.executable, "-m", "bitemesh.cli", *map(str, arguments)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=restrict if limit else None)
+
+
+@POSIX
+def test_a_full_disk_leaves_the_previous_file(points_file, previous, tmp_path):
+    path, before = previous
+    process = bitemesh_process("mesh", points_file, "-o", path, "--cells", "3000", limit=64 * 1024)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 1, err
+    assert "cannot write a mesh" in err and "previous file" in err and "Traceback" not in err
+    assert path.read_bytes() == before
+    assert leftovers(tmp_path) == []
+
+
+@POSIX
+@pytest.mark.parametrize("delay", [0.05, 0.3, 1.0, 2.0])
+def test_ctrl_c_at_any_moment_exits_130_with_one_line(points_file, previous, tmp_path, delay):
+    path, before = previous
+    process = bitemesh_process("mesh", points_file, "-o", path, "--cells", "20000")
+    time.sleep(delay)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    if process.returncode == 0:   # it finished first: the new mesh is whole
+        assert len(read_mesh(path).cells) > 10000
+        return
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] == "bitemesh: cancelled", err
+    assert path.read_bytes() == before
+    assert leftovers(tmp_path) == []
+
+
+def test_an_interrupt_inside_the_writer_keeps_the_previous_file(monkeypatch, points_file, previous, tmp_path, capsys):
+    """Ctrl-C after the writer has put half a file on disk: the previous file stays, the half file goes."""
+    import meshio
+    path, before = previous
+    real_write = meshio.write
+
+    def interrupted(target, mesh, **options):
+        real_write(target, mesh, **options)
+        Path(target).write_bytes(Path(target).read_bytes()[:100])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(meshio, "write", interrupted)
+    code = cli.main(["mesh", str(points_file), "-o", str(path), "--cells", "2000"])
+    _, err = capsys.readouterr()
+    assert code == 130 and "Traceback" not in err
+    assert path.read_bytes() == before
+    assert leftovers(tmp_path) == []
+
+
+def test_a_failing_writer_leaves_no_file_where_there_was_none(monkeypatch, tmp_path):
+    import meshio
+    path = tmp_path / "new.msh"
+
+    def failing(target, mesh, **options):
+        Path(target).write_text("$MeshFormat\n2.2 0 8\n")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(meshio, "write", failing)
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    with pytest.raises(Exception, match="No space left on device"):
+        write_mesh(Mesh(points, np.array([[0, 1, 2, 3]])), path)
+    assert not path.exists() and leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("extension", [".vtu", ".vtk", ".msh", ".inp", ".mesh"])
+def test_every_format_is_written_whole_and_replaces_the_previous_file(tmp_path, extension):
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=float)
+    path = tmp_path / f"mesh{extension}"
+    write_mesh(Mesh(points[:4], np.array([[0, 1, 2, 3]])), path)
+    write_mesh(Mesh(points, np.array([[0, 1, 2, 3], [1, 2, 3, 4]])), path)
+    assert len(read_mesh(path).cells) == 2
+    assert leftovers(tmp_path) == []
