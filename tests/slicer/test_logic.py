@@ -316,7 +316,8 @@ def test_closed_curves_give_a_valid_mesh(scene, logic):
 def test_closed_curves_default_to_rbf(scene, logic):
     """Sparse contours take the RBF unless a method is given; the contour normals point outward."""
     nodes = closed_curves(scene, levels=(-0.5, 0.0, 0.5))
-    points, normals = logic._scatteredPoints(nodes, "rbf")
+    points, normals, slices = logic._scatteredPoints(nodes, "rbf")
+    assert len(np.unique(slices)) == len(nodes)   # one slice per curve
     assert normals is not None and len(points) <= bitemesh_logic.RBF_CURVE_POINTS
     outward = np.einsum("ij,ij->i", normals, points - CENTRE)
     assert (outward > 0).all()
@@ -535,9 +536,10 @@ def test_progress_goes_from_0_to_1(scene, logic):
 def test_parameter_specs_follow_the_core_dataclasses():
     specs = {spec.name: spec for spec in bitemesh_logic.parameterSpecs()}
     assert list(specs) == list(bitemesh_logic.PARAMETERS)
-    from bitemesh.core.parameters import OptimizeSwitch
+    from bitemesh.core.parameters import FidelityParameters, OptimizeSwitch
     classes = {cls.__name__: cls for cls in (ImplicitParameters, BitingParameters, SpuriousParameters,
-                                             QualityParameters, OptimizeSwitch, LabelledParameters)}
+                                             QualityParameters, OptimizeSwitch, LabelledParameters,
+                                             FidelityParameters)}
     for name, (dataclass_name, field_name) in bitemesh_logic.PARAMETERS.items():
         item = {f.name: f for f in fields(classes[dataclass_name])}[field_name]
         spec = specs[name]

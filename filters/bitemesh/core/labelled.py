@@ -49,6 +49,7 @@ from .implicit import grid_layout
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
+from .samples import contour_gap
 from .spine import GRID_PER_RADIUS, Frame, MeshingResult, Source, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
 from .topology import boundary_facets
@@ -832,17 +833,10 @@ class LabelledImplicit:
         return samples if self.base is None else samples[(samples - self.base[0]) @ self.base[1] <= 0]
 
     def contour_gap(self) -> float:
-        """The gap the contours leave between their slices: over every surface point, the distance to the nearest
-        point of the same surface on another slice; its 99th percentile (input units)."""
-        gaps = []
-        for name, points in self.points.items():
-            slices = self.slices.get(name)
-            if slices is None or len(np.unique(slices)) < 2:
-                continue
-            for number in np.unique(slices):
-                mine = slices == number
-                gaps.append(cKDTree(points[~mine]).query(points[mine])[0])
-        return float(np.percentile(np.concatenate(gaps), 99)) if gaps else 0.0
+        """The gap the contours leave between their slices (:func:`bitemesh.core.samples.contour_gap`), the
+        largest over the surfaces (input units)."""
+        return max((contour_gap(points, self.slices[name]) for name, points in self.points.items()
+                    if name in self.slices), default=0.0)
 
     def tracing_noise(self) -> float:
         """The uncertainty of traced contours: half the median distance between neighbouring contour points

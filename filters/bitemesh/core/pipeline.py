@@ -15,7 +15,7 @@ from .implicit import MIN_POINTS, fit_implicit, grid_layout
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
-from .samples import PLANE_NEIGHBOURS, find_outliers, noise_level, sample_spacing
+from .samples import PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
                     Frame, MeshingResult, Source, check_grid, check_spacing, mesh_from_grid, mesh_source,
@@ -23,7 +23,8 @@ from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GR
 
 
 def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
-                  progress: ProgressCallback = None, biting: BitingParameters | None = None) -> Source:
+                  progress: ProgressCallback = None, biting: BitingParameters | None = None,
+                  slices=None) -> Source:
     """Scattered points as a :class:`Source`: outliers dropped (unless ``implicit.outliers`` is "keep"), the points
     centred and scaled to unit size (:meth:`Frame.around`), f fitted there (MPU or RBF), and the samples' spacing
     and noise measured for the fidelity check.
@@ -34,18 +35,27 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     implicit : method, error_bound (input units) and outliers of :class:`ImplicitParameters`
     biting : when given with a radius, the grid I it implies is checked against the data and the memory before the
         fit (a refusal then comes in a moment, not after the fit)
+    slices : (n,) int, the slice (contour) each point was traced on, or None for points sampled all over the
+        surface: the gap between slices bounds how far the mesh boundary may lie from the points, and the caps
+        beyond the first and the last of parallel slices are left out of that measure
     """
     points = _enough_points(points)
     if normals is not None:
         normals = np.asarray(normals, dtype=np.float64)
         if normals.shape != points.shape:
             raise InvalidInputError(f"normals must have the shape of points {points.shape}, got {normals.shape}")
+    if slices is not None:
+        slices = np.asarray(slices)
+        if slices.shape != (len(points),) or slices.dtype.kind not in "iu":
+            raise InvalidInputError(f"slices must hold one integer per point ({len(points)}), got shape "
+                                    f"{slices.shape} of {slices.dtype}")
     notes = []
     if implicit.outliers == "drop" and len(points) > 2 * PLANE_NEIGHBOURS:
         outlier = find_outliers(points)
         if outlier.any():
             points = points[~outlier]
             normals = None if normals is None else normals[~outlier]
+            slices = None if slices is None else slices[~outlier]
             notes.append(f"dropped {int(outlier.sum())} outliers of {len(outlier)} points ({outlier.mean():.1%}): "
                          "far from the others or off the surface their neighbours sample (outliers='keep' keeps "
                          "them)")
@@ -59,8 +69,12 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     error_bound = None if implicit.error_bound is None else implicit.error_bound / frame.scale
     function = fit_implicit(local, normals, method=implicit.method, error_bound=error_bound, progress=progress)
     distinct = np.unique(local, axis=0)
-    return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local,
-                  noise=noise_level(distinct), gap=2 * sample_spacing(distinct), notes=tuple(notes))
+    gap, caps = 2 * sample_spacing(distinct), None
+    if slices is not None:
+        gap = max(gap, contour_gap(local, slices))
+        caps = beyond_slices(local, slices)
+    return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local, noise=noise_level(distinct),
+                  gap=gap, open_boundary=caps, notes=tuple(notes))
 
 
 logger = logging.getLogger("bitemesh")
@@ -114,12 +128,13 @@ def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound
 def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
         biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
         progress: ProgressCallback = None, optimize: OptimizeParameters | None = None,
-        fidelity: FidelityParameters = FidelityParameters()) -> MeshingResult:
+        fidelity: FidelityParameters = FidelityParameters(), slices=None) -> MeshingResult:
     """Every step of the method on scattered points, with the parameters of each step (``optimize``: None skips
-    the MeshOptimizer): :func:`points_source`, then the spine (:func:`~bitemesh.core.spine.mesh_source`)."""
+    the MeshOptimizer): :func:`points_source`, then the spine (:func:`~bitemesh.core.spine.mesh_source`).
+    ``slices`` (optional): the contour each point was traced on, see :func:`points_source`."""
     seconds = {}
     with timed(seconds, "implicit fit"):
-        source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.3), biting)
+        source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.3), biting, slices)
     return mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.3, 1.0), seconds,
                        fidelity)
 

@@ -89,3 +89,42 @@ def noise_level(points: np.ndarray) -> float:
     chosen = points[::step]
     _, neighbours = cKDTree(points).query(chosen, k=min(PLANE_NEIGHBOURS, len(points)))
     return float(np.median(_planes(points[neighbours])[2]))
+
+
+def contour_gap(points: np.ndarray, slices: np.ndarray) -> float:
+    """The gap contours leave between their slices: over every point, the distance to the nearest point on another
+    slice; its 99th percentile (input units).  0 for fewer than two slices.
+
+    Parameters
+    ----------
+    points : (n, k) float64; slices : (n,) int, the slice (contour) of each point
+    """
+    slices = np.asarray(slices)
+    numbers = np.unique(slices)
+    if len(numbers) < 2:
+        return 0.0
+    gaps = [cKDTree(points[slices != number]).query(points[slices == number])[0] for number in numbers]
+    return float(np.percentile(np.concatenate(gaps), 99))
+
+
+def beyond_slices(points: np.ndarray, slices: np.ndarray):
+    """For contours on parallel slices: a callable (m, k) -> (m,) bool, True beyond the first and the last slice
+    (outside the slab they span), where the mesh closes the shape with caps that no contour samples; None when the
+    slices are not parallel (within 10 degrees) or fewer than two."""
+    normals = []
+    for number in np.unique(slices):
+        members = points[slices == number]
+        if len(members) < 3:
+            continue
+        _, spread, axes = np.linalg.svd(members - members.mean(axis=0), full_matrices=False)
+        if spread[-1] > 1e-3 * spread[0]:
+            return None   # not planar
+        normals.append(axes[-1])
+    if len(normals) < 2:
+        return None
+    normal = normals[0]
+    if np.min(np.abs(np.array(normals) @ normal)) < np.cos(np.radians(10)):
+        return None
+    height = points @ normal
+    low, high = height.min(), height.max()
+    return lambda x: (x @ normal < low) | (x @ normal > high)

@@ -143,8 +143,10 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         try:
             data = reader(str(path))
         except Exception as error:  # meshio raises ReadError, ValueError, IndexError, ... on bad files
-            raise InvalidInputError(
-                f"cannot read a mesh from '{path}': {type(error).__name__}: {error}") from error
+            data = _read_with_vtk(path) if path.suffix.lower() in (".vtu", ".vtk") else None
+            if data is None:
+                raise InvalidInputError(
+                    f"cannot read a mesh from '{path}': {type(error).__name__}: {error}") from error
     points = np.array(native(data.points), dtype=np.float64)
     if points.ndim != 2 or len(points) == 0:
         raise InvalidInputError(f"cannot read a mesh from '{path}': the file has no points")
@@ -178,6 +180,44 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         negative = signed_measures(points, cells) < 0
         cells[negative, :2] = cells[negative, 1::-1]
     return Mesh(points, cells, cell_data)
+
+
+def _read_with_vtk(path: Path):
+    """The file read by VTK's own reader, as meshio would give it (points, cells, cell data), or None when VTK
+    cannot read it either.  meshio 5.3 misreads valid files that VTK writes: raw appended data with field data
+    (ParaView's default for .vtu) shifts its offsets."""
+    import meshio
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    from ..convert import cell_types
+    from .files import vtk_silenced
+    from .pointsets import _vtk_reader
+
+    with vtk_silenced():
+        try:
+            reader = _vtk_reader(path)
+        except InvalidInputError:
+            return None
+        succeeded = reader.GetExecutive().Update()
+        grid = reader.GetOutputDataObject(0)
+    if not succeeded or reader.GetErrorCode() or grid is None or not grid.IsA("vtkUnstructuredGrid"):
+        return None
+    cells = grid.GetCells()
+    offsets = vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
+    connectivity = vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
+    types = cell_types(grid)
+    blocks, data = [], {}
+    for name, vtk_type, size in (("tetra", 10, 4), ("triangle", 5, 3)):
+        chosen = np.flatnonzero(types == vtk_type)
+        if chosen.size:
+            blocks.append((name, connectivity[offsets[chosen][:, None] + np.arange(size)]))
+            for index in range(grid.GetCellData().GetNumberOfArrays()):
+                array = grid.GetCellData().GetArray(index)
+                if array is not None and array.GetName():
+                    data.setdefault(array.GetName(), []).append(vtk_to_numpy(array)[chosen].copy())
+    points = vtk_to_numpy(grid.GetPoints().GetData()).astype(np.float64) if grid.GetPoints() else np.zeros((0, 3))
+    return meshio.Mesh(points, blocks, cell_data={name: arrays for name, arrays in data.items()
+                                                  if len(arrays) == len(blocks)})
 
 
 def _planar_z(points: np.ndarray) -> bool:

@@ -148,6 +148,8 @@ PARAMETERS = {
     "optimize": ("OptimizeSwitch", "optimize"),
     "domain": ("LabelledParameters", "domain"),
     "basePlane": ("LabelledParameters", "base_plane"),
+    "outliers": ("ImplicitParameters", "outliers"),
+    "allowUnfaithful": ("FidelityParameters", "allow_unfaithful"),
 }
 #: keywords of :meth:`BiteMeshLogic.process` beyond the panel's (no "automatic" sentinel fits them: their ranges
 #: include their low bound).
@@ -289,6 +291,8 @@ class BiteMeshResult:
     summary : bitemesh.core.quality.QualitySummary
     tableNode, seriesNode, chartNode : the radius-ratio histogram and its bar plot
     seconds : step -> wall-clock seconds
+    fidelity : bitemesh.core.fidelity.Fidelity, how closely the boundary follows the input (mm), or None
+    notes : what was done to the input on the way (points dropped as outliers, ...)
     """
 
     mesh: object
@@ -298,6 +302,8 @@ class BiteMeshResult:
     seriesNode: object
     chartNode: object
     seconds: dict = field(default_factory=dict)
+    fidelity: object = None
+    notes: tuple = ()
 
 
 #: node references from the output model to its histogram nodes (reused by the next run).
@@ -386,6 +392,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         biting = core.BitingParameters(**settings["BitingParameters"])
         spurious = core.SpuriousParameters(**settings["SpuriousParameters"])
         quality = core.QualityParameters(**settings["QualityParameters"])
+        fidelity = core.FidelityParameters(**settings["FidelityParameters"])
         labelled = core.LabelledParameters(**settings["LabelledParameters"])
         domain = (labelled.domain or "").strip()   # "" (or None) stands for the default domain
         optimize = core.OptimizeParameters() if core.OptimizeSwitch(**settings["OptimizeSwitch"]).optimize else None
@@ -399,33 +406,38 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             if domain:
                 raise InvalidInputError(f"domain: {labelled.domain!r} combines labelled contours, and a segmentation "
                                         "has none; clear domain to mesh the segment")
-            mesh, radius, seconds = self._meshSegment(nodes[0], segmentId, implicit, biting, spurious, optimize,
-                                                      sub_progress(progress, 0.0, 0.95))
+            mesh, result = self._meshSegment(nodes[0], segmentId, implicit, biting, spurious, optimize, fidelity,
+                                             sub_progress(progress, 0.0, 0.95))
         elif domain or any(node.IsA("vtkMRMLModelNode") and self._modelLabels(node)[0] is not None for node in nodes):
             points, labels, slices = self._labelledPoints(nodes)
             report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")
             result = run_labelled(points, labels, domain=domain or None, base_plane=labelled.base_plane,
                                   slices=slices, min_wall=labelled.min_wall, implicit=implicit, biting=biting,
-                                  spurious=spurious, optimize=optimize, progress=sub_progress(progress, 0.02, 0.95))
-            mesh, radius, seconds = result.mesh, result.radius, dict(result.seconds)
+                                  spurious=spurious, optimize=optimize, fidelity=fidelity,
+                                  progress=sub_progress(progress, 0.02, 0.95))
+            mesh = result.mesh
         else:
-            points, normals = self._scatteredPoints(nodes, implicit.method)
+            points, normals, slices = self._scatteredPoints(nodes, implicit.method)
             report(progress, 0.02, f"meshing {len(points)} points")
             result = bitemesh.run(points, normals, implicit, biting, spurious, sub_progress(progress, 0.02, 0.95),
-                                  optimize=optimize)
-            mesh, radius, seconds = result.mesh, result.radius, dict(result.seconds)
+                                  optimize=optimize, fidelity=fidelity, slices=slices)
+            mesh = result.mesh
+        radius, seconds = result.radius, dict(result.seconds)
 
         report(progress, 0.95, "writing the mesh")
         summary = bitemesh.quality_summary(mesh)
-        table, series, chart = self._writeOutputs(mesh, radius, summary, outputModelNode, quality.bins)
+        table, series, chart = self._writeOutputs(mesh, radius, summary, result.fidelity, outputModelNode,
+                                                  quality.bins)
         seconds["total"] = time.perf_counter() - clock
         logger.info("BiteMesh: %d tetrahedra, %d nodes, R = %.4g mm, mean radius ratio %.3f, in %.1f s",
                     summary.n_cells, summary.n_points, radius, summary.q_mean, seconds["total"])
+        if result.fidelity is not None:
+            logger.info("BiteMesh fidelity: %s", result.fidelity.describe())
         try:
             report(progress, 1.0, "done")
         except Cancelled:   # too late: the output is written, and a run that wrote it is not a cancelled one
             pass
-        return BiteMeshResult(mesh, radius, summary, table, series, chart, seconds)
+        return BiteMeshResult(mesh, radius, summary, table, series, chart, seconds, result.fidelity, result.notes)
 
     # --- checks ------------------------------------------------------------------------------------------------------
 
@@ -465,7 +477,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         if unknown:
             raise InvalidInputError(f"unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
         split = {name: {} for name in ("ImplicitParameters", "BitingParameters", "SpuriousParameters",
-                                       "QualityParameters", "OptimizeSwitch", "LabelledParameters")}
+                                       "QualityParameters", "OptimizeSwitch", "LabelledParameters",
+                                       "FidelityParameters")}
         split["ImplicitParameters"]["method"] = method
         for name, value in parameters.items():
             split[known[name]][name] = value
@@ -476,9 +489,11 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
     # --- inputs ------------------------------------------------------------------------------------------------------
 
     def _scatteredPoints(self, nodes, method: str):
-        """(points (n, 3), normals (n, 3) or None) in world coordinates from point lists, closed curves, models.
+        """(points (n, 3), normals (n, 3) or None, slices (n,) or None) in world coordinates from point lists,
+        closed curves, models.
 
-        Normals are kept only when every input gives them (closed curves and models with polygons do).
+        Normals are kept only when every input gives them (closed curves and models with polygons do); slices (the
+        curve of each point) only when every input is a closed curve.
         """
         from bitemesh.core.implicit import MAX_RBF_POINTS
         parts = []
@@ -504,7 +519,9 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
                     parts[index] = (points, contourNormals(points, nodes[index].GetName()))
         points = np.vstack([part[0] for part in parts])
         normals = np.vstack([part[1] for part in parts]) if all(part[1] is not None for part in parts) else None
-        return points, normals
+        slices = np.concatenate([np.full(len(part[0]), index) for index, part in enumerate(parts)]) \
+            if len(curves) == len(nodes) else None
+        return points, normals, slices
 
     @staticmethod
     def _pointListPoints(node) -> np.ndarray:
@@ -641,7 +658,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
 
     # --- a segmentation ----------------------------------------------------------------------------------------------
 
-    def _meshSegment(self, node, segmentId, implicit, biting, spurious, optimize, progress):
+    def _meshSegment(self, node, segmentId, implicit, biting, spurious, optimize, fidelity, progress):
         """Mesh one segment: its binary labelmap through bitemesh.labelmap.mesh_label_grid (the path the bitemesh
         command takes for label map files), which meshes in the voxel frame and places the mesh with the labelmap's
         IJK-to-RAS matrix; then the segmentation's parent transforms carry it to world."""
@@ -653,31 +670,36 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         firstVoxel = np.eye(4)
         firstVoxel[:3, 3] = ijk0   # labels[0, 0, 0] is voxel ijk0 of the labelmap's frame
         result = mesh_label_grid(labels, ijkToWorld @ firstVoxel, implicit=implicit, biting=biting,
-                                 spurious=spurious, optimize=optimize, progress=progress)
+                                 spurious=spurious, optimize=optimize, fidelity=fidelity, progress=progress)
         transform = _toWorld(node)
         if transform is None:
-            return result.mesh, result.radius, result.seconds
+            return result.mesh, result
         points = transformPoints(transform, result.mesh.points)
         cells = result.mesh.cells.copy()
         if np.sum(signed_measures(points, cells)) < 0:   # a parent transform that reflects
             cells[:, [1, 2]] = cells[:, [2, 1]]
         mesh = Mesh(points, cells)
-        return mesh.with_cell_data(**cell_quality(mesh)), result.radius, result.seconds
+        return mesh.with_cell_data(**cell_quality(mesh)), result
 
     # --- outputs -----------------------------------------------------------------------------------------------------
 
-    def _writeOutputs(self, mesh, radius, summary, outputModelNode, bins):
-        """The mesh into the model node (coloured by radius ratio), the histogram into table and plot nodes."""
-        from bitemesh.convert import field_array, mesh_to_unstructured
+    def _writeOutputs(self, mesh, radius, summary, fidelity, outputModelNode, bins):
+        """The mesh into the model node (coloured by radius ratio; the quality summary and the fidelity as field
+        data and attributes), the histogram into table and plot nodes."""
+        from bitemesh.convert import add_field_values, field_array, mesh_to_unstructured
         from bitemesh.core.quality import quality_histogram
 
         grid = mesh_to_unstructured(mesh)
         for name, value in list(asdict(summary).items()) + [("Radius", radius)]:
             grid.GetFieldData().AddArray(field_array(name, [value]))
+        figures = {} if fidelity is None else asdict(fidelity)
+        add_field_values(grid, figures, "Fidelity")
         scene = outputModelNode.GetScene()
         outputModelNode.SetAndObserveMesh(grid)
         outputModelNode.SetAttribute("BiteMesh.Radius", f"{radius:.6g}")
         outputModelNode.SetAttribute("BiteMesh.MeanRadiusRatio", f"{summary.q_mean:.6g}")
+        for name, value in figures.items():
+            outputModelNode.SetAttribute(f"BiteMesh.Fidelity.{name}", f"{value:.6g}")
         display = outputModelNode.GetDisplayNode()
         if display is None:
             outputModelNode.CreateDefaultDisplayNodes()
