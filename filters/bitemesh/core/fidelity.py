@@ -28,7 +28,7 @@ from .topology import boundary_facets
 #: a sample may be this many noise levels, plus R, from the boundary.
 NOISE_LEVELS = 3.0
 #: facets whose centroids are nearest to a sample are searched first, this many.
-_CANDIDATES = 16
+_CANDIDATES = 8
 #: at most this many samples are compared with the boundary (a deterministic subsample).
 MAX_SAMPLES = 200_000
 
@@ -117,11 +117,14 @@ def distances_to_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
     rows = np.repeat(np.arange(len(points)), count)
     found = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[near.ravel()]), axis=1)
     best = found.reshape(len(points), count).min(axis=1)
-    unsure = np.flatnonzero(near_distance[:, -1] < best + reach) if count < len(centroids) else []
-    for index in unsure:
-        candidates = np.array(tree.query_ball_point(points[index], best[index] + reach), dtype=np.int64)
-        repeated = np.repeat(points[index][None], len(candidates), axis=0)
-        best[index] = np.linalg.norm(repeated - closest_on_facets(repeated, corners[candidates]), axis=1).min()
+    if count < len(centroids):
+        unsure = np.flatnonzero(near_distance[:, -1] < best + reach)
+        if len(unsure):
+            candidates = tree.query_ball_point(points[unsure], best[unsure] + reach)
+            rows = np.repeat(unsure, [len(found) for found in candidates])
+            facets = np.concatenate([np.asarray(found, dtype=np.int64) for found in candidates])
+            found = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[facets]), axis=1)
+            np.minimum.at(best, rows, found)
     return best
 
 
