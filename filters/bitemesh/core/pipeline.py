@@ -18,7 +18,7 @@ from .parameters import (BitingParameters, FidelityParameters, ImplicitParameter
 from .samples import PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
-                    Frame, MeshingResult, Source, check_grid, check_spacing, mesh_from_grid, mesh_source,
+                    Frame, MeshingResult, Source, check_grid, check_memory, check_spacing, mesh_from_grid, mesh_source,
                     radius_for_cells, timed)
 
 
@@ -33,8 +33,8 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     ----------
     points : (n, k) float64, input units; normals : (n, k) float64 outward normals, or None to estimate them
     implicit : method, error_bound (input units) and outliers of :class:`ImplicitParameters`
-    biting : when given with a radius, the grid I it implies is checked against the data and the memory before the
-        fit (a refusal then comes in a moment, not after the fit)
+    biting : when given with a radius (or ``implicit`` with a grid spacing), the grid I they imply is checked
+        against the data and the memory before the fit (a refusal then comes in a moment, not after the fit)
     slices : (n,) int, the slice (contour) each point was traced on, or None for points sampled all over the
         surface: the gap between slices bounds how far the mesh boundary may lie from the points, and the caps
         beyond the first and the last of parallel slices are left out of that measure
@@ -66,6 +66,8 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     check_spacing(box, implicit)
     if biting is not None and biting.radius is not None:
         check_grid(box, biting.radius / frame.scale, implicit, biting)
+    elif biting is not None and implicit.grid_spacing is not None:
+        check_memory(box, None, implicit, biting)
     error_bound = None if implicit.error_bound is None else implicit.error_bound / frame.scale
     function = fit_implicit(local, normals, method=implicit.method, error_bound=error_bound, progress=progress)
     distinct = np.unique(local, axis=0)

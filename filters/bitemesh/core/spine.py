@@ -302,9 +302,16 @@ def check_grid(source: Source, radius: float, implicit: ImplicitParameters, biti
             f"grid_spacing {implicit.grid_spacing:g} is too coarse for {named} = {radius * scale:.4g}: the grid "
             f"must resolve R, grid_spacing <= R / 2 = {radius * scale / 2:.4g}; omit grid_spacing (default R / 4) "
             "or raise radius")
+    check_memory(source, radius, implicit, biting)
+
+
+def check_memory(source: Source, radius: float | None, implicit: ImplicitParameters, biting: BitingParameters) -> None:
+    """Refuse a grid I (for node spacing R, local units; None when ``grid_spacing`` is given, which alone sets
+    it) over ``max_memory_mb`` or over the memory the machine has free, with a hint in user units that fits."""
     if source.grid is not None:
         return
-    spacing, margin = grid_layout(source, radius, implicit)
+    scale = source.frame.scale
+    spacing, margin = grid_layout(source, np.inf if radius is None else radius, implicit)
     shape = grid_shape_unchecked(source.lower - margin, source.upper + margin, spacing)
     needed = np.prod(np.array(shape, dtype=np.float64)) * BYTES_PER_NODE / 2**20
     available = available_memory_mb()
@@ -314,7 +321,7 @@ def check_grid(source: Source, radius: float, implicit: ImplicitParameters, biti
         which = (f"max_memory_mb = {implicit.max_memory_mb:g}" if limit == implicit.max_memory_mb
                  else f"the {available:.0f} MiB of memory this machine has free")
         hint = (f"grid_spacing >= {implicit.grid_spacing * factor:.4g}" if implicit.grid_spacing is not None
-                else f"radius >= {radius * scale * factor:.4g}" if biting.radius is not None
+                else f"radius >= {radius * scale * factor:.4g}" if biting.radius is not None and radius is not None
                 else f"cells <= {int(biting.cells / factor ** len(shape))}")
         raise InvalidInputError(
             f"the grid I at spacing {spacing * scale:.4g} needs {' x '.join(map(str, shape))} nodes (about "

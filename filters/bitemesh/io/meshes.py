@@ -145,8 +145,10 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         except Exception as error:  # meshio raises ReadError, ValueError, IndexError, ... on bad files
             data = _read_with_vtk(path) if path.suffix.lower() in (".vtu", ".vtk") else None
             if data is None:
+                reason = f"{type(error).__name__}: {error}" if str(error).strip() else type(error).__name__
                 raise InvalidInputError(
-                    f"cannot read a mesh from '{path}': {type(error).__name__}: {error}") from error
+                    f"cannot read a mesh from '{path}': meshio could not parse it ({reason}); is the file "
+                    "truncated, or not of the format its extension says?") from error
     points = np.array(native(data.points), dtype=np.float64)
     if points.ndim != 2 or len(points) == 0:
         raise InvalidInputError(f"cannot read a mesh from '{path}': the file has no points")
