@@ -307,7 +307,8 @@ def measure(folder: Path, cells: int, options: dict, *, method: str = "rbf", los
 
 def describe(row: dict) -> str:
     seconds = row["seconds"]
-    reference = ", ".join(f"{name} mean {mean:.2f} max {peak:.2f} mm" for name, (mean, peak) in row["reference"].items())
+    reference = ", ".join(f"{name} mean {mean:.2f} max {peak:.2f} mm"
+                          for name, (mean, peak) in row["reference"].items())
     if "reference_mean" in row:
         reference += f"; mean of the three {row['reference_mean']:.2f} mm"
     cavities = ", ".join(f"{name} {'yes' if value else 'NO'}" for name, value in row["open"].items())

@@ -245,7 +245,8 @@ def machine() -> str:
 
 COLUMNS = [("mesher", "{}"), ("tets", "{:,}"), ("nodes", "{:,}"), ("mean Q", "{:.3f}"), ("min Q", "{:.3f}"),
            ("min dihedral (deg)", "{:.1f}"), ("% Q < 0.3", "{:.2f}"), ("edge CV", "{:.3f}"),
-           ("volume error %", "{:+.2f}"), ("valid", "{}"), ("seconds (median)", "{:.2f}"), ("x bitemesh time", "{:.2f}")]
+           ("volume error %", "{:+.2f}"), ("valid", "{}"), ("seconds (median)", "{:.2f}"),
+           ("x bitemesh time", "{:.2f}")]
 
 
 def main(argv=None) -> int:

@@ -166,11 +166,9 @@ def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
     cells = grid.GetCells()
     offsets = numpy_support.vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
     connectivity = numpy_support.vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
-    for cell_type, size in ((VTK_TETRA, 4), (VTK_TRIANGLE, 3)):
-        chosen = np.flatnonzero(types == cell_type)
-        if chosen.size:
-            break
-    else:
+    found = [(np.flatnonzero(types == cell_type), size) for cell_type, size in ((VTK_TETRA, 4), (VTK_TRIANGLE, 3))]
+    chosen, size = next(((members, size) for members, size in found if members.size), (None, 0))
+    if chosen is None:
         raise InvalidInputError(f"the mesh has no tetrahedra or triangles (cell types found: {sorted(set(types))})")
     table = connectivity[offsets[chosen][:, None] + np.arange(size)]
     if size == 3 and np.all(points[:, 2] == 0):

@@ -218,8 +218,8 @@ class LabelMapsNeedSimpleITK:
             raise InvalidInputError(
                 "a label map (vtkImageData) input needs SimpleITK, which ParaView's Python cannot import "
                 "(Debian has no python3-simpleitk): install a SimpleITK for that Python version in a folder of its own "
-                "(pip install --target DIR SimpleITK) and add DIR to PYTHONPATH, mesh the label map with the bitemesh command or the 3D "
-                "Slicer module, or connect scattered points") from None
+                "(pip install --target DIR SimpleITK) and add DIR to PYTHONPATH, mesh the label map with the "
+                "bitemesh command or the 3D Slicer module, or connect scattered points") from None
         return super().label_grid(image, geometry_only)
 
 

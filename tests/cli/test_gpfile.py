@@ -45,7 +45,8 @@ def test_the_gpfile_reads_with_its_label_counts_and_slices(shared_data):
 
 def test_the_package_ships_the_gpfile_with_its_licence(shared_data):
     assert (PACKAGED / "GPFile_000.txt").read_bytes() == gpfile(shared_data).read_bytes()
-    assert (PACKAGED / "LICENSE.biv-me").read_bytes() == (shared_data / "bivme_patient1" / "LICENSE.biv-me").read_bytes()
+    licence = shared_data / "bivme_patient1" / "LICENSE.biv-me"
+    assert (PACKAGED / "LICENSE.biv-me").read_bytes() == licence.read_bytes()
     assert "Apache" in (PACKAGED / "SOURCE.md").read_text()
 
 

@@ -22,7 +22,8 @@ def sampled(shape, spacing):
 
 
 @pytest.mark.parametrize("shape, radius", [(sphere(), 0.1), (torus(), 0.09), (die(), 0.11),
-                                           (two_cavity_shell(), 0.07), (annulus(), 0.05)], ids=lambda v: getattr(v, "name", ""))
+                                           (two_cavity_shell(), 0.07), (annulus(), 0.05)],
+                         ids=lambda v: getattr(v, "name", ""))
 def test_analytic_shapes_give_valid_domains_of_the_right_topology_volume_and_quality(shape, radius):
     result = mesh_from_grid(sampled(shape, radius / 4), BitingParameters(radius=radius, seed=0))
     assert_valid_domain(result.mesh, euler=shape.boundary_euler if shape.dim == 3 else None,
@@ -44,7 +45,10 @@ def test_the_circumcentre_test_removes_cells_outside_and_keeps_those_inside():
     shape = annulus()
     grid = sampled(shape, 0.02)
     angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
-    ring = lambda r: np.stack([r * np.cos(angles), r * np.sin(angles)], axis=1)
+
+    def ring(r):
+        return np.stack([r * np.cos(angles), r * np.sin(angles)], axis=1)
+
     nodes = np.concatenate([ring(1.0), ring(0.4), ring(0.7) + 1e-3])
     cells = delaunay(nodes)
     outside = outside_cells(grid, nodes, cells)
@@ -56,7 +60,10 @@ def test_the_circumcentre_test_removes_cells_outside_and_keeps_those_inside():
 def test_a_hollow_cavity_stays_open_and_a_stray_part_is_dropped():
     """Two disjoint balls, one 1/1000 the volume of the other: min_component drops the small one."""
     big, small = sphere(), sphere(0.12)
-    function = lambda p: np.maximum(big.function(p), small.function(p - np.array([1.6, 0, 0])))
+
+    def function(p):
+        return np.maximum(big.function(p), small.function(p - np.array([1.6, 0, 0])))
+
     grid = sample_function(function, (-1, -1, -1), (1.8, 1, 1), 0.03, margin=0.1)
     result = mesh_from_grid(grid, BitingParameters(radius=0.12))
     assert_valid_domain(result.mesh, euler=2, components=1)

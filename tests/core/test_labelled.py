@@ -36,7 +36,8 @@ def ellipse_section(centre, axes, origin, u, v, spacing):
     """Points about ``spacing`` apart on the section of an ellipsoid by the plane origin + s u + t v, or None."""
     weight = 1.0 / np.asarray(axes) ** 2
     offset = origin - centre
-    form = np.array([[np.sum(weight * u * u), np.sum(weight * u * v)], [np.sum(weight * u * v), np.sum(weight * v * v)]])
+    form = np.array([[np.sum(weight * u * u), np.sum(weight * u * v)],
+                     [np.sum(weight * u * v), np.sum(weight * v * v)]])
     linear = np.array([np.sum(weight * offset * u), np.sum(weight * offset * v)])
     middle = -np.linalg.solve(form, linear)
     level = 1.0 - np.sum(weight * offset * offset) + linear @ np.linalg.solve(form, linear)
@@ -210,7 +211,8 @@ def test_a_line_of_points_is_no_slice():
 
 @pytest.mark.parametrize("kernel", labelled.KERNELS)
 def test_the_rbf_interpolates_the_contours_and_is_signed(kernel):
-    points = np.vstack([circle(40, 10.0, z) for z in (-8.0, 0.0, 8.0)] + [circle(40, 6.0, 13.0), circle(40, 6.0, -13.0)])
+    points = np.vstack([circle(40, 10.0, z) for z in (-8.0, 0.0, 8.0)]
+                       + [circle(40, 6.0, 13.0), circle(40, 6.0, -13.0)])
     slices = np.repeat(np.arange(5), 40)
     normals = contour_normals(points, slices)
     rbf = fit_contour_rbf(points, normals, kernel=kernel, offset=2.0)

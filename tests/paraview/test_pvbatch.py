@@ -166,24 +166,12 @@ def test_the_paraview_mesh_is_the_mesh_of_bitemesh_run_here(pvbatch_run, points,
 
 def chain_here(points):
     """The five VTK filters in this Python, as pvbatch_script.py connects them."""
-    from bitemesh.algorithms import BitingSampler, DelaunayTetra, PointsToImplicit, QualityFilter, SpuriousCellFilter
     from bitemesh.convert import nodes_to_polydata, unstructured_to_mesh
-    implicit = PointsToImplicit()
-    implicit.SetInputData(nodes_to_polydata(points))
-    implicit.SetGridSpacing(GRID_SPACING)
-    implicit.SetMargin(3 * GRID_SPACING)
-    biting = BitingSampler()
-    biting.SetInputConnection(implicit.GetOutputPort())
-    biting.SetRadius(RADIUS)
-    biting.SetSeed(SEED)
-    tetra = DelaunayTetra()
-    tetra.SetInputConnection(biting.GetOutputPort())
-    spurious = SpuriousCellFilter()
-    spurious.SetInputConnection(0, tetra.GetOutputPort())
-    spurious.SetInputConnection(1, implicit.GetOutputPort())
-    quality = QualityFilter()
-    quality.SetInputConnection(spurious.GetOutputPort())
-    return unstructured_to_mesh(quality.update())
+
+    from tests.vtk.test_filters import chain
+    steps = chain(nodes_to_polydata(points), radius=RADIUS, grid_spacing=GRID_SPACING, margin=3 * GRID_SPACING,
+                  seed=SEED)
+    return unstructured_to_mesh(steps.quality.update())
 
 
 def test_a_negative_radius_is_a_paraview_error_naming_radius_without_a_crash(pvbatch_run):

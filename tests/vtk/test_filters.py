@@ -61,16 +61,18 @@ def polydata(points, normals=None, **arrays) -> vtkPolyData:
     return result
 
 
-def chain(source, *, cells=1500, radius=None, grid_spacing=None, method="mpu") -> SimpleNamespace:
+def chain(source, *, cells=1500, radius=None, grid_spacing=None, method="mpu", margin=None, seed=0) -> SimpleNamespace:
     """The five filters connected as the paper's pipeline (nothing runs yet)."""
     implicit = PointsToImplicit()
     implicit.SetInputData(source)
     implicit.SetMethod(method)
     implicit.SetGridSpacing(grid_spacing)
+    implicit.SetMargin(margin)
     biting = BitingSampler()
     biting.SetInputConnection(implicit.GetOutputPort())
     biting.SetCells(cells)
     biting.SetRadius(radius)
+    biting.SetSeed(seed)
     tetra = DelaunayTetra()
     tetra.SetInputConnection(biting.GetOutputPort())
     spurious = SpuriousCellFilter()

@@ -15,11 +15,11 @@ def add_parser(subcommands) -> None:
     parser = subcommands.add_parser(
         "mesh", help="mesh scattered points, labelled contours or a label map",
         description="Mesh the shape sampled by scattered points: .xyz/.csv/.txt (x y z [nx ny nz]) or "
-                    ".vtp/.vtk/.ply/.obj/.stl (points, and normals where present); or labelled contour points (a biv-me "
-                    "GPFile, a table with a label column, a VTP with a Label array), meshed as the domain their "
-                    "surfaces bound (--domain); or the labels of a label map (.nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, "
-                    "meshed in its physical LPS space). Writes .vtu/.vtk, .msh (gmsh), .inp (Abaqus) or .mesh "
-                    "(MEDIT).")
+                    ".vtp/.vtk/.vtu/.ply/.obj/.stl (points, and normals where present; a volume mesh's boundary); "
+                    "or labelled contour points (a biv-me GPFile, a table with a label column, a VTP with a Label "
+                    "array), meshed as the domain their surfaces bound (--domain); or the labels of a label map "
+                    "(.nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, meshed in its physical LPS space). Writes .vtu/.vtk, .msh "
+                    "(gmsh), .inp (Abaqus) or .mesh (MEDIT).")
     parser.add_argument("input", help="the scattered points, or a label map")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_parameter_options(parser, (TableParameters,))

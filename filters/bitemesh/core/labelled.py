@@ -905,7 +905,8 @@ def _base_plane(base_plane, points, labels, surface_points):
     try:
         point, normal = (np.asarray(part, dtype=np.float64) for part in base_plane)
     except (TypeError, ValueError):
-        raise InvalidInputError(f"base_plane must be 'valves', 'auto', None or (point, normal), got {base_plane!r}")
+        raise InvalidInputError(
+            f"base_plane must be 'valves', 'auto', None or (point, normal), got {base_plane!r}") from None
     if point.shape != (3,) or normal.shape != (3,) or not np.isfinite(point).all() or not np.isfinite(normal).all() \
             or not np.linalg.norm(normal) > 0:
         raise InvalidInputError(f"base_plane (point, normal) needs two finite 3-vectors, the normal nonzero (it "
@@ -1024,7 +1025,8 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         step = max(step, float(np.prod(upper - lower) / MAX_SURFACE_NODES) ** (1 / 3))
         functions[name] = sample_function(
             rbf, lower, upper, step, exact_within=SURFACE_BAND * step, levels=SURFACE_LEVELS,
-            progress=sub_progress(progress, 0.05 + 0.9 * (number + 0.3) / len(used), 0.05 + 0.9 * (number + 1) / len(used)))
+            progress=sub_progress(progress, 0.05 + 0.9 * (number + 0.3) / len(used),
+                                  0.05 + 0.9 * (number + 1) / len(used)))
         surface_points[name], surface_normals[name], surface_slices[name] = points[index], normals, slices[index]
     function = LabelledImplicit(surfaces=functions, tree=tree, expression=expression, base=base,
                                 min_wall=check_number(min_wall, "min_wall", low=0), lower=points[in_any].min(axis=0),

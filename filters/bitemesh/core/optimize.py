@@ -645,8 +645,9 @@ def optimize_mesh(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters
     Returns
     -------
     A valid mesh without cell data: of the states met (the input, the relaxed mesh, the mesh after each round of
-    sliver removal) the valid one with the input's :func:`topology` and the fewest poor cells (:func:`poor_cells`) plus boundary nodes off f = 0,
-    then the highest mean radius ratio; the input's points and cells when nothing did better.
+    sliver removal) the valid one with the input's :func:`topology` and the fewest poor cells (:func:`poor_cells`)
+    plus boundary nodes off f = 0, then the highest mean radius ratio; the input's points and cells when nothing did
+    better.
     Raises :class:`MeshingError` when no state, the input included, is a valid domain.
     """
     if mesh.dim != grid.dim:

@@ -107,8 +107,8 @@ class LabelledParameters(Parameters):
     """Labelled contours: points with a label each (a biv-me GPFile, a table or a ``Label`` array) to a domain."""
 
     domain: str = parameter("", "CSG of the labelled surfaces, e.g. 'EPI - LV_ENDO - RV_ENDO' (- difference, "
-                            "+ union, & intersection, parentheses); empty: the two-cavity myocardium for biv-me labels, "
-                            "else the only surface", text=True)
+                            "+ union, & intersection, parentheses); empty: the two-cavity myocardium for biv-me "
+                            "labels, else the only surface", text=True)
     base_plane: str = parameter("auto", "the plane that closes the domain: auto (the valve plane when valve points "
                                 "are labelled), valves (required), or none", choices=("auto", "valves", "none"))
     min_wall: Optional[float] = parameter(

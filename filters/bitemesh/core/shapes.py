@@ -112,7 +112,10 @@ def two_cavity_shell() -> Shape:
     def function(p):
         shell = np.minimum(ellipsoid_distance(p, *outer), -p[:, 2])
         return np.minimum(shell, np.minimum(-ellipsoid_distance(p, *lv), -ellipsoid_distance(p, *rv)))
-    half_volume = lambda axes: 2 / 3 * np.pi * np.prod(axes)
+
+    def half_volume(axes):
+        return 2 / 3 * np.pi * np.prod(axes)
+
     return Shape("two-cavity shell", function, (-1.0, -0.9, -1.6), (1.0, 0.9, 0.0),
                  half_volume(outer[1]) - half_volume(lv[1]) - half_volume(rv[1]), 2)
 
