@@ -187,7 +187,9 @@ def worker_pipeline(name: str, size: int, grid_path: str | None) -> dict:
     rss_run = _maxrss_mb()
     if grid_path:
         grid = result.implicit
-        np.savez(grid_path, origin=grid.origin, spacing=grid.spacing, values=grid.values, radius=result.radius)
+        # the grid I is in the source's local frame (centred, unit size): R in its units, and the map back
+        np.savez(grid_path, origin=grid.origin, spacing=grid.spacing, values=grid.values,
+                 radius=result.radius / result.frame.scale, linear=result.frame.linear, shift=result.frame.shift)
     return dict(info, seconds=dict(result.seconds), total_seconds=total, cpu_seconds=cpu,
                 grid_shape=list(result.implicit.shape),
                 grid_spacing=float(np.max(result.implicit.spacing)), n_nodes=int(len(result.nodes)),
@@ -232,12 +234,14 @@ def worker_baseline(name: str, size: int, grid_path: str) -> dict:
     from bitemesh.core.mesh import Mesh
     from bitemesh.core.parameters import BitingParameters, SpuriousParameters
     from bitemesh.core.quality import cell_quality
+    from bitemesh.core.spine import Frame
     from bitemesh.core.spurious import outside_cells
 
     rss_imported = _maxrss_mb()
     shape = getattr(shapes, SHAPES[name])()
     with np.load(grid_path) as saved:
         origin, spacing, values, radius = saved["origin"], saved["spacing"], saved["values"], float(saved["radius"])
+        frame = Frame(saved["linear"], saved["shift"])
     grid = ImplicitGrid(origin=origin, spacing=spacing, values=values)
     defaults, threshold = BitingParameters(), SpuriousParameters().threshold
     shared = {}
@@ -260,10 +264,10 @@ def worker_baseline(name: str, size: int, grid_path: str) -> dict:
         mesh = Mesh(nodes[used], renumber[kept])
         seconds["spurious cells"] = time.perf_counter() - clock
         clock = time.perf_counter()
-        mesh = mesh.with_cell_data(**cell_quality(mesh))
+        mesh = frame.mesh_to_user(mesh.with_cell_data(**cell_quality(mesh)))
         seconds["quality"] = time.perf_counter() - clock
         variants[variant] = dict(seconds=seconds, mesh_seconds=sum(seconds.values()),
-                                 metrics=mesh_metrics(mesh, shape, radius, name))
+                                 metrics=mesh_metrics(mesh, shape, radius * frame.scale, name))
     return dict(variants=variants, rss_after_import_mb=rss_imported, rss_after_run_mb=_maxrss_mb())
 
 
