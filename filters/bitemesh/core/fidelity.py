@@ -106,27 +106,44 @@ def closest_on_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
 def distances_to_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
     """(n,) exact distance of each point to the nearest of the facets ``corners`` (f, k, k).
 
-    The facets with the nearest centroids are tried first; a point whose answer could still be beaten by a facet
-    further out (its centroid within the answer plus the largest facet's radius) tries those too.
+    The facets with the nearest centroids are tried first.  A facet nearer than the answer has its centroid within
+    the answer plus its own radius (centroid to farthest corner): the facets up to the 99th percentile of those
+    radii are then searched within that reach of the points that could still gain, and the few larger ones
+    separately within theirs.
     """
     centroids = corners.mean(axis=1)
-    reach = float(np.linalg.norm(corners - centroids[:, None], axis=2).max())
+    radii = np.linalg.norm(corners - centroids[:, None], axis=2).max(axis=1)
+    reach = float(np.percentile(radii, 99))
+    best = np.full(len(points), np.inf)
     tree = cKDTree(centroids)
     count = min(_CANDIDATES, len(centroids))
     near_distance, near = tree.query(points, k=count)
     near_distance, near = near_distance.reshape(len(points), count), near.reshape(len(points), count)
-    rows = np.repeat(np.arange(len(points)), count)
-    found = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[near.ravel()]), axis=1)
-    best = found.reshape(len(points), count).min(axis=1)
+    _nearer(points, corners, best, np.repeat(np.arange(len(points)), count), near.ravel())
     if count < len(centroids):
         unsure = np.flatnonzero(near_distance[:, -1] < best + reach)
-        if len(unsure):
-            candidates = tree.query_ball_point(points[unsure], best[unsure] + reach)
-            rows = np.repeat(unsure, [len(found) for found in candidates])
-            facets = np.concatenate([np.asarray(found, dtype=np.int64) for found in candidates])
-            found = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[facets]), axis=1)
-            np.minimum.at(best, rows, found)
+        _nearer(points, corners, best, *_pairs(unsure, tree.query_ball_point(points[unsure], best[unsure] + reach)))
+    large = np.flatnonzero(radii > reach)
+    if len(large):
+        found = cKDTree(centroids[large]).query_ball_point(points, best + radii[large].max())
+        rows, index = _pairs(np.arange(len(points)), found)
+        _nearer(points, corners, best, rows, large[index])
     return best
+
+
+def _pairs(rows: np.ndarray, found) -> tuple:
+    """(point rows, facet indices) of a ball query's lists, one pair per facet found."""
+    counts = [len(facets) for facets in found]
+    facets = np.concatenate([np.asarray(facets, dtype=np.int64) for facets in found]) if sum(counts) else \
+        np.zeros(0, dtype=np.int64)
+    return np.repeat(rows, counts), facets
+
+
+def _nearer(points, corners, best, rows, facets) -> None:
+    """Lower ``best[rows]`` to the distance of each point row to its paired facet, where nearer."""
+    if len(rows):
+        distance = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[facets]), axis=1)
+        np.minimum.at(best, rows, distance)
 
 
 def facet_measures(corners: np.ndarray) -> np.ndarray:
