@@ -44,7 +44,8 @@ from bitemesh.core import labelled
 from bitemesh.core.grid import sample_function
 from bitemesh.core.implicit import fit_mpu
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
-from bitemesh.core.spine import Frame, Source, mesh_source
+from bitemesh.core.source import Frame, Source
+from bitemesh.core.spine import mesh_source
 from bitemesh.core.quality import (
     boundary_euler_characteristic,
     check_valid_domain,

@@ -234,7 +234,7 @@ def worker_baseline(name: str, size: int, grid_path: str) -> dict:
     from bitemesh.core.mesh import Mesh
     from bitemesh.core.parameters import BitingParameters, SpuriousParameters
     from bitemesh.core.quality import cell_quality
-    from bitemesh.core.spine import Frame
+    from bitemesh.core.source import Frame
     from bitemesh.core.spurious import outside_cells
 
     rss_imported = _maxrss_mb()

@@ -37,7 +37,8 @@ from .core.grid import ImplicitGrid
 from .core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                               SpuriousParameters, optimize_parameters)
 from .core.progress import ProgressCallback, report, sub_progress
-from .core.spine import Frame, MeshingResult, Source, mesh_source
+from .core.source import Frame, Source
+from .core.spine import MeshingResult, mesh_source
 
 #: voxels of background added on every side, so that a label touching the image border still closes.
 PAD_VOXELS = 2

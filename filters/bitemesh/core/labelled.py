@@ -50,7 +50,8 @@ from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
 from .samples import contour_gap
-from .spine import GRID_PER_RADIUS, Frame, MeshingResult, Source, mesh_source, timed
+from .source import Frame, Source
+from .spine import GRID_PER_RADIUS, MeshingResult, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
 from .topology import boundary_facets
 

@@ -18,8 +18,9 @@ from .parameters import (BitingParameters, FidelityParameters, ImplicitParameter
 from .samples import PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
-                    Frame, MeshingResult, Source, check_grid, check_memory, check_spacing, mesh_from_grid, mesh_source,
+                    MeshingResult, check_grid, check_memory, check_spacing, mesh_from_grid, mesh_source,
                     radius_for_cells, timed)
+from .source import Frame, Source  # noqa: F401 (re-exported)
 
 
 def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
