@@ -22,6 +22,8 @@ from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GR
                     radius_for_cells, timed)
 from .source import Frame, Source  # noqa: F401 (re-exported)
 
+logger = logging.getLogger("bitemesh")
+
 
 def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
                   progress: ProgressCallback = None, biting: BitingParameters | None = None,
@@ -78,9 +80,6 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         caps = beyond_slices(local, slices)
     return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local, noise=noise_level(distinct),
                   gap=gap, open_boundary=caps, notes=tuple(notes))
-
-
-logger = logging.getLogger("bitemesh")
 
 
 def _enough_points(points) -> np.ndarray:

@@ -10,7 +10,7 @@ from ..core.errors import InvalidInputError, check_points
 from .files import existing_file, vtk_silenced
 from .pointsets import _vtk_reader
 from ..core.columns import NAMES, role
-from .tables import _is_number, _split, column_roles, read_table, table_points
+from .tables import column_roles, is_number, read_table, split_fields, table_points
 
 LABELLED_TEXT_EXTENSIONS = (".txt", ".csv", ".tsv")
 LABELLED_VTK_EXTENSIONS = (".vtp", ".vtk", ".vtu")
@@ -75,16 +75,17 @@ def looks_labelled(path) -> bool:
         if suffix in LABELLED_TEXT_EXTENSIONS:
             with open(path, encoding="utf-8-sig", errors="replace") as stream:
                 lines = [line for line in (stream.readline() for _ in range(100)) if line.split("#", 1)[0].strip()]
-            first = next((i for i, line in enumerate(lines) if _is_number(_split(line, None)[0].split(",")[0]
+            first = next((i for i, line in enumerate(lines) if is_number(split_fields(line, None)[0].split(",")[0]
                                                                          .split(";")[0], True)), None)
             if first is None:
                 return False
             if first:
                 header = lines[first - 1]
-                return any(role(name) == "label" for mark in ("\t", ";", ",", None) for name in _split(header, mark))
-            fields = next((_split(lines[0], mark) for mark in ("\t", ";", ",") if mark in lines[0]),
-                          _split(lines[0], None))
-            return len(fields) >= 4 and not _is_number(fields[3], True)
+                return any(role(name) == "label" for mark in ("\t", ";", ",", None)
+                           for name in split_fields(header, mark))
+            fields = next((split_fields(lines[0], mark) for mark in ("\t", ";", ",") if mark in lines[0]),
+                          split_fields(lines[0], None))
+            return len(fields) >= 4 and not is_number(fields[3], True)
         if suffix in LABELLED_VTK_EXTENSIONS:
             with vtk_silenced():
                 reader = _vtk_reader(path)

@@ -75,7 +75,7 @@ class Table:
         return [row[column] for row in self.rows]
 
 
-def _is_number(field: str, decimal_comma: bool = False) -> bool:
+def is_number(field: str, decimal_comma: bool = False) -> bool:
     return bool((_COMMA_NUMBER if decimal_comma else _NUMBER).match(field)) or bool(_NUMBER.match(field))
 
 
@@ -114,12 +114,12 @@ def _is_data(line: str, path: Path) -> bool:
         separator, decimal_comma = _dialect(line, path)
     except InvalidInputError:
         return True   # numbers written in a way that read_table then explains
-    fields = _split(line, separator)
-    numbers = sum(_is_number(field, decimal_comma) for field in fields)
+    fields = split_fields(line, separator)
+    numbers = sum(is_number(field, decimal_comma) for field in fields)
     return numbers >= max(2, len(fields) / 2)
 
 
-def _split(line: str, separator) -> list:
+def split_fields(line: str, separator) -> list:
     body = line.split("#", 1)[0]
     return [field.strip() for field in body.split(separator)] if separator else body.split()
 
@@ -147,13 +147,13 @@ def read_table(path: Path) -> Table:
     names = None
     if start:
         header = numbered[start - 1][1]
-        names = next((fields for mark in ("\t", ";", ",", None) for fields in [_split(header, mark)]
-                      if len(fields) > 1 and (mark is None or mark in header)), _split(header, None))
+        names = next((fields for mark in ("\t", ";", ",", None) for fields in [split_fields(header, mark)]
+                      if len(fields) > 1 and (mark is None or mark in header)), split_fields(header, None))
         if start > 1:
             logger.info("'%s': %d lines before the header skipped", path.name, start - 1)
     rows, lines = [], []
     for number, line in numbered[start:]:
-        rows.append(_split(line, separator))
+        rows.append(split_fields(line, separator))
         lines.append(number)
     widths = {len(row) for row in rows}
     if len(widths) > 1:
