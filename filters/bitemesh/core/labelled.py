@@ -16,7 +16,9 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    plate r^2 log r and MPU): it passes through the points and bends least between slices, with the fewest
    spurious bubbles where short- and long-axis contours disagree.  A cavity also gets a point inside it at the
    centre of each of its valves (:data:`BIVME_OUTLETS`), so that it opens through the base instead of closing in
-   a dome just above the last short-axis slice.  Each RBF is sampled once on a fine grid, exactly near its zero
+   a dome just above the last short-axis slice.  The points are thinned to 1.6 mm apart and, beyond 1,200
+   constraints, the RBF is a partition of unity of RBFs on overlapping patches (:mod:`bitemesh.core.contour_rbf`),
+   so that denser contours cost about linearly.  Each RBF is sampled once on a fine grid, exactly near its zero
    level (:func:`bitemesh.core.grid.sample_function` with levels), so the domain is cheap to evaluate on the grid I.
 5. The domain: a CSG expression (:func:`parse_domain`) of the surfaces, ``-`` difference, ``+`` union, ``&``
    intersection, by min/max of the implicit values (:func:`evaluate_domain`; a difference keeps a thinnest wall
@@ -33,23 +35,22 @@ Convention as in :mod:`bitemesh.core.grid`: f > 0 inside, about the signed dista
 from __future__ import annotations
 
 import re
-import warnings
 from dataclasses import dataclass, field, replace
-from functools import cached_property
 
 import numpy as np
-from scipy import linalg, sparse
+from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
-from scipy.spatial.distance import pdist, squareform
+from scipy.spatial.distance import pdist
 
+from .contour_rbf import KERNELS, ContourRBF, fit_contour_rbf, off_surface_offsets  # noqa: F401
 from .errors import InvalidInputError, check_choice, check_number, check_points
 from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
 from .implicit import grid_layout
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
-from .samples import contour_gap
+from .samples import contour_gap, slice_spacing
 from .source import Frame, Source
 from .spine import GRID_PER_RADIUS, MeshingResult, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
@@ -88,8 +89,8 @@ BIVME_DEFAULT_DOMAIN = "EPI - LV_ENDO - RV_ENDO"
 #: the name the base plane takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
 BASE = "BASE"
 
-#: RBF kernels phi(r) (with a linear polynomial); "linear" (biharmonic) is the default (see benchmarks/bivme.py).
-KERNELS = ("linear", "cubic", "thin_plate")
+#: no patch of a surface's fit is narrower than this x the median distance between its slices.
+PATCH_PER_GAP = 1.0
 #: a polyline breaks where its points are more than this x the median spacing apart.
 GAP_FACTOR = 3.0
 #: a contour loop encloses nothing when 4 pi area / perimeter^2 is below this.
@@ -98,8 +99,6 @@ MIN_ROUNDNESS = 0.005
 _DENSE_POINTS = 1500
 #: infer_slices counts the points of each candidate plane among at most this many points.
 _PLANE_SAMPLE = 4000
-#: kernel entries per chunk when the RBF is evaluated: cache-sized (64 k entries are 8 times faster than 4 M).
-_CHUNK_ENTRIES = 1 << 16
 
 
 # --- labels and slices -------------------------------------------------------------------------------------------
@@ -421,197 +420,12 @@ def contour_normals(points, slices, planes=None, *, gap_factor: float = GAP_FACT
     return normals
 
 
-# --- one RBF per surface -----------------------------------------------------------------------------------------
-
-def _kernel(r: np.ndarray, kernel: str) -> np.ndarray:
-    """phi(r), in place on r."""
-    if kernel == "cubic":
-        cube = r * r
-        cube *= r
-        return cube
-    if kernel == "linear":
-        return r
-    # thin plate r^2 log r, 0 at r = 0
-    safe = np.where(r > 0, r, 1.0)
-    return np.multiply(r * r, np.log(safe), out=r)
-
-
-def _kernel_slope(r: np.ndarray, kernel: str) -> np.ndarray:
-    """phi'(r) / r (finite at r = 0 where the kernel is smooth)."""
-    if kernel == "cubic":
-        return 3.0 * r
-    if kernel == "linear":
-        return 1.0 / np.where(r > 0, r, np.inf)
-    return 2.0 * np.log(np.where(r > 0, r, 1.0)) + 1.0
-
-
-@dataclass(frozen=True, eq=False)
-class ContourRBF:
-    """f(x) = sum_j w_j phi(|y - c_j|) + a . y + b, y = (x - shift) / scale: a polyharmonic RBF, > 0 inside.
-
-    Attributes
-    ----------
-    centres : (m, 3) float64, the on- and off-surface points, scaled
-    weights : (m,) float64
-    polynomial : (4,) float64, b and a
-    kernel : "cubic" (r^3), "linear" (r) or "thin_plate" (r^2 log r)
-    shift : (3,) float64; scale : float, input units
-    points : (n, 3) float64, the surface's data points (input units)
-    """
-
-    centres: np.ndarray
-    weights: np.ndarray
-    polynomial: np.ndarray
-    kernel: str
-    shift: np.ndarray
-    scale: float
-    points: np.ndarray
-
-    @cached_property
-    def _centre_norms(self) -> np.ndarray:
-        return np.einsum("md,md->m", self.centres, self.centres)
-
-    @cached_property
-    def _centre_rows(self) -> np.ndarray:
-        return np.ascontiguousarray(-2.0 * self.centres.T)
-
-    def _blocks(self, x):
-        """(start, scaled points, distances to the centres) per chunk of x."""
-        y = (check_points(x, "x", dims=(3,)) - self.shift) / self.scale
-        step = max(1, _CHUNK_ENTRIES // len(self.centres))
-        for start in range(0, len(y), step):
-            part = y[start:start + step]
-            squared = part @ self._centre_rows
-            squared += self._centre_norms
-            squared += np.einsum("md,md->m", part, part)[:, None]
-            yield start, part, np.sqrt(np.maximum(squared, 0.0, out=squared), out=squared)
-
-    def __call__(self, x) -> np.ndarray:
-        """(m,) f at (m, 3) points, input units."""
-        x = np.asarray(x, dtype=np.float64)
-        value = np.empty(len(x))
-        for start, part, r in self._blocks(x):
-            value[start:start + len(part)] = (_kernel(r, self.kernel) @ self.weights + self.polynomial[0]
-                                              + part @ self.polynomial[1:])
-        return value
-
-    def gradient(self, x) -> np.ndarray:
-        """(m, 3) analytic gradient of f (per input unit)."""
-        x = np.asarray(x, dtype=np.float64)
-        slope = np.empty((len(x), 3))
-        for start, part, r in self._blocks(x):
-            factor = _kernel_slope(r, self.kernel) * self.weights   # (p, m)
-            slope[start:start + len(part)] = (part * factor.sum(axis=1)[:, None] - factor @ self.centres
-                                              + self.polynomial[1:])
-        return slope / self.scale
-
-
-def off_surface_offsets(points, normals, offset) -> np.ndarray:
-    """(n,) delta_i: ``offset``, halved (up to 5 times) until both p_i +/- delta_i n_i are nearer to p_i than to
-    any other point (about: no other point within 0.75 delta_i of them); 0 where there is no normal.
-
-    Along a contour the neighbours lie across the normal, so delta may exceed the point spacing; it shrinks where
-    another wall of the same surface is near (the thin apical RV cavity).
-    """
-    has = np.isfinite(normals).all(axis=1)
-    delta = np.where(has, float(offset), 0.0)
-    tree = cKDTree(points)
-    direction = np.where(has[:, None], normals, 0.0)
-    for _ in range(5):
-        crowded = np.zeros(len(points), bool)
-        for sign in (-1.0, 1.0):
-            crowded |= tree.query(points + sign * delta[:, None] * direction)[0] < 0.75 * delta - 1e-12
-        if not crowded.any():
-            break
-        delta[crowded] *= 0.5
-    return delta
-
-
-def fit_contour_rbf(points, normals, *, kernel: str = "linear", offset: float = 4.0,
-                    smoothing: float = 0.0, interior=None) -> ContourRBF:
-    """Polyharmonic RBF implicit of contour points with (in-plane) outward normals (Carr et al. 2001).
-
-    f is 0 on the points and +delta_i (inside) / -delta_i (outside) at p_i -/+ delta_i n_i, with delta_i from
-    :func:`off_surface_offsets` (``offset``, halved where another point is near), so that no off-surface point passes
-    another sample; an off-surface point closer than delta_i / 2 to another centre (contours that cross or hook
-    into each other) is left out.  Points without a normal (NaN) constrain only f = 0.  The system is solved
-    densely (3 n unknowns: about a second for 800 points); a nearly singular one (points repeated within rounding)
-    is refused.
-
-    Parameters
-    ----------
-    points : (n, 3) float64, input units, distinct
-    normals : (n, 3) float64 outward unit normals, NaN rows allowed
-    kernel : "linear" (phi = r, Carr's biharmonic, the default), "cubic" (r^3) or "thin_plate" (r^2 log r)
-    offset : float, input units, the largest off-surface distance
-    smoothing : float >= 0, added to the diagonal of the kernel matrix (0 interpolates), in units of
-        phi(bounding-box diagonal)
-    interior : ((k, 3), (k,)) float64, optional: more points and their values (> 0 inside, about the distance to
-        the surface), e.g. the centre of a valve through which a cavity must open
-
-    Returns
-    -------
-    ContourRBF
-    """
-    points = check_points(points, dims=(3,))
-    kernel = check_choice(kernel, "kernel", KERNELS)
-    offset = check_number(offset, "offset", low=0, low_open=True)
-    smoothing = check_number(smoothing, "smoothing", low=0)
-    normals = np.asarray(normals, dtype=np.float64)
-    if normals.shape != points.shape:
-        raise InvalidInputError(f"normals must have the shape of points {points.shape}, got {normals.shape}")
-    delta = off_surface_offsets(points, normals, offset)
-    has = delta > 0
-    direction = np.where(has[:, None], normals, 0.0)
-    off = np.vstack([points - delta[:, None] * direction, points + delta[:, None] * direction])[np.r_[has, has]]
-    off_values = np.r_[delta, -delta][np.r_[has, has]]
-    # An off-surface point closer than delta / 2 to another centre contradicts it (contours that cross or hook
-    # into each other): leave it out.
-    everything = np.vstack([points, off])
-    clear = (cKDTree(everything).query(off, k=2)[0][:, 1] >= 0.5 * np.abs(off_values))
-    centres = np.vstack([points, off[clear]])
-    values = np.r_[np.zeros(len(points)), off_values[clear]]
-    if interior is not None:
-        extra, extra_values = check_points(interior[0], "interior points", dims=(3,)), np.asarray(interior[1], float)
-        if extra_values.shape != (len(extra),) or not np.isfinite(extra_values).all():
-            raise InvalidInputError(f"interior values must be {len(extra)} finite numbers, got {interior[1]!r}")
-        centres, values = np.vstack([centres, extra]), np.r_[values, extra_values]
-    shift = points.mean(axis=0)
-    scale = float(np.linalg.norm(np.ptp(points, axis=0)))
-    y = (centres - shift) / scale
-    count = len(y)
-    matrix = np.zeros((count + 4, count + 4))
-    matrix[:count, :count] = _kernel(squareform(pdist(y)), kernel)
-    matrix[np.arange(count), np.arange(count)] += smoothing
-    matrix[:count, count] = matrix[count, :count] = 1.0
-    matrix[:count, count + 1:] = y
-    matrix[count + 1:, :count] = y.T
-    right = np.r_[values, np.zeros(4)]
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", linalg.LinAlgWarning)   # judged by the residual below
-            solution = linalg.solve(matrix, right, assume_a="sym")
-    except (linalg.LinAlgError, ValueError) as error:
-        solution, reason = None, str(error)
-    else:
-        residual = float(np.abs(matrix @ solution - right).max())
-        reason = f"residual {residual:.3g}"
-        if not residual <= 1e-6 * max(1.0, float(np.abs(values).max())):
-            solution = None
-    if solution is None:
-        raise InvalidInputError(
-            f"the RBF system of {len(points)} contour points cannot be solved ({reason}); are points repeated "
-            "(within rounding), or all in one plane?")
-    return ContourRBF(centres=y, weights=solution[:count], polynomial=solution[count:], kernel=kernel, shift=shift,
-                      scale=scale, points=points)
-
-
 # --- fast evaluation on many points ---------------------------------------------------------------------------------
 
 #: each surface is sampled on a grid of at most this many nodes (256 MiB): its spacing grows if needed.
 MAX_SURFACE_NODES = 1 << 25
 #: and exactly only within this x its spacing of its zero level, on grids 2 and 4 times coarser first.
-SURFACE_BAND, SURFACE_LEVELS = 3.0, 2
+SURFACE_BAND, SURFACE_LEVELS = 2.0, 3
 
 def _nodes(lower, spacing, shape) -> np.ndarray:
     """(prod(shape), 3) coordinates of the grid nodes, C order (axis 0 is x)."""
@@ -964,7 +778,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     gap_factor : float, of :func:`contour_normals`
     resolution : float, input units, the spacing of the grid each surface is sampled on (an ImplicitGrid);
         default 0.35 x the median spacing of the surface's points (1 mm for contours traced on 1.4 mm pixels), at
-        least 1/400 of its bounding-box diagonal
+        least offset / 4 (denser contours say no more between the slices) and 1/400 of its bounding-box diagonal
     progress : callable(fraction, message), optional
 
     Returns
@@ -1014,11 +828,11 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         normals = contour_normals(points[index], slices[index], planes, gap_factor=gap_factor, name=name)
         interior = _outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
         rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
-                              interior=interior)
+                              interior=interior, min_patch=PATCH_PER_GAP * slice_spacing(points[index], slices[index]))
         diagonal = float(np.linalg.norm(np.ptp(points[index], axis=0)))
         if resolution is None:
             spacing = float(np.median(cKDTree(points[index]).query(points[index], k=2)[0][:, 1]))
-            step = max(0.35 * spacing, diagonal / 400)
+            step = max(0.35 * spacing, offset / 4, diagonal / 400)
         else:
             step = check_number(resolution, "resolution", low=0, low_open=True)
         margin = 0.15 * np.ptp(points[index], axis=0) + 4 * step

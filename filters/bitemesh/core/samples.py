@@ -91,6 +91,16 @@ def noise_level(points: np.ndarray) -> float:
     return float(np.median(_planes(points[neighbours])[2]))
 
 
+def _to_other_slices(points: np.ndarray, slices: np.ndarray) -> np.ndarray:
+    """Over every point, the distance to the nearest point on another slice; empty for fewer than two slices."""
+    slices = np.asarray(slices)
+    numbers = np.unique(slices)
+    if len(numbers) < 2:
+        return np.zeros(0)
+    return np.concatenate([cKDTree(points[slices != number]).query(points[slices == number])[0]
+                           for number in numbers])
+
+
 def contour_gap(points: np.ndarray, slices: np.ndarray) -> float:
     """The gap contours leave between their slices: over every point, the distance to the nearest point on another
     slice; its 99th percentile (input units).  0 for fewer than two slices.
@@ -99,12 +109,14 @@ def contour_gap(points: np.ndarray, slices: np.ndarray) -> float:
     ----------
     points : (n, k) float64; slices : (n,) int, the slice (contour) of each point
     """
-    slices = np.asarray(slices)
-    numbers = np.unique(slices)
-    if len(numbers) < 2:
-        return 0.0
-    gaps = [cKDTree(points[slices != number]).query(points[slices == number])[0] for number in numbers]
-    return float(np.percentile(np.concatenate(gaps), 99))
+    distances = _to_other_slices(points, slices)
+    return float(np.percentile(distances, 99)) if len(distances) else 0.0
+
+
+def slice_spacing(points: np.ndarray, slices: np.ndarray) -> float:
+    """The typical distance between slices: the median of the distances of :func:`contour_gap` (input units)."""
+    distances = _to_other_slices(points, slices)
+    return float(np.median(distances)) if len(distances) else 0.0
 
 
 def beyond_slices(points: np.ndarray, slices: np.ndarray):

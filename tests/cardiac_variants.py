@@ -1,0 +1,112 @@
+"""Variants of a biv-me GPFile, built the way real exports differ from the shipped case (issue 10): denser
+contours, no RV epicardium, no outflow valves, no valves at all, an LV only, another header, another time frame,
+labels without their SAX/LAX prefix, scanner coordinates.  Shared by the tests and benchmarks/bivme.py.
+
+A GPFile here is a dict of columns: points (n, 3) float64 mm, labels (n,) str, slices (n,) int64, frames (n,)
+float64 (the "time frame" column).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+HEADER = ("x", "y", "z", "contour type", "frameID", "weight", "time frame")
+RV_EPICARDIUM = ("SAX_RV_EPICARDIAL", "LAX_RV_EPICARDIAL")
+OUTFLOW_VALVES = ("AORTA_VALVE", "PULMONARY_VALVE")
+VALVES = ("MITRAL_VALVE", "TRICUSPID_VALVE") + OUTFLOW_VALVES
+#: the labels of the left ventricle alone (and the points that orient and open it).
+LEFT_VENTRICLE = ("SAX_LV_ENDOCARDIAL", "LAX_LV_ENDOCARDIAL", "SAX_LV_EPICARDIAL", "LAX_LV_EPICARDIAL",
+                  "MITRAL_VALVE", "AORTA_VALVE", "APEX_POINT")
+
+
+def read_gpfile(path) -> dict:
+    """The columns of a GPFile (tab-separated, one header row)."""
+    rows = [line.split("\t") for line in Path(path).read_text().splitlines()[1:] if line.strip()]
+    return {"points": np.array([[float(v) for v in row[:3]] for row in rows]),
+            "labels": np.array([row[3] for row in rows]), "slices": np.array([int(row[4]) for row in rows]),
+            "frames": np.array([float(row[6]) for row in rows])}
+
+
+def write_gpfile(gp: dict, path, header=HEADER) -> Path:
+    """Write ``gp`` as a GPFile with ``header`` (its names, tab-separated)."""
+    lines = ["\t".join(header)] + [
+        f"{x:.5f}\t{y:.5f}\t{z:.5f}\t{label}\t{slice_id}\t1.0\t{frame:g}"
+        for (x, y, z), label, slice_id, frame in zip(gp["points"], gp["labels"], gp["slices"], gp["frames"])]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def subset(gp: dict, keep) -> dict:
+    return {key: value[keep] for key, value in gp.items()}
+
+
+def without(gp: dict, labels) -> dict:
+    """Every point whose label is not one of ``labels``."""
+    return subset(gp, ~np.isin(gp["labels"], labels))
+
+
+def only(gp: dict, labels) -> dict:
+    return subset(gp, np.isin(gp["labels"], labels))
+
+
+def denser(gp: dict, factor: int = 4) -> dict:
+    """Each contour (one label on one slice, its points in file order) resampled ``factor`` times denser: points
+    interpolated along each segment no longer than 3 x the contour's median segment (gaps stay open)."""
+    parts = {key: [] for key in gp}
+    for label, slice_id in dict.fromkeys(zip(gp["labels"].tolist(), gp["slices"].tolist())):
+        members = np.flatnonzero((gp["labels"] == label) & (gp["slices"] == slice_id))
+        points = gp["points"][members]
+        if len(points) < 3 or "VALVE" in label or "POINT" in label or label == "RV_INSERT":
+            new = points
+        else:
+            steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+            short = steps <= 3 * np.median(steps)
+            t = np.arange(factor)[None, :, None] / factor
+            between = points[:-1, None] + t * (points[1:] - points[:-1])[:, None]
+            new = np.vstack([np.vstack([segment if ok else segment[:1] for segment, ok in zip(between, short)]),
+                             points[-1:]])
+        parts["points"].append(new)
+        for key in ("labels", "slices", "frames"):
+            parts[key].append(np.full(len(new), gp[key][members[0]]))
+    return {key: np.concatenate(value) for key, value in parts.items()}
+
+
+def unprefixed(gp: dict) -> dict:
+    """Labels without their SAX_/LAX_ prefix (LV_ENDOCARDIAL, RV_FREEWALL, ...), as some exports write them."""
+    labels = np.array([label.split("_", 1)[1] if label[:4] in ("SAX_", "LAX_") else label for label in gp["labels"]])
+    return {**gp, "labels": labels}
+
+
+def moved(gp: dict, shift=(-180.0, 140.0, 920.0)) -> dict:
+    """The same heart at scanner coordinates far from the origin (mm)."""
+    return {**gp, "points": gp["points"] + np.asarray(shift)}
+
+
+def in_frame(gp: dict, frame: float) -> dict:
+    """Every point in time frame ``frame``."""
+    return {**gp, "frames": np.full(len(gp["frames"]), float(frame))}
+
+
+#: name -> (builder of the variant from the shipped case, the GPFile header it is written with)
+VARIANTS = {
+    "shipped": (lambda gp: gp, HEADER),
+    "denser 4x": (denser, HEADER),
+    "denser 6x": (lambda gp: denser(gp, 6), HEADER),
+    "no RV epicardium": (lambda gp: without(gp, RV_EPICARDIUM), HEADER),
+    "no outflow valves": (lambda gp: without(gp, OUTFLOW_VALVES), HEADER),
+    "no valves": (lambda gp: without(gp, VALVES), HEADER),
+    "LV only": (lambda gp: only(gp, LEFT_VENTRICLE), HEADER),
+    "sliceID header, frame 1": (lambda gp: in_frame(gp, 1), HEADER[:4] + ("sliceID",) + HEADER[5:]),
+    "no SAX/LAX prefix": (unprefixed, HEADER),
+    "scanner coordinates": (moved, HEADER),
+    "like GPFile of issue 10": (lambda gp: in_frame(denser(without(gp, RV_EPICARDIUM + OUTFLOW_VALVES)), 1),
+                                HEADER[:4] + ("sliceID",) + HEADER[5:]),
+}
+
+
+def variant_file(shipped, name: str, folder) -> Path:
+    """Write the variant ``name`` of the shipped GPFile into ``folder``; its path."""
+    build, header = VARIANTS[name]
+    stem = "".join(c if c.isalnum() else "_" for c in name)
+    return write_gpfile(build(read_gpfile(shipped)), Path(folder) / f"GPFile_{stem}.txt", header)
