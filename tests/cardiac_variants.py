@@ -50,6 +50,13 @@ def only(gp: dict, labels) -> dict:
     return subset(gp, np.isin(gp["labels"], labels))
 
 
+def left_ventricle(gp: dict) -> dict:
+    """An LV-only study: the LV's labels, its epicardium traced all round (biv-me's LV epicardial contours stop at
+    the RV insertions; the septum's RV face, RV_SEPTUM, closes them)."""
+    labels = np.array([label.replace("RV_SEPTUM", "LV_EPICARDIAL") for label in gp["labels"]])
+    return only({**gp, "labels": labels}, LEFT_VENTRICLE)
+
+
 def denser(gp: dict, factor: int = 4) -> dict:
     """Each contour (one label on one slice, its points in file order) resampled ``factor`` times denser: points
     interpolated along each segment no longer than 3 x the contour's median segment (gaps stay open)."""
@@ -96,7 +103,7 @@ VARIANTS = {
     "no RV epicardium": (lambda gp: without(gp, RV_EPICARDIUM), HEADER),
     "no outflow valves": (lambda gp: without(gp, OUTFLOW_VALVES), HEADER),
     "no valves": (lambda gp: without(gp, VALVES), HEADER),
-    "LV only": (lambda gp: only(gp, LEFT_VENTRICLE), HEADER),
+    "LV only": (left_ventricle, HEADER),
     "sliceID header, frame 1": (lambda gp: in_frame(gp, 1), HEADER[:4] + ("sliceID",) + HEADER[5:]),
     "no SAX/LAX prefix": (unprefixed, HEADER),
     "scanner coordinates": (moved, HEADER),

@@ -254,7 +254,10 @@ def test_a_gpfile_without_rv_labels_names_the_missing_surface(shared_data):
     with pytest.raises(InvalidInputError, match=r"surface RV_ENDO needs points labelled SAX_RV_FREEWALL or "
                                                 r"LAX_RV_FREEWALL or SAX_RV_SEPTUM or LAX_RV_SEPTUM or .*, and the "
                                                 r"input has none; labels present: AORTA_VALVE \(2\)"):
-        labelled.labelled_implicit(points[keep], labels[keep], slices=slices[keep])
+        labelled.labelled_implicit(points[keep], labels[keep], labelled.BIVME_DEFAULT_DOMAIN, slices=slices[keep])
+    # by default, without RV contours, the domain is the LV's
+    function, _, _ = labelled.labelled_implicit(points[keep], labels[keep], slices=slices[keep])
+    assert function.expression == "LV_EPI - LV_ENDO" and "meshed as the left ventricle" in function.notes[-1]
     # an LV-only domain needs none of them
     lv_only = ~np.isin(labels, ["SAX_RV_FREEWALL", "LAX_RV_FREEWALL"])
     function, _, _ = labelled.labelled_implicit(points[lv_only], labels[lv_only], "LV_EPI - LV_ENDO",

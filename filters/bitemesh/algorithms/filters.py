@@ -60,7 +60,8 @@ def labelled_contours(dataset):
 
 def labelled_options(parameters: LabelledParameters) -> dict:
     """Keywords of :func:`~bitemesh.core.labelled.labelled_implicit` from LabelledParameters."""
-    return {"domain": (parameters.domain or "").strip() or None, "base_plane": parameters.base_plane}
+    return {"domain": (parameters.domain or "").strip() or None, "base_plane": parameters.base_plane,
+            "rv_wall": parameters.rv_wall}
 
 
 @with_parameters(ImplicitParameters, LabelMapParameters, LabelledParameters)
@@ -312,7 +313,8 @@ class MeshFromPoints(BitemeshAlgorithm):
             labelled = self.parameters(LabelledParameters)
             points, labels, slices = contours
             result = run_labelled(points, labels, slices=slices, min_wall=labelled.min_wall,
-                                  **labelled_options(labelled), **steps)
+                                  allow_implausible=bool(labelled.allow_implausible), **labelled_options(labelled),
+                                  **steps)
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(result.mesh, output)
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))

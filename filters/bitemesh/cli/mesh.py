@@ -50,11 +50,12 @@ def optimize_parameters(args):
 
 def run(args) -> None:
     check_output(args.output)
-    columns = parameters_from_args(args, (TableParameters,))[0].columns or None
+    table = parameters_from_args(args, (TableParameters,))[0]
+    columns = table.columns or None
     label_map = args.input.lower().endswith(LABEL_MAP_EXTENSIONS)
     labelled = not label_map and (looks_labelled(args.input) or (columns and "label" in columns.lower()))
-    given = [flag for flag, on in (("--config", args.config), *((f"--{name.replace('_', '-')}", True)
-                                                                 for name in labelled_flags(args))) if on]
+    given = [flag for flag, on in (("--config", args.config), ("--frame", table.frame is not None),
+                                   *((f"--{name.replace('_', '-')}", True) for name in labelled_flags(args))) if on]
     if given and not labelled:
         raise InvalidInputError(
             f"{given[0]} applies to labelled contours, and '{args.input}' has no label column or Label array (a "
@@ -70,7 +71,7 @@ def run(args) -> None:
         if label_map:
             result = mesh_label_map(args, steps, bar)
         elif labelled:
-            result = mesh_labelled_points(args, steps, bar, columns=columns)
+            result = mesh_labelled_points(args, steps, bar, columns=columns, frame=table.frame)
         else:
             result = run_pipeline(*read_points(args.input, columns), progress=bar, **steps)
     finally:
@@ -96,10 +97,11 @@ def labelled_flags(args) -> dict:
     return given
 
 
-def mesh_labelled_points(args, steps: dict, progress, path=None, columns=None):
-    """Labelled contour points (``path``, default the input) to the mesh of the domain of ``--domain``."""
+def mesh_labelled_points(args, steps: dict, progress, path=None, columns=None, frame=None):
+    """Labelled contour points (``path``, default the input; time frame ``frame``) to the mesh of the domain of
+    ``--domain``."""
     from ..core.labelled import run_labelled
-    points, labels, slices = read_labelled_points(path or args.input, slices=True, columns=columns)
+    points, labels, slices = read_labelled_points(path or args.input, slices=True, columns=columns, frame=frame)
     options = read_labelled_config(args.config) if args.config else {}
     options.update(labelled_flags(args))   # a flag given wins over the config file
     return run_labelled(points, labels, slices=slices, progress=progress, **steps, **options)

@@ -5,19 +5,20 @@ from __future__ import annotations
 import re
 
 #: what a column may be.
-ROLES = ("x", "y", "z", "nx", "ny", "nz", "label", "slice", "skip")
-#: names (see :func:`normalised`) -> role.  A GPFile's label is "contour type" and its slice "frameID" (its
-#: "time frame" is the cardiac phase, not a slice).
+ROLES = ("x", "y", "z", "nx", "ny", "nz", "label", "slice", "frame", "skip")
+#: names (see :func:`normalised`) -> role.  A GPFile's label is "contour type", its slice "frameID" (or "sliceID")
+#: and its "time frame" the cardiac phase (role "frame").
 NAMES = {
     **{name: axis for axis in "xyz" for name in (axis, f"pos{axis}", f"position{axis}", f"point{axis}",
                                                    f"coord{axis}", f"coordinate{axis}", f"{axis}coord")},
     **{name: f"n{axis}" for axis in "xyz" for name in (f"n{axis}", f"normal{axis}", f"normals{axis}")},
     **{name: "label" for name in ("label", "labels", "contourtype", "type", "region", "surface")},
     **{name: "slice" for name in ("frameid", "sliceid", "slice", "sliceindex", "imageid")},
+    **{name: "frame" for name in ("timeframe", "time", "frame", "phase", "cardiacphase", "timeframeid")},
 }
 #: names read past with a note: what point clouds and biv-me files carry beside the coordinates.
-KNOWN_OTHERS = ("r", "g", "b", "a", "red", "green", "blue", "alpha", "intensity", "i", "weight", "time", "frame",
-                "timeframe", "scalar", "value", "confidence", "curvature", "id", "index")
+KNOWN_OTHERS = ("r", "g", "b", "a", "red", "green", "blue", "alpha", "intensity", "i", "weight", "scalar", "value",
+                "confidence", "curvature", "id", "index")
 
 
 def normalised(name: str) -> str:

@@ -34,6 +34,7 @@ Convention as in :mod:`bitemesh.core.grid`: f > 0 inside, about the signed dista
 """
 from __future__ import annotations
 
+import logging
 import re
 from dataclasses import dataclass, field, replace
 
@@ -43,6 +44,11 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist
 
+from .cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTLETS,  # noqa: F401 (re-exported)
+                      BIVME_SURFACES, BIVME_VALVES, CARDIAC_RADIUS, LV_DOMAIN, OUTLET_WALL, RV_WALL,
+                      basal_slice_plane, bivme_domain, check_heart,
+                      canonical_labels, default_surfaces, grown, is_bivme, needs_derived_epicardium,
+                      unused_labels_note)
 from .contour_rbf import KERNELS, ContourRBF, fit_contour_rbf, off_surface_offsets  # noqa: F401
 from .errors import InvalidInputError, check_choice, check_number, check_points
 from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
@@ -56,36 +62,8 @@ from .spine import GRID_PER_RADIUS, MeshingResult, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
 from .topology import boundary_facets
 
-#: biv-me guide-point labels -> the surfaces they sample (see the module docstring for the septum).  biv-me splits
-#: the RV endocardium into free wall and septum (older exports: RV_ENDOCARDIAL; the outflow tract: OUTLET_* and
-#: SAX_RV_OUTLET), and its LV epicardial contours stop at the RV insertions (the septum's RV face is RV_SEPTUM).
-BIVME_SURFACES = {
-    "EPI": ("SAX_LV_EPICARDIAL", "LAX_LV_EPICARDIAL", "SAX_RV_EPICARDIAL", "LAX_RV_EPICARDIAL",
-            "OUTLET_RV_EPICARDIAL", "SAX_EPICARDIAL", "LAX_EPICARDIAL"),
-    "LV_ENDO": ("SAX_LV_ENDOCARDIAL", "LAX_LV_ENDOCARDIAL"),
-    "RV_ENDO": ("SAX_RV_FREEWALL", "LAX_RV_FREEWALL", "SAX_RV_SEPTUM", "LAX_RV_SEPTUM", "SAX_RV_ENDOCARDIAL",
-                "LAX_RV_ENDOCARDIAL", "SAX_RV_OUTLET", "OUTLET_RV_FREEWALL", "OUTLET_RV_SEPTUM"),
-    "LV_EPI": ("SAX_LV_EPICARDIAL", "LAX_LV_EPICARDIAL", "SAX_RV_SEPTUM", "LAX_RV_SEPTUM"),
-}
-#: the valve annulus points a base plane is fitted to.
-BIVME_VALVES = ("MITRAL_VALVE", "AORTA_VALVE", "TRICUSPID_VALVE", "PULMONARY_VALVE")
-#: the valves through which each cavity opens: each valve's centre is a point inside the cavity, at the valve's
-#: radius from its wall, so that the cavity reaches through the base instead of closing in a dome below it; the
-#: epicardium holds the valves too, a wall's thickness beyond their rims (:data:`OUTLET_WALL`).
-BIVME_OUTLETS = {"LV_ENDO": ("MITRAL_VALVE", "AORTA_VALVE"), "RV_ENDO": ("TRICUSPID_VALVE", "PULMONARY_VALVE"),
-                 "EPI": BIVME_VALVES, "LV_EPI": ("MITRAL_VALVE", "AORTA_VALVE")}
-#: an epicardium's valve constraint: the valve's radius plus this (input units), about a wall's thickness.
-OUTLET_WALL = {"EPI": 5.0, "LV_EPI": 5.0}
-#: points that must lie below the base plane (they orient it).
-BIVME_APEX = ("APEX_POINT", "APEX_EPI_POINT", "APEX_ENDO_POINT")
-#: every label biv-me writes (RV_INSERT marks where the RV wall meets the septum, *_PHANTOM are generated valve
-#: points, *_EXTENT mark the long-axis extent; bitemesh does not use them).
-BIVME_LABELS = frozenset(
-    {label for labels in BIVME_SURFACES.values() for label in labels} | set(BIVME_VALVES) | set(BIVME_APEX)
-    | {"RV_INSERT", "LAX_LA", "LAX_RA", "LAX_LV_EXTENT", "LAX_RV_EXTENT", "LAX_LA_EXTENT", "LAX_RA_EXTENT",
-       "MITRAL_PHANTOM", "TRICUSPID_PHANTOM", "AORTA_PHANTOM", "PULMONARY_PHANTOM", "EXCLUDED"})
-#: the two-cavity myocardium, the default domain for biv-me labels.
-BIVME_DEFAULT_DOMAIN = "EPI - LV_ENDO - RV_ENDO"
+logger = logging.getLogger("bitemesh")
+
 #: the name the base plane takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
 BASE = "BASE"
 
@@ -112,19 +90,6 @@ def _as_labels(labels, count: int) -> np.ndarray:
             raise InvalidInputError("labels must be whole numbers or strings; got non-integer floats")
         labels = labels.astype(np.int64)
     return np.array([str(label).strip() for label in labels.tolist()], dtype=object).astype(str)
-
-
-def is_bivme(labels) -> bool:
-    """True when any label is one of biv-me's guide-point labels."""
-    return bool(set(np.unique(np.asarray(labels).astype(str)).tolist()) & BIVME_LABELS)
-
-
-def default_surfaces(labels) -> dict:
-    """The surfaces of these labels: :data:`BIVME_SURFACES` for biv-me labels, else one surface per label."""
-    labels = np.asarray(labels).astype(str)
-    if is_bivme(labels):
-        return dict(BIVME_SURFACES)
-    return {label: (label,) for label in np.unique(labels).tolist()}
 
 
 def infer_slices(points, *, tolerance=None, min_points: int = 8, seed: int = 0, trials: int = 400) -> np.ndarray:
@@ -522,7 +487,7 @@ def parse_domain(expression: str, known) -> tuple:
 
 def domain_names(tree) -> list:
     """The surface names a parsed domain uses, in order of first use."""
-    if tree[0] == "name":
+    if tree[0] in ("name", "grow"):
         return [tree[1]]
     return list(dict.fromkeys(domain_names(tree[1]) + domain_names(tree[2])))
 
@@ -536,13 +501,16 @@ def evaluate_domain(tree, values: dict, min_wall: float = 0.0):
     boundary lies beyond A's).  Where two independently interpolated surfaces (a thin RV free wall's epicardium
     and endocardium) cross between slices, the wall keeps the thickness t instead of opening in a hole; where B
     leaves A by more (a cavity opening through the base), nothing is added.  There the boundary is the offset of
-    A's, attributed to B (the cavity's wall).
+    A's, attributed to B (the cavity's wall).  A node ``("grow", name, t)`` (built by :func:`labelled_implicit`, not
+    parsed) is f_name + t: the region grown by t (f_name about a signed distance; t None: ``min_wall``).
     """
     names = list(values)
 
     def walk(node):
-        if node[0] == "name":
+        if node[0] in ("name", "grow"):
             value = values[node[1]]
+            if node[0] == "grow":   # ("grow", name, thickness or None for min_wall)
+                value = value + (min_wall if node[2] is None else node[2])
             return value, np.full(len(value), names.index(node[1]))
         (left, left_source), (right, right_source) = walk(node[1]), walk(node[2])
         if node[0] == "-":
@@ -593,6 +561,8 @@ class LabelledImplicit:
     lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
     points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
         where none); slices : name -> (n,) their slice ids
+    derived : names of the surfaces built from others, not fitted to contours (an RV epicardium grown from the
+        RV endocardium); notes : what was read, derived or chosen, one sentence each
     """
 
     surfaces: dict
@@ -605,6 +575,8 @@ class LabelledImplicit:
     points: dict
     normals: dict
     slices: dict = field(default_factory=dict)
+    derived: tuple = ()
+    notes: tuple = ()
 
     @property
     def names(self) -> tuple:
@@ -663,6 +635,11 @@ class LabelledImplicit:
         """(m,) True where the base plane, not a surface, gives f at (m, 3) points."""
         return self.active_surface(x) == len(self.surfaces)
 
+    def is_unsampled(self, x) -> np.ndarray:
+        """(m,) True where no contour gives f at (m, 3) points: the base plane or a :attr:`derived` surface."""
+        unsampled = [len(self.surfaces)] + [list(self.surfaces).index(name) for name in self.derived]
+        return np.isin(self.active_surface(x), unsampled)
+
 
 def boundary_surfaces(mesh, function: LabelledImplicit):
     """The boundary triangles of a mesh of ``function``'s domain, and the surface each lies on.
@@ -691,32 +668,34 @@ def _checked_surfaces(surfaces, labels) -> dict:
     return checked
 
 
-def _default_domain(surfaces: dict, labels) -> str:
+def _default_domain(surfaces: dict, labels) -> tuple:
+    """The domain expression for these labels, and a note."""
     if is_bivme(labels):
-        return BIVME_DEFAULT_DOMAIN
+        return bivme_domain(labels)
     present = [name for name, members in surfaces.items() if np.isin(labels, members).any()]
     if len(present) == 1:
-        return present[0]
+        return present[0], ()
     raise InvalidInputError(
         f"the points have {len(present)} surfaces ({', '.join(present)}): give domain, a CSG expression of them "
         f"such as {' - '.join(present[:3])!r}")
 
 
-def _base_plane(base_plane, points, labels, surface_points):
+def _base_plane(base_plane, points, labels, surface_points, slices, planes):
+    """(point, normal) of the base plane, or None; and a note."""
     if base_plane is None or (isinstance(base_plane, str) and base_plane == "none"):
-        return None
+        return None, ()
     if isinstance(base_plane, str):
         check_choice(base_plane, "base_plane", ("auto", "valves", "none"))
         valves = np.isin(labels, BIVME_VALVES)
-        if base_plane == "auto" and not valves.any():
-            return None
+        if base_plane == "auto" and valves.sum() < 3:
+            return basal_slice_plane(points, labels, slices, planes) if is_bivme(labels) else (None, ())
         if valves.sum() < 3:
             raise InvalidInputError(
                 f"base_plane='valves' needs at least 3 points labelled {', '.join(BIVME_VALVES)}; the input has "
                 f"{int(valves.sum())}; give base_plane=(point, normal) or base_plane=None")
         apex = np.isin(labels, BIVME_APEX)
         inside = points[apex].mean(axis=0) if apex.any() else surface_points.mean(axis=0)
-        return fit_base_plane(points[valves], inside)
+        return fit_base_plane(points[valves], inside), ()
     try:
         point, normal = (np.asarray(part, dtype=np.float64) for part in base_plane)
     except (TypeError, ValueError):
@@ -726,7 +705,7 @@ def _base_plane(base_plane, points, labels, surface_points):
             or not np.linalg.norm(normal) > 0:
         raise InvalidInputError(f"base_plane (point, normal) needs two finite 3-vectors, the normal nonzero (it "
                                 f"points out of the domain), got {base_plane!r}")
-    return point, normal / np.linalg.norm(normal)
+    return (point, normal / np.linalg.norm(normal)), ()
 
 
 def _distinct(points, index) -> np.ndarray:
@@ -754,17 +733,20 @@ def _outlet_points(points, labels, valves, wall=0.0):
 
 def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=None, surfaces=None, outlets=None,
                       kernel: str = "linear", offset: float = 4.0, smoothing: float = 0.0, base_offset: float = 0.0,
-                      min_wall: float = 2.5,
+                      min_wall: float = 2.5, rv_wall: float = RV_WALL,
                       gap_factor: float = GAP_FACTOR, resolution=None, progress: ProgressCallback = None):
     """The implicit function of a domain bounded by several labelled contour surfaces.
 
     Parameters
     ----------
     points : (n, 3) float64, contour points, input units (mm)
-    labels : (n,) str or int, the contour label of each point
+    labels : (n,) str or int, the contour label of each point (biv-me's, CVI42's or without the SAX/LAX prefix:
+        :func:`bitemesh.core.cardiac.canonical_labels`)
     domain : str, CSG expression of surface names (``-``, ``+``, ``&``, parentheses); default: for biv-me labels
-        :data:`BIVME_DEFAULT_DOMAIN`, else the only surface
-    base_plane : "auto" (the valve plane when valve points are present, else none), "valves" (the least-squares
+        :data:`BIVME_DEFAULT_DOMAIN` (``LV_EPI - LV_ENDO`` without RV contours; without RV epicardial contours EPI
+        is ``LV_EPI + RV_EPI``, RV_EPI derived: :mod:`bitemesh.core.cardiac`), else the only surface
+    base_plane : "auto" (the valve plane when at least 3 valve points are present, else for biv-me labels the
+        basal short-axis slice, else none), "valves" (the least-squares
         plane of the biv-me valve points, the apex inside), None (no cut), or (point, normal) with the normal
         pointing out of the domain
     slices : (n,) int slice id per point (a GPFile's frameID), or None to find them (:func:`infer_slices`)
@@ -775,6 +757,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     base_offset : float, input units, moves the base plane along its normal (> 0: away from the apex)
     min_wall : float, input units, the thinnest wall between a surface and what is subtracted from it (see
         :func:`evaluate_domain`); 0 lets walls open where the surfaces cross
+    rv_wall : float, mm, the RV free wall thickness a missing RV epicardium is derived with
     gap_factor : float, of :func:`contour_normals`
     resolution : float, input units, the spacing of the grid each surface is sampled on (an ImplicitGrid);
         default 0.35 x the median spacing of the surface's points (1 mm for contours traced on 1.4 mm pixels), at
@@ -787,13 +770,25 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     lower, upper : (3,) float64, a box holding the domain (the Source's box)
     """
     points = check_points(points, dims=(3,))
-    labels = _as_labels(labels, len(points))
+    labels, notes = canonical_labels(_as_labels(labels, len(points)))
+    if is_bivme(labels):
+        notes += unused_labels_note(labels)
     surfaces = _checked_surfaces(surfaces, labels)
-    expression = _default_domain(surfaces, labels) if domain is None else domain
+    if domain is None:
+        expression, note = _default_domain(surfaces, labels)
+        notes += note
+    else:
+        expression = domain
     tree = parse_domain(expression, surfaces)
+    grown_from = {}   # surface name -> the fitted surface whose distance it is
+    if domain is None and is_bivme(labels) and surfaces == BIVME_SURFACES:
+        tree, grown_from, note = _derived_epicardium(tree, labels, check_number(rv_wall, "rv_wall", low=0,
+                                                                                 low_open=True))
+        notes += note
+    derived = tuple(grown_from)
     used = domain_names(tree)
     for name in used:
-        if not np.isin(labels, surfaces[name]).any():
+        if name not in grown_from and not np.isin(labels, surfaces[name]).any():
             present = ", ".join(f"{label} ({count})" for label, count in zip(*np.unique(labels, return_counts=True)))
             raise InvalidInputError(
                 f"surface {name} needs points labelled {' or '.join(surfaces[name])}, and the input has none; "
@@ -809,48 +804,78 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         slices = np.where(slices >= 0, slices, -1).astype(np.int64)
     planes = slice_planes(points, slices)
     outlets = (BIVME_OUTLETS if is_bivme(labels) else {}) if outlets is None else dict(outlets)
-    in_any = np.isin(labels, [label for name in used for label in surfaces[name]])
-    base = _base_plane(base_plane, points, labels, points[in_any])
+    in_any = np.isin(labels, [label for name in used if name not in grown_from for label in surfaces[name]])
+    base, note = _base_plane(base_plane, points, labels, points[in_any], slices, planes)
+    notes += note
     if base is not None:
         base = (base[0] + check_number(base_offset, "base_offset") * base[1], base[1])
 
     functions, surface_points, surface_normals, surface_slices = {}, {}, {}, {}
-    for number, name in enumerate(used):
-        report(progress, 0.05 + 0.9 * number / len(used), f"fitting surface {name}")
+    fitted = [name for name in used if name not in grown_from]
+    for number, name in enumerate(fitted):
+        report(progress, 0.05 + 0.9 * number / len(fitted), f"fitting surface {name}")
         index = _distinct(points, np.flatnonzero(np.isin(labels, surfaces[name])))
-        if len(index) < 10:
-            raise InvalidInputError(f"surface {name} has {len(index)} distinct points; it needs at least 10")
-        spread = np.linalg.svd(points[index] - points[index].mean(axis=0), compute_uv=False)
-        if spread[2] <= 1e-6 * spread[0]:
-            raise InvalidInputError(
-                f"the contours of surface {name} all lie in one plane, so they enclose no volume; it needs "
-                "contours on at least two slices")
-        normals = contour_normals(points[index], slices[index], planes, gap_factor=gap_factor, name=name)
+        normals = _surface_normals(points[index], slices[index], planes, name, gap_factor)
         interior = _outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
         rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
                               interior=interior, min_patch=PATCH_PER_GAP * slice_spacing(points[index], slices[index]))
-        diagonal = float(np.linalg.norm(np.ptp(points[index], axis=0)))
-        if resolution is None:
-            spacing = float(np.median(cKDTree(points[index]).query(points[index], k=2)[0][:, 1]))
-            step = max(0.35 * spacing, offset / 4, diagonal / 400)
-        else:
-            step = check_number(resolution, "resolution", low=0, low_open=True)
-        margin = 0.15 * np.ptp(points[index], axis=0) + 4 * step
-        lower, upper = points[index].min(axis=0) - margin, points[index].max(axis=0) + margin
-        step = max(step, float(np.prod(upper - lower) / MAX_SURFACE_NODES) ** (1 / 3))
-        functions[name] = sample_function(
-            rbf, lower, upper, step, exact_within=SURFACE_BAND * step, levels=SURFACE_LEVELS,
-            progress=sub_progress(progress, 0.05 + 0.9 * (number + 0.3) / len(used),
-                                  0.05 + 0.9 * (number + 1) / len(used)))
+        functions[name] = _sampled_surface(rbf, points[index], offset, resolution, sub_progress(
+            progress, 0.05 + 0.9 * (number + 0.3) / len(fitted), 0.05 + 0.9 * (number + 1) / len(fitted)))
         surface_points[name], surface_normals[name], surface_slices[name] = points[index], normals, slices[index]
-    function = LabelledImplicit(surfaces=functions, tree=tree, expression=expression, base=base,
-                                min_wall=check_number(min_wall, "min_wall", low=0), lower=points[in_any].min(axis=0),
-                                upper=points[in_any].max(axis=0), points=surface_points, normals=surface_normals,
-                                slices=surface_slices)
+    distances = {name: grown(functions[name], 0.0) for name in set(grown_from.values())}
+    functions.update({name: distances[source] for name, source in grown_from.items()})
+    function = LabelledImplicit(surfaces={name: functions[name] for name in used}, tree=tree, expression=expression,
+                                base=base, min_wall=check_number(min_wall, "min_wall", low=0),
+                                lower=points[in_any].min(axis=0), upper=points[in_any].max(axis=0),
+                                points=surface_points, normals=surface_normals, slices=surface_slices,
+                                derived=derived, notes=notes)
     lower, upper = _domain_box(function)
     report(progress, 1.0, "surfaces fitted")
     function = replace(function, lower=lower, upper=upper)
     return function, lower, upper
+
+
+def _derived_epicardium(tree, labels, rv_wall: float):
+    """Without RV epicardial contours: the domain with EPI replaced by ``LV_EPI`` joined to the RV cavity grown by
+    ``rv_wall`` (``RV_EPI``, a surface grown from RV_ENDO), and a note; else the domain unchanged."""
+    if not needs_derived_epicardium(labels, domain_names(tree)):
+        return tree, {}, ()
+
+    def substituted(node):
+        if node[0] == "name":
+            return ("+", ("name", "LV_EPI"), ("grow", "RV_EPI", rv_wall)) if node[1] == "EPI" else node
+        return (node[0], substituted(node[1]), substituted(node[2]))
+
+    return substituted(tree), {"RV_EPI": "RV_ENDO"}, (
+        f"no RV epicardial contours: the RV epicardium is derived, the RV endocardium grown by rv_wall = "
+        f"{rv_wall:g} mm and joined to the LV epicardium at the RV insertions",)
+
+
+def _surface_normals(points, slices, planes, name: str, gap_factor: float) -> np.ndarray:
+    """The in-plane normals of one surface's distinct points, after checking that they can bound a volume."""
+    if len(points) < 10:
+        raise InvalidInputError(f"surface {name} has {len(points)} distinct points; it needs at least 10")
+    spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    if spread[2] <= 1e-6 * spread[0]:
+        raise InvalidInputError(
+            f"the contours of surface {name} all lie in one plane, so they enclose no volume; it needs "
+            "contours on at least two slices")
+    return contour_normals(points, slices, planes, gap_factor=gap_factor, name=name)
+
+
+def _sampled_surface(rbf, points, offset: float, resolution, progress) -> ImplicitGrid:
+    """One surface's RBF sampled on its grid (see ``resolution`` in :func:`labelled_implicit`)."""
+    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+    if resolution is None:
+        spacing = float(np.median(cKDTree(points).query(points, k=2)[0][:, 1]))
+        step = max(0.35 * spacing, offset / 4, diagonal / 400)
+    else:
+        step = check_number(resolution, "resolution", low=0, low_open=True)
+    margin = 0.15 * np.ptp(points, axis=0) + 4 * step
+    lower, upper = points.min(axis=0) - margin, points.max(axis=0) + margin
+    step = max(step, float(np.prod(upper - lower) / MAX_SURFACE_NODES) ** (1 / 3))
+    return sample_function(rbf, lower, upper, step, exact_within=SURFACE_BAND * step, levels=SURFACE_LEVELS,
+                           progress=progress)
 
 
 def _domain_box(function: LabelledImplicit):
@@ -910,13 +935,16 @@ LabelledMeshingResult = MeshingResult
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
                  implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                  spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
-                 fidelity: FidelityParameters | None = None, progress: ProgressCallback = None,
-                 **options) -> LabelledMeshingResult:
+                 fidelity: FidelityParameters | None = None, allow_implausible: bool = False,
+                 progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
     """Every step on labelled contour points: :func:`labelled_implicit`, then the spine
     (:func:`~bitemesh.core.spine.mesh_source`).
 
     R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain (as
-    the spine does); parameters left None take their defaults; ``min_wall`` defaults to
+    the spine does); for biv-me surfaces with neither given (cells at its default), R = 2 mm
+    (:data:`~bitemesh.core.cardiac.CARDIAC_RADIUS`).  The two-cavity or LV myocardium is checked for plausibility
+    (:func:`~bitemesh.core.cardiac.check_heart`; ``allow_implausible`` turns a refusal into a warning).
+    Parameters left None take their defaults; ``min_wall`` defaults to
     :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would open in
     holes).  ``implicit`` gives
     the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``optimize`` (None: skipped) runs
@@ -943,13 +971,25 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
                                                    else min_wall, progress=sub_progress(progress, 0.0, 0.3),
                                                    **options)
     at_radius = (lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None else None
+    biting, notes = biting or BitingParameters(), function.notes
+    cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+    if cardiac and biting.radius is None and biting.cells == BitingParameters().cells:
+        biting = replace(biting, radius=CARDIAC_RADIUS)
+        notes += (f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)",)
+    for note in notes:
+        logger.info(note)
     source = Source(function, lower, upper, frame, samples=function.surface_samples(), at_radius=at_radius,
                     noise=function.tracing_noise(), gap=function.contour_gap(),
-                    open_boundary=None if function.base is None else function.is_base)
-    result = mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
-                         spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
-                         fidelity or FidelityParameters())
-    return replace(result, function=result.function.moved(frame.shift))
+                    open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
+                    notes=notes)
+    result = mesh_source(source, implicit or ImplicitParameters(), biting, spurious or SpuriousParameters(), optimize,
+                         sub_progress(progress, 0.3, 1.0), seconds, fidelity or FidelityParameters())
+    result = replace(result, function=result.function.moved(frame.shift))
+    if cardiac and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN):
+        with timed(seconds, "plausibility"):
+            check_heart(result.mesh, result.function, result.radius, result.fidelity,
+                        allow_implausible=allow_implausible)
+    return result
 
 
 def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, radius=None,

@@ -110,11 +110,19 @@ class LabelledParameters(Parameters):
                             "+ union, & intersection, parentheses); empty: the two-cavity myocardium for biv-me "
                             "labels, else the only surface", text=True)
     base_plane: str = parameter("auto", "the plane that closes the domain: auto (the valve plane when valve points "
-                                "are labelled), valves (required), or none", choices=("auto", "valves", "none"))
+                                "are labelled, else for biv-me labels the basal short-axis slice), valves "
+                                "(required), or none", choices=("auto", "valves", "none"))
     min_wall: Optional[float] = parameter(
         None, "the thinnest wall the domain keeps between a surface and what is subtracted from it (a wall thinner "
         "than a cell opens in holes); default the larger of 2.5 and 1.25 R (R = 4 grid spacings in "
         "PointsToImplicit)", unit="input units", low=0)
+    rv_wall: float = parameter(3.0, "biv-me contours without RV epicardial points: the RV free wall thickness the "
+                               "RV epicardium is derived with (normal adult RV walls: 2 to 5 mm)", unit="mm", low=0,
+                               low_open=True, high=20)
+    allow_implausible: int = parameter(0, "1 keeps a heart mesh that fails the plausibility checks (a cavity closed "
+                                       "or filled, volume or wall thickness out of range, guide points far from "
+                                       "the boundary), with a warning, instead of refusing it", low=0, high=1,
+                                       integer=True)
 
 
 @dataclass(frozen=True)
@@ -143,8 +151,11 @@ class TableParameters(Parameters):
     """Reading a point table: which column is what."""
 
     columns: str = parameter("", "the role of each column of a text table, comma-separated: x, y, z, nx, ny, nz, "
-                             "label, slice or skip (e.g. x,y,z,skip,skip,skip for a table with colours); default: "
-                             "from the header's names, else from the column count", text=True)
+                             "label, slice, frame or skip (e.g. x,y,z,skip,skip,skip for a table with colours); "
+                             "default: from the header's names, else from the column count", text=True)
+    frame: Optional[float] = parameter(None, "labelled contours: the time frame to read (a value of the 'time "
+                                       "frame' column); default every point (a file whose slices are traced at "
+                                       "several frames is refused)")
 
 
 @dataclass(frozen=True)

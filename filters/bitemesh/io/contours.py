@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidInputError, check_points
-from .files import existing_file, vtk_silenced
+from ..core.errors import InvalidInputError, check_number, check_points
+from .files import existing_file, logger, vtk_silenced
 from .pointsets import _vtk_reader
 from ..core.columns import NAMES, role
 from .tables import column_roles, is_number, read_table, split_fields, table_points
@@ -19,7 +19,7 @@ LABELLED_EXTENSIONS = LABELLED_TEXT_EXTENSIONS + LABELLED_VTK_EXTENSIONS
 LABEL_COLUMNS = tuple(name for name, given in NAMES.items() if given == "label")
 
 
-def read_labelled_points(path, *, slices: bool = False, columns: str | None = None):
+def read_labelled_points(path, *, slices: bool = False, columns: str | None = None, frame: float | None = None):
     """Read contour points with a label per point: a biv-me GPFile, a CSV table, or a VTK file with a Label array.
 
     Parameters
@@ -29,14 +29,17 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
         header ``x y z contour type frameID weight time frame``), commas, semicolons or spaces.  With a header row,
         the columns are found by name: ``x``, ``y``, ``z`` (else the first three), the label (``label``,
         ``contour type``, ``type``, ``region`` or ``surface``; else the fourth column) and, optionally, the slice
-        (``frameID`` or ``slice``).  Without a header: ``x y z label [slice]``.  Labels are strings or integers;
-        ``#`` starts a comment line.
+        (``frameID``, ``sliceID`` or ``slice``) and the time frame (``time frame``, ``time``, ``phase``).  Without
+        a header: ``x y z label [slice]``.  Labels are strings or integers; ``#`` starts a comment line.
         ``.vtp``, ``.vtk``, ``.vtu``: the points of the dataset and its point-data array ``Label`` (integer or
         string), and optionally ``Slice`` or ``FrameID``.
     slices : bool
         Also return the slice id of each point.
-    columns : comma-separated role of each column of a table (x, y, z, label, slice, skip), e.g.
+    columns : comma-separated role of each column of a table (x, y, z, label, slice, frame, skip), e.g.
         "x,y,z,label,skip"; default: from the header's names (see :mod:`bitemesh.io.tables`)
+    frame : the time frame to read (a value of the time-frame column); default: every point, which a file whose
+        slices are traced at several time frames refuses (a GPFile holds one frame; biv-me writes one file per
+        frame, and slices of other series may carry another frame number)
 
     Returns
     -------
@@ -48,21 +51,54 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
     ------
     InvalidInputError
         Missing, empty or unreadable file, unknown extension, no label column or array, a malformed row (the
-        message names the file and the line), an empty label, or no points.
+        message names the file and the line), an empty label, no points, several time frames and no ``frame``, or a
+        ``frame`` the file does not hold.
     """
     path = existing_file(path, "labelled points", LABELLED_EXTENSIONS)
+    frames = None
     if path.suffix.lower() in LABELLED_TEXT_EXTENSIONS:
-        points, labels, slice_ids = _read_labelled_table(path, columns)
+        points, labels, slice_ids, frames = _read_labelled_table(path, columns)
     elif columns:
         raise InvalidInputError(f"columns applies to text tables, not to '{path}'")
     else:
         points, labels, slice_ids = _read_labelled_vtk(path)
+    keep = _in_frame(frames, slice_ids, frame, path)
+    if keep is not None:
+        points, labels = points[keep], np.asarray(labels)[keep]
+        slice_ids = None if slice_ids is None else slice_ids[keep]
     labels = _label_text(labels)
     empty = labels == ""
     if empty.any():
         raise InvalidInputError(f"cannot read labelled points from '{path}': {int(empty.sum())} points have an "
                                 f"empty label (first: point {int(np.argmax(empty))})")
     return (points, labels, slice_ids) if slices else (points, labels)
+
+
+def _in_frame(frames, slice_ids, frame, path):
+    """(n,) bool, the points of time frame ``frame``; None for every point.  Without ``frame``, a file refuses when a
+    slice holds points of several frames (the same slice traced at several phases)."""
+    if frame is None:
+        if frames is None or len(np.unique(frames)) < 2:
+            return None
+        several = (len(np.unique(frames)) > 1 if slice_ids is None
+                   else any(len(np.unique(frames[slice_ids == number])) > 1 for number in np.unique(slice_ids)))
+        if not several:
+            return None   # biv-me: one frame per file, a slice of another series may number it otherwise
+        counts = ", ".join(f"{value:g} ({count} points)"
+                           for value, count in zip(*np.unique(frames, return_counts=True)))
+        raise InvalidInputError(f"'{path}' holds several time frames ({counts}), some slices traced at more than one; "
+                                "choose one with --frame (frame=...)")
+    frame = check_number(frame, "frame")
+    if frames is None:
+        raise InvalidInputError(f"frame = {frame:g}: '{path}' has no time-frame column ('time frame', 'time' or "
+                                "'phase'); leave frame out")
+    keep = frames == frame
+    if not keep.any():
+        values = ", ".join(f"{value:g}" for value in np.unique(frames))
+        raise InvalidInputError(f"frame = {frame:g}: '{path}' holds no point of that time frame; its frames: {values}")
+    if not keep.all():
+        logger.info("'%s': time frame %g, %d of %d points", Path(path).name, frame, int(keep.sum()), len(keep))
+    return keep
 
 
 def looks_labelled(path) -> bool:
@@ -125,7 +161,10 @@ def _read_labelled_table(path: Path, columns):
             table.fail(f"line {table.lines[np.argmax(~whole)]} has the slice id "
                        f"{table.rows[np.argmax(~whole)][roles.index('slice')]!r}, not an integer")
         slice_ids = values.astype(np.int64)
-    return check_points(points, f"points of '{path}'", dims=(3,)), labels, slice_ids
+    frames = table.numbers(roles.index("frame"), "time frame") if "frame" in roles else None
+    if frames is not None and not np.isfinite(frames).all():
+        table.fail(f"line {table.lines[np.argmax(~np.isfinite(frames))]} has no number in its time-frame column")
+    return check_points(points, f"points of '{path}'", dims=(3,)), labels, slice_ids, frames
 
 
 def _read_labelled_vtk(path: Path):

@@ -153,7 +153,9 @@ PARAMETERS = {
 }
 #: keywords of :meth:`BiteMeshLogic.process` beyond the panel's (no "automatic" sentinel fits them: their ranges
 #: include their low bound).
-EXTRA_KEYWORDS = {"margin": ("ImplicitParameters", "margin"), "min_wall": ("LabelledParameters", "min_wall")}
+EXTRA_KEYWORDS = {"margin": ("ImplicitParameters", "margin"), "min_wall": ("LabelledParameters", "min_wall"),
+                  "rv_wall": ("LabelledParameters", "rv_wall"),
+                  "allow_implausible": ("LabelledParameters", "allow_implausible")}
 
 
 @dataclass(frozen=True)
@@ -412,8 +414,9 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             points, labels, slices = self._labelledPoints(nodes)
             report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")
             result = run_labelled(points, labels, domain=domain or None, base_plane=labelled.base_plane,
-                                  slices=slices, min_wall=labelled.min_wall, implicit=implicit, biting=biting,
-                                  spurious=spurious, optimize=optimize, fidelity=fidelity,
+                                  slices=slices, min_wall=labelled.min_wall, rv_wall=labelled.rv_wall,
+                                  allow_implausible=bool(labelled.allow_implausible), implicit=implicit,
+                                  biting=biting, spurious=spurious, optimize=optimize, fidelity=fidelity,
                                   progress=sub_progress(progress, 0.02, 0.95))
             mesh = result.mesh
         else:
