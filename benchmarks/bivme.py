@@ -33,6 +33,7 @@ import dataclasses
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +42,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
 from bitemesh.core import labelled
+from bitemesh.core.errors import BitemeshWarning
 from bitemesh.core.grid import sample_function
 from bitemesh.core.implicit import fit_mpu
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
@@ -230,20 +232,23 @@ def leave_one_slice_out(points, labels, slices, options):
 
 # --- one run -----------------------------------------------------------------------------------------------------
 
-def measure(folder: Path, cells: int, options: dict, *, method: str = "rbf", loso: bool = False, seed: int = 0,
-            optimize: bool = False, save=None) -> dict:
-    points, labels, slices = read_labelled_points(folder / "GPFile_000.txt", slices=True)
+def measure(folder: Path, cells, options: dict, *, method: str = "rbf", loso: bool = False, seed: int = 0,
+            optimize: bool = False, save=None, gpfile=None) -> dict:
+    """One run on ``gpfile`` (default the folder's GPFile_000.txt); ``cells`` None: the library's default size."""
+    points, labels, slices = read_labelled_points(gpfile or folder / "GPFile_000.txt", slices=True)
+    biting = BitingParameters(seed=seed) if cells is None else BitingParameters(cells=cells, seed=seed)
     clock = time.perf_counter()
     if method == "mpu":
         function, lower, upper = mpu_implicit(points, labels, slices, **options)
         fitted = time.perf_counter()
-        result = mesh_source(Source(function, lower, upper, Frame.identity(3)), ImplicitParameters(),
-                             BitingParameters(cells=cells, seed=seed))
+        result = mesh_source(Source(function, lower, upper, Frame.identity(3)), ImplicitParameters(), biting)
         meshing = sum(value for key, value in result.seconds.items() if not key.startswith("implicit"))
         seconds = {"fit": fitted - clock, "sampling": result.seconds["implicit sampling"], "meshing": meshing}
     else:
-        result = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells, seed=seed),
-                                       optimize=OptimizeParameters() if optimize else None, **options)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", BitemeshWarning)   # the handles are counted below
+            result = labelled.run_labelled(points, labels, slices=slices, biting=biting,
+                                           optimize=OptimizeParameters() if optimize else None, **options)
         function, lower, upper = result.function, result.function.lower, result.function.upper
         meshing = sum(value for key, value in result.seconds.items() if not key.startswith("implicit"))
         seconds = {"fit": result.seconds["implicit fit"], "sampling": result.seconds["implicit sampling"],
@@ -259,7 +264,8 @@ def measure(folder: Path, cells: int, options: dict, *, method: str = "rbf", los
     facet_surface = function.active_surface(mesh.points[facets].mean(axis=1))
     names = function.names
     row = {"cells": len(mesh.cells), "radius": radius, "seconds": seconds, "grid": "x".join(map(str, grid.shape)),
-           "min_wall": function.min_wall}
+           "min_wall": function.min_wall, "points": len(points), "fidelity": result.fidelity,
+           "notes": result.notes}
     # guide points -> own surface
     guide_all, guide_below = [], []
     for name, surface_points in function.points.items():
@@ -346,6 +352,37 @@ def seed_table(rows: list) -> str:
     return "\n".join(lines)
 
 
+def variant_table(folder: Path, shipped: Path, seed: int = 0) -> str:
+    """One markdown line per variant of tests/cardiac_variants.py, meshed with the defaults (R = 2 mm)."""
+    sys.path.insert(0, str(HERE.parent))
+    from tests.cardiac_variants import VARIANTS, variant_file
+    import tempfile
+    lines = ["| variant | points | cells | fit + sampling (s) | meshing (s) | total (s) | guide -> boundary mean / "
+             "95 % (mm) | guide -> own surface mean / 95 % (mm) | volume (ml) | vs shipped | Euler | cavities open | "
+             "derived / noted |", "|" + "---|" * 13]
+    full = None
+    with tempfile.TemporaryDirectory() as scratch:
+        for name in VARIANTS:
+            path = variant_file(shipped, name, scratch)
+            try:
+                row = measure(folder, None, {}, seed=seed, gpfile=path)
+            except Exception as error:   # a refusal is a result too
+                count = sum(1 for _ in open(path)) - 1
+                lines.append(f"| {name} | {count:,} | refused: {str(error)[:150]}... |" + " |" * 10)
+                continue
+            full = row["volume"] if name == "shipped" else full
+            s, fidelity = row["seconds"], row["fidelity"]
+            noted = "; ".join(note.split(":")[0] for note in row["notes"] if not note.startswith("cardiac contours"))
+            lines.append(
+                f"| {name} | {row['points']:,} | {row['cells']:,} | {s['fit'] + s['sampling']:.1f} | "
+                f"{s['meshing']:.1f} | {sum(s.values()):.1f} | {fidelity.to_boundary_mean:.2f} / "
+                f"{fidelity.to_boundary_p95:.2f} | {row['guide_mean']:.2f} / {row['guide_p95']:.2f} | "
+                f"{row['volume'] / 1000:.1f} | {row['volume'] / full - 1:+.1%} | {row['euler']} | "
+                f"{', '.join(n for n, is_open in row['open'].items() if is_open) or 'none'} | {noted} |")
+            print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
 #: implicit methods and their tuning (the library's defaults: linear kernel, offset 4 mm, min_wall 2.5 mm, valve
 #: outlets), then ablations of the domain's construction
 CANDIDATES = {
@@ -366,6 +403,8 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cells", type=int, default=136_000)
     parser.add_argument("--candidates", action="store_true", help="measure every candidate implicit method")
+    parser.add_argument("--variants", action="store_true", help="every variant of tests/cardiac_variants.py at the "
+                        "default size, one table")
     parser.add_argument("--loso", action="store_true", help="also the leave-one-slice-out test (RBF only)")
     parser.add_argument("--kernel", default=None, choices=labelled.KERNELS)
     parser.add_argument("--offset", type=float, default=None)
@@ -380,7 +419,12 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     folder = data_folder()
     out = [f"# bivme_patient1: {folder}", ""]
-    if args.candidates:
+    if args.variants:
+        text = f"## variants of GPFile_000.txt, default size, seed {args.seed}\n\n" + variant_table(
+            folder, folder / "GPFile_000.txt", args.seed) + "\n"
+        print(text)
+        out.append(text)
+    elif args.candidates:
         for title, options in CANDIDATES.items():
             options = dict(options)
             method = options.pop("method", "rbf")

@@ -748,3 +748,18 @@ def test_optimize_runs_the_mesh_optimizer_like_bitemesh_run(scene, logic):
     expected = run(points, None, ImplicitParameters(), BitingParameters(cells=2000), SpuriousParameters(),
                    optimize=OptimizeParameters()).mesh
     assert result.summary.q_mean >= 0.85 and len(mesh.cells) == len(expected.cells)
+
+
+@pytest.mark.slow
+def test_a_gpfile_as_real_exports_write_it_meshes_as_run_labelled(scene, logic, tmp_path):
+    """Denser contours, no RV epicardium, no outflow valves, 'sliceID' and time frame 1: loaded and meshed with the
+    panel's defaults (R = 2 mm for biv-me labels), the RV epicardium derived, as run_labelled does."""
+    from tests.cardiac_variants import variant_file
+    path = variant_file(GPFILE, "like GPFile of issue 10", tmp_path)
+    node = logic.loadLabelledPoints(path, scene=scene)
+    points, labels, slices = read_labelled_points(path, slices=True)
+    model = output_model(scene)
+    result = logic.process(node, model)
+    expected = run_labelled(points * [-1.0, -1.0, 1.0], labels, slices=slices)
+    np.testing.assert_array_equal(mesh_of(model).cells, expected.mesh.cells)
+    assert result.radius == 2.0 and any("RV epicardium is derived" in note for note in result.notes)

@@ -143,3 +143,21 @@ def test_labels_that_are_non_integer_numbers_are_refused(closed_shell, vtk_error
     with pytest.raises(InvalidInputError, match="non-integer"):
         algorithm.update()
     vtk_errors.clear()
+
+
+@pytest.mark.slow
+def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path):
+    """A GPFile like a real export (4x denser, no RV epicardium, no outflow valves, labels without prefix) as a
+    VTP's Label and Slice arrays: the same mesh as the core, with the RV epicardium derived at R = 2 mm."""
+    from bitemesh.io import read_labelled_points
+    from tests.cardiac_variants import read_gpfile, unprefixed, variant_file, write_gpfile
+    path = variant_file(shared_data / "bivme_patient1" / "GPFile_000.txt", "like GPFile of issue 10", tmp_path)
+    path = write_gpfile(unprefixed(read_gpfile(path)), tmp_path / "GPFile_unprefixed.txt")
+    points, labels, slices = read_labelled_points(path, slices=True)
+    one_step = MeshFromPoints()
+    one_step.SetInputData(labelled_polydata(points, labels, slices))
+    mesh = unstructured_to_mesh(one_step.update())
+    core = run_labelled(points, labels, slices=slices)
+    np.testing.assert_array_equal(mesh.cells, core.cells)
+    assert core.radius == 2.0 and core.function.derived == ("RV_EPI",)
+    assert_valid_domain(mesh, components=1)
