@@ -10,6 +10,7 @@ from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray, vtkPoints, vtk
 from vtkmodules.vtkCommonDataModel import (VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkImageData, vtkPolyData,
                                            vtkUnstructuredGrid)
 
+from .core.cardiac import time_frame
 from .core.columns import role
 from .core.errors import InvalidInputError
 from .core.grid import ImplicitGrid
@@ -52,8 +53,8 @@ def point_labels(dataset, what: str = "the input"):
     """The contour labels of a point set and their slices: ((n,) labels or None, (n,) int64 slice ids or None).
 
     Labels come from a point array ``Label`` (integers or strings), slices from ``Slice`` or ``FrameID``.
-    Raises InvalidInputError (naming ``what``) for labels that are non-integer numbers or slices that are not
-    integers.
+    Raises InvalidInputError (naming ``what``) for labels that are non-integer numbers, slices that are not
+    integers, or a time-frame array ("time frame") of several frames on one slice.
     """
     labels = named_point_array(dataset, "label")
     if labels is not None and labels.dtype.kind == "f" and not (np.isfinite(labels).all()
@@ -65,6 +66,11 @@ def point_labels(dataset, what: str = "the input"):
                 or np.any(slices.astype(float) != np.round(slices.astype(float))):
             raise InvalidInputError(f"{what}: the slice array (Slice or FrameID) must hold integers")
         slices = slices.astype(np.int64)
+    if labels is not None:
+        frames = named_point_array(dataset, "frame")
+        if frames is not None and frames.dtype.kind in "iuf":
+            time_frame(frames.astype(float), slices, None, what,
+                       "a Threshold on the time-frame array (ParaView) or read_labelled_points(frame=...)")
     return labels, slices
 
 

@@ -161,3 +161,18 @@ def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path):
     np.testing.assert_array_equal(mesh.cells, core.cells)
     assert core.radius == 2.0 and core.function.derived == ("RV_EPI",)
     assert_valid_domain(mesh, components=1)
+
+
+def test_contours_of_several_time_frames_are_refused_by_the_filters(closed_shell, vtk_errors):
+    """A GPFile of two frames read as a table in ParaView: a Label, a Slice and a 'time frame' array; one slice
+    holding two frames is not one heart."""
+    points, labels, slices, _ = closed_shell
+    data = labelled_polydata(np.vstack([points, points * 1.1]), np.r_[labels, labels], np.r_[slices, slices])
+    frames = numpy_to_vtk(np.r_[np.zeros(len(points)), np.ones(len(points))], deep=True)
+    frames.SetName("time frame")
+    data.GetPointData().AddArray(frames)
+    one_step = MeshFromPoints()
+    one_step.SetInputData(data)
+    with pytest.raises(InvalidInputError, match=r"several time frames \(0 \(\d+ points\), 1 .*Threshold"):
+        one_step.update()
+    assert "several time frames" in vtk_errors.text()

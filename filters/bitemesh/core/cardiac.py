@@ -16,11 +16,12 @@ which surfaces they sample, what to derive when a surface is missing, and what a
 """
 from __future__ import annotations
 
+import logging
 import warnings
 
 import numpy as np
 
-from .errors import BitemeshWarning, MeshingError
+from .errors import BitemeshWarning, InvalidInputError, MeshingError, check_number
 
 #: biv-me guide-point labels -> the surfaces they sample (see bitemesh.core.labelled for the septum).  biv-me splits
 #: the RV endocardium into free wall and septum (older exports: RV_ENDOCARDIAL; the outflow tract: OUTLET_* and
@@ -288,3 +289,39 @@ def _cavity_section(grid, base, depth: float = 1.0) -> np.ndarray:
     nodes = grid.node_coordinates(np.flatnonzero(grid.values.reshape(-1) > 0))
     height = (nodes - base[0]) @ base[1] + depth
     return nodes[np.abs(height) < grid.spacing.max()]
+
+
+def time_frame(frames, slices, frame, where: str, how: str):
+    """(n,) bool, the points of time frame ``frame`` (None: every point, returned as None).
+
+    Without ``frame``, points of several frames are refused when a slice holds more than one of them (the same
+    slice traced at several phases); biv-me writes one file per frame, and a slice of another series may number it
+    otherwise, which stays.  ``where`` names the input and ``how`` the way to choose a frame in the messages.
+
+    Parameters
+    ----------
+    frames : (n,) float64 time frame per point, or None (no such column); slices : (n,) int or None
+    """
+    if frame is None:
+        if frames is None or len(np.unique(frames)) < 2:
+            return None
+        several = (slices is None
+                   or any(len(np.unique(frames[slices == number])) > 1 for number in np.unique(slices)))
+        if not several:
+            return None
+        counts = ", ".join(f"{value:g} ({count} points)"
+                           for value, count in zip(*np.unique(frames, return_counts=True)))
+        raise InvalidInputError(f"{where} holds several time frames ({counts}), some slices traced at more than one; "
+                                f"choose one with {how}")
+    frame = check_number(frame, "frame")
+    if frames is None:
+        raise InvalidInputError(f"frame = {frame:g}: {where} has no time-frame column ('time frame', 'time' or "
+                                "'phase'); leave frame out")
+    keep = frames == frame
+    if not keep.any():
+        values = ", ".join(f"{value:g}" for value in np.unique(frames))
+        raise InvalidInputError(f"frame = {frame:g}: {where} holds no point of that time frame; its frames: {values}")
+    if not keep.all():
+        logging.getLogger("bitemesh").info("%s: time frame %g, %d of %d points", where, frame, int(keep.sum()),
+                                           len(keep))
+    return keep

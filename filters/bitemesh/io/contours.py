@@ -6,8 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InvalidInputError, check_number, check_points
-from .files import existing_file, logger, vtk_silenced
+from ..core.cardiac import time_frame
+from ..core.errors import InvalidInputError, check_points
+from .files import existing_file, vtk_silenced
 from .pointsets import _vtk_reader
 from ..core.columns import NAMES, role
 from .tables import column_roles, is_number, read_table, split_fields, table_points
@@ -62,7 +63,7 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
         raise InvalidInputError(f"columns applies to text tables, not to '{path}'")
     else:
         points, labels, slice_ids = _read_labelled_vtk(path)
-    keep = _in_frame(frames, slice_ids, frame, path)
+    keep = time_frame(frames, slice_ids, frame, f"'{path}'", "--frame (frame=...)")
     if keep is not None:
         points, labels = points[keep], np.asarray(labels)[keep]
         slice_ids = None if slice_ids is None else slice_ids[keep]
@@ -72,33 +73,6 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
         raise InvalidInputError(f"cannot read labelled points from '{path}': {int(empty.sum())} points have an "
                                 f"empty label (first: point {int(np.argmax(empty))})")
     return (points, labels, slice_ids) if slices else (points, labels)
-
-
-def _in_frame(frames, slice_ids, frame, path):
-    """(n,) bool, the points of time frame ``frame``; None for every point.  Without ``frame``, a file refuses when a
-    slice holds points of several frames (the same slice traced at several phases)."""
-    if frame is None:
-        if frames is None or len(np.unique(frames)) < 2:
-            return None
-        several = (len(np.unique(frames)) > 1 if slice_ids is None
-                   else any(len(np.unique(frames[slice_ids == number])) > 1 for number in np.unique(slice_ids)))
-        if not several:
-            return None   # biv-me: one frame per file, a slice of another series may number it otherwise
-        counts = ", ".join(f"{value:g} ({count} points)"
-                           for value, count in zip(*np.unique(frames, return_counts=True)))
-        raise InvalidInputError(f"'{path}' holds several time frames ({counts}), some slices traced at more than one; "
-                                "choose one with --frame (frame=...)")
-    frame = check_number(frame, "frame")
-    if frames is None:
-        raise InvalidInputError(f"frame = {frame:g}: '{path}' has no time-frame column ('time frame', 'time' or "
-                                "'phase'); leave frame out")
-    keep = frames == frame
-    if not keep.any():
-        values = ", ".join(f"{value:g}" for value in np.unique(frames))
-        raise InvalidInputError(f"frame = {frame:g}: '{path}' holds no point of that time frame; its frames: {values}")
-    if not keep.all():
-        logger.info("'%s': time frame %g, %d of %d points", Path(path).name, frame, int(keep.sum()), len(keep))
-    return keep
 
 
 def looks_labelled(path) -> bool:
