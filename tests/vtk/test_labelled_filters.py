@@ -146,7 +146,7 @@ def test_labels_that_are_non_integer_numbers_are_refused(closed_shell, vtk_error
 
 
 @pytest.mark.slow
-def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path):
+def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path, vtk_errors):
     """A GPFile like a real export (4x denser, no RV epicardium, no outflow valves, labels without prefix) as a
     VTP's Label and Slice arrays: the same mesh as the core, with the RV epicardium derived at R = 2 mm."""
     from bitemesh.io import read_labelled_points
@@ -158,9 +158,11 @@ def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path):
     one_step.SetInputData(labelled_polydata(points, labels, slices))
     mesh = unstructured_to_mesh(one_step.update())
     core = run_labelled(points, labels, slices=slices)
-    np.testing.assert_array_equal(mesh.cells, core.cells)
+    np.testing.assert_array_equal(mesh.cells, core.mesh.cells)
     assert core.radius == 2.0 and core.function.derived == ("RV_EPI",)
     assert_valid_domain(mesh, components=1)
+    # what VTK printed: at most the warning of a boundary with handles (a known limit at R = 2 mm)
+    assert all("handle" in message for message in vtk_errors.messages()), vtk_errors.text()
 
 
 def test_contours_of_several_time_frames_are_refused_by_the_filters(closed_shell, vtk_errors):
