@@ -186,9 +186,10 @@ def column_roles(table: Table, columns: str | None = None, *, labelled: bool = F
         if not {"x", "y"} <= set(roles):
             table.fail(f"the header {table.names} names no x and y columns; name them x, y, z or say which column "
                        "is which with --columns (e.g. --columns x,y,z,skip)")
-        skipped = [name for name, given in zip(table.names, roles) if given == "skip"]
+        unused = ("skip",) if labelled else ("skip", "frame")   # a time column means nothing to a point set
+        skipped = [name for name, given in zip(table.names, roles) if given in unused]
         if skipped:
-            unknown = [name for name in skipped if normalised(name) not in KNOWN_OTHERS]
+            unknown = [name for name in skipped if normalised(name) not in KNOWN_OTHERS and role(name) == "skip"]
             logger.info("'%s': columns %s not used%s", table.path.name, ", ".join(skipped),
                         f" ({', '.join(unknown)} not a known column name)" if unknown else "")
         contours = "slice" in roles or {"weight", "time"} <= set(keys)
