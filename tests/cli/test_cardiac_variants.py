@@ -96,7 +96,7 @@ def inside_mesh(mesh, point) -> bool:
     return False
 
 
-MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x", "no outflow valves")]
+MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x")]
 
 
 @pytest.mark.slow

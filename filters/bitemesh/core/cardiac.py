@@ -8,7 +8,8 @@ which surfaces they sample, what to derive when a surface is missing, and what a
   RV cavity grown by the RV wall thickness (:data:`RV_WALL`, 3 mm, the normal adult RV free wall; biv-me uses the
   same): ``EPI = LV_EPI + RV_EPI``.  The union meets the LV epicardium at the RV insertions.
 - **LV only**: without RV contours the domain is ``LV_EPI - LV_ENDO``.
-- **No valve points**: the base plane is the basal short-axis slice (:func:`basal_slice_plane`).
+- **Base plane** (:func:`base_plane`): through the valves' centres, perpendicular to the short-axis stack; without
+  valve points, the basal short-axis slice.
 - **Size**: R = :data:`CARDIAC_RADIUS` (2 mm) unless a radius or a cell count is given.
 - **Plausibility** (:func:`check_heart`): each cavity open at the base and not filled, the myocardial volume and
   mean wall thickness in physiological ranges, the guide points near their surface; otherwise a refusal naming what
@@ -156,25 +157,25 @@ def grown(grid, thickness: float):
                       values=grid.values / np.clip(slope, 0.5, 2.0) + float(thickness))
 
 
-def basal_slice_plane(points, labels, slices, planes):
-    """Without valve points: the plane of the basal short-axis slice, its normal pointing away from the apex.
-
-    The short-axis stack is the largest set of parallel slices (within 10 degrees); its basal end is the one
-    farther from the apex point or, without one, the end where the LV endocardial contours are wider.
+def short_axis_stack(points, labels, slices, planes):
+    """The short-axis stack: the largest set of parallel slices (within 10 degrees).
 
     Returns
     -------
-    (point (3,), normal (3,)) or None (fewer than two parallel slices); and a note
+    axis : (3,) unit, the stack's normal pointing to the base: away from the apex point or, without one, toward
+        the end where the LV endocardial contours are wider; numbers : the stack's slice ids; heights : their
+        planes' heights along ``axis``.  None (three times) for fewer than two parallel slices.
     """
     numbers = [number for number in planes if number >= 0]
     if len(numbers) < 2:
-        return None, ()
+        return None, None, None
     normals = np.array([planes[number].normal for number in numbers])
     parallel = np.abs(normals @ normals.T) > np.cos(np.radians(10))
     stack = np.flatnonzero(parallel[np.argmax(parallel.sum(axis=1))])
     if len(stack) < 2:
-        return None, ()
-    axis = normals[stack[0]]
+        return None, None, None
+    axis = (normals[stack] * np.sign(normals[stack] @ normals[stack[0]])[:, None]).mean(axis=0)
+    axis = axis / np.linalg.norm(axis)   # the mean normal of the stack
     heights = np.array([planes[numbers[i]].centre @ axis for i in stack])
     apex = np.isin(labels, BIVME_APEX)
     if apex.any():
@@ -186,9 +187,32 @@ def basal_slice_plane(points, labels, slices, planes):
             members = points[endo & (slices == numbers[i])]
             widths.append(np.linalg.norm(members - members.mean(axis=0), axis=1).mean() if len(members) else 0.0)
         toward_base = np.sign(np.polyfit(heights, widths, 1)[0]) or 1.0
-    basal = stack[np.argmax(heights * toward_base)]
-    plane = planes[numbers[basal]]
-    return (plane.centre, axis * toward_base), (
+    return axis * toward_base, [numbers[i] for i in stack], heights * toward_base
+
+
+def base_plane(points, labels, slices, planes):
+    """The base plane of biv-me contours, its normal out of the domain, and a note.
+
+    With valve points: through the mean of the valves' centres (each valve counts once), perpendicular to the
+    short-axis stack (planned perpendicular to the long axis; a least-squares plane through a dozen annulus points
+    traced on three or four long-axis slices tilts by 15 degrees when a valve is missing).  Without a stack: the
+    least-squares plane of the valve points.  Without valve points: the basal short-axis slice.
+
+    Returns
+    -------
+    (point (3,), normal (3,)) or None; notes
+    """
+    axis, numbers, heights = short_axis_stack(points, labels, slices, planes)
+    valves = [name for name in BIVME_VALVES if np.count_nonzero(labels == name)]
+    if np.isin(labels, BIVME_VALVES).sum() >= 3:
+        if axis is None:
+            return None, ()   # the caller fits the least-squares plane
+        centre = np.mean([points[labels == name].mean(axis=0) for name in valves], axis=0)
+        return (centre, axis), ()
+    if axis is None:
+        return None, ()
+    basal = int(np.argmax(heights))
+    return (planes[numbers[basal]].centre, axis), (
         f"no valve points: the base plane is the basal short-axis slice (slice {numbers[basal]})",)
 
 

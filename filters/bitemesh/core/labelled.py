@@ -44,9 +44,10 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist
 
+from .cardiac import base_plane as cardiac_base_plane
 from .cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTLETS,  # noqa: F401 (re-exported)
                       BIVME_SURFACES, BIVME_VALVES, CARDIAC_RADIUS, LV_DOMAIN, OUTLET_WALL, RV_WALL,
-                      basal_slice_plane, bivme_domain, check_heart,
+                      bivme_domain, check_heart,
                       canonical_labels, default_surfaces, grown, is_bivme, needs_derived_epicardium,
                       unused_labels_note)
 from .contour_rbf import KERNELS, ContourRBF, fit_contour_rbf, off_surface_offsets  # noqa: F401
@@ -687,8 +688,12 @@ def _base_plane(base_plane, points, labels, surface_points, slices, planes):
     if isinstance(base_plane, str):
         check_choice(base_plane, "base_plane", ("auto", "valves", "none"))
         valves = np.isin(labels, BIVME_VALVES)
-        if base_plane == "auto" and valves.sum() < 3:
-            return basal_slice_plane(points, labels, slices, planes) if is_bivme(labels) else (None, ())
+        if is_bivme(labels) and (base_plane == "auto" or valves.sum() >= 3):
+            plane, notes = cardiac_base_plane(points, labels, slices, planes)
+            if plane is not None or valves.sum() < 3:
+                return plane, notes
+        elif base_plane == "auto" and valves.sum() < 3:
+            return None, ()
         if valves.sum() < 3:
             raise InvalidInputError(
                 f"base_plane='valves' needs at least 3 points labelled {', '.join(BIVME_VALVES)}; the input has "
@@ -746,9 +751,10 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         :data:`BIVME_DEFAULT_DOMAIN` (``LV_EPI - LV_ENDO`` without RV contours; without RV epicardial contours EPI
         is ``LV_EPI + RV_EPI``, RV_EPI derived: :mod:`bitemesh.core.cardiac`), else the only surface
     base_plane : "auto" (the valve plane when at least 3 valve points are present, else for biv-me labels the
-        basal short-axis slice, else none), "valves" (the least-squares
-        plane of the biv-me valve points, the apex inside), None (no cut), or (point, normal) with the normal
-        pointing out of the domain
+        basal short-axis slice, else none), "valves" (required: for biv-me labels through the valves' centres,
+        perpendicular to the short-axis stack, :func:`bitemesh.core.cardiac.base_plane`; without a stack the
+        least-squares plane of the valve points, the apex inside), None (no cut), or (point, normal) with the
+        normal pointing out of the domain
     slices : (n,) int slice id per point (a GPFile's frameID), or None to find them (:func:`infer_slices`)
     surfaces : dict name -> labels, default :func:`default_surfaces`
     outlets : dict surface name -> valve labels through which that cavity opens (see :data:`BIVME_OUTLETS`, the
