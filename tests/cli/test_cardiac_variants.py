@@ -4,7 +4,6 @@ closed component, both cavities open, the guide points near the boundary, a deri
 full data's myocardial volume."""
 from __future__ import annotations
 
-import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -104,11 +103,9 @@ MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x")]
 def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart):
     path = variant_file(shipped(shared_data), name, tmp_path)
     points, labels, slices = read_labelled_points(path, slices=True)
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", "the heart mesh's boundary has", BitemeshWarning)   # handles: a known limit
-        result = labelled.run_labelled(points, labels, slices=slices)
+    result = labelled.run_labelled(points, labels, slices=slices)
     mesh = result.mesh
-    assert_valid_domain(mesh, components=1)
+    assert_valid_domain(mesh, euler=2, components=1)   # no handle: a myocardium with its cavities open is a ball
     assert count_boundary_components(mesh) == 1
     assert result.radius == cardiac.CARDIAC_RADIUS
     for cavity, point in deepest_cavity_points(result.function).items():

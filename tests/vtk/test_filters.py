@@ -237,6 +237,27 @@ def test_spurious_cell_filter_gives_the_core_domain(sphere_chain):
     np.testing.assert_array_equal(domain.cells, expected.cells)
 
 
+@pytest.mark.parametrize("handles, myocardium, euler", [("auto", False, 0), ("auto", True, 2), ("remove", False, 2),
+                                                         ("keep", True, 0)])
+def test_spurious_cell_filter_removes_thin_handles_when_asked_or_for_a_myocardium(handles, myocardium, euler):
+    """A ball with a tunnel thinner than two cells: Handles "auto" fills it when the image says it is a myocardium
+    (PointsToImplicit marks a biv-me heart's image so), "remove" always, "keep" never."""
+    from bitemesh.convert import field_array, grid_to_image, mesh_to_unstructured
+    from bitemesh.core.grid import sample_function
+    from tests.meshcheck import assert_valid_domain
+    grid = sample_function(lambda x: np.minimum(1.5 - np.linalg.norm(x, axis=1), np.hypot(x[:, 0], x[:, 1]) - 0.2),
+                           [-1.7] * 3, [1.7] * 3, 0.25 / 4, margin=0.25)
+    image = grid_to_image(grid)
+    if myocardium:
+        image.GetFieldData().AddArray(field_array("Myocardium", [1.0]))
+    nodes = bite(grid, 0.25)
+    spurious = SpuriousCellFilter()
+    spurious.SetInputData(0, mesh_to_unstructured(Mesh(nodes, delaunay(nodes))))
+    spurious.SetInputData(1, image)
+    spurious.SetHandles(handles)
+    assert_valid_domain(unstructured_to_mesh(spurious.update()), euler=euler, components=1)
+
+
 def test_quality_filter_gives_the_core_quality_histogram_and_summary(sphere_chain):
     mesh = unstructured_to_mesh(output(sphere_chain.spurious))
     result = output(sphere_chain.quality)

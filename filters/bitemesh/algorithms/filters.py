@@ -4,7 +4,7 @@ Each filter is thin: convert its inputs to numpy, call the core, convert back.  
 """
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -148,12 +148,14 @@ class PointsToImplicit(BitemeshAlgorithm):
             attach_samples(output, samples, STAIRCASE_NOISE * float(np.max(grid.spacing)),
                            float(np.linalg.norm(grid.spacing)))
         elif fit is not None:
-            from ..core.labelled import sample_labelled
+            from ..core.labelled import is_myocardium, sample_labelled
             function = fit[0]
             grid_to_image(sample_labelled(*fit, self.parameters(ImplicitParameters),
                                           self.parameters(LabelledParameters).min_wall, progress=self.progress), output)
             attach_samples(output, function.surface_samples(), function.tracing_noise(), function.contour_gap(),
                            function.base)
+            if is_myocardium(function):   # SpuriousCellFilter's Handles "auto" then removes handles
+                output.GetFieldData().AddArray(field_array("Myocardium", [1.0]))
         else:
             parameters = self.parameters(ImplicitParameters)
             points, normals = scattered_points(source)
@@ -232,7 +234,10 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
     def execute(self, request, inInfo, outInfo):
         mesh, grid = self.mesh_and_grid(inInfo)
         delaunay_mesh = vtkUnstructuredGrid.GetData(inInfo[0])
-        domain = carve_domain(grid, mesh.points, mesh.cells, self.parameters(SpuriousParameters), self.progress)
+        parameters = self.parameters(SpuriousParameters)
+        if parameters.handles == "auto" and vtkImageData.GetData(inInfo[1]).GetFieldData().GetArray("Myocardium"):
+            parameters = replace(parameters, handles="remove")   # a myocardium is a ball, its cavities open
+        domain = carve_domain(grid, mesh.points, mesh.cells, parameters, self.progress)
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(domain, output)
         output.GetFieldData().PassData(delaunay_mesh.GetFieldData())

@@ -277,9 +277,9 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     handles = (2 * count_boundary_components(mesh) - euler) // 2
     if handles > 0:
         warnings.warn(f"the heart mesh's boundary has {handles} handle(s) (Euler characteristic {euler}): a tunnel "
-                      "through a wall, or a bridge across a cavity, thinner than R where independently fitted "
-                      "surfaces nearly touch; a smaller radius or another seed may close it", BitemeshWarning,
-                      stacklevel=2)
+                      "through a wall, or a bridge across a cavity, that no cut or fill of cells thinner than two "
+                      "cells removes (with handles = 'keep', none is removed); check the contours where the fitted "
+                      "surfaces meet, or try a smaller radius", BitemeshWarning, stacklevel=2)
     if fidelity is not None and fidelity.samples:
         mean_bound, p95_bound = 0.5 * fidelity.noise + radius / 4, fidelity.noise + radius
         if fidelity.to_boundary_mean > mean_bound or fidelity.to_boundary_p95 > p95_bound:

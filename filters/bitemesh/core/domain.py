@@ -6,22 +6,30 @@ product hands on only meshes that pass :func:`bitemesh.core.topology.non_manifol
 """
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
 
 from .errors import MeshingError
 from .grid import ImplicitGrid
+from .handles import break_handles, handle_count
 from .mesh import Mesh, signed_measures
 from .parameters import SpuriousParameters
 from .quality import check_valid_domain, radius_ratio
-from .progress import ProgressCallback, report
+from .progress import ProgressCallback, report, sub_progress
 from .spurious import outside_cells
-from .topology import connected_components, euler_characteristic, facet_table, non_manifold_faces
+from .topology import (connected_components, euler_change, facet_table, non_manifold_faces,
+                       vertex_incidence)
+
+logger = logging.getLogger("bitemesh")
 
 #: rounds of repair before giving up, and the first rounds in which a pinch may be mended by filling.
 MAX_REPAIR_ROUNDS = 30
 FILL_ROUNDS = 5
+#: rounds of handle removal, each followed by the repair.
+HANDLE_ROUNDS = 2
 #: an enclosed void of less volume than this many cells (of the median volume) is below the mesh's resolution.
 SMALL_VOID = 10
 #: cells with a radius ratio below this are flat.
@@ -87,31 +95,12 @@ def peel_flat_boundary_cells(points: np.ndarray, cells: np.ndarray, keep: np.nda
     return result
 
 
-def vertex_incidence(n_points: int, cells: np.ndarray) -> sparse.csr_matrix:
-    """(n_points, m) sparse, 1 where a point is a vertex of a cell."""
-    return sparse.csr_matrix((np.ones(cells.size), (cells.ravel(), np.repeat(np.arange(len(cells)), cells.shape[1]))),
-                             shape=(n_points, len(cells)))
-
-
 def fans(incidence: sparse.csr_matrix, members: np.ndarray, facet_size: int):
     """(count, labels) of the groups of the cells ``members`` joined through shared facets (``facet_size``
     vertices in common)."""
     local = incidence[:, members]
     shared = (sparse.csr_matrix(local.T) @ local).toarray()
     return csgraph.connected_components(shared >= facet_size, directed=False)
-
-
-def euler_change(incidence: sparse.csr_matrix, cells: np.ndarray, keep: np.ndarray, changed: np.ndarray,
-                 value: bool) -> int:
-    """How much setting ``keep[changed] = value`` changes the Euler characteristic of the kept complex.
-
-    Only faces of the changed cells come or go, so the cells around their vertices suffice.  -1: a tunnel opens
-    (or two parts join twice); +1: a loop breaks (or a void closes).
-    """
-    near = np.flatnonzero(incidence[np.unique(cells[changed])].sum(axis=0).A1 > 0)
-    after = keep[near].copy()
-    after[np.isin(near, changed)] = value
-    return euler_characteristic(cells[near[after]]) - euler_characteristic(cells[near[keep[near]]])
 
 
 def unpinch(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, faces: list, *, fill: bool) -> np.ndarray:
@@ -149,23 +138,10 @@ def unpinch(points: np.ndarray, cells: np.ndarray, keep: np.ndarray, faces: list
     return result
 
 
-def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
-                 parameters: SpuriousParameters = SpuriousParameters(),
-                 progress: ProgressCallback = None) -> Mesh:
-    """Keep the Delaunay cells of the domain and make it a valid one.
-
-    Parameters
-    ----------
-    grid : the implicit function f on the grid I
-    points : (n, k) float64, the nodes
-    cells : (m, k + 1) int64, all Delaunay cells of the nodes, positively oriented
-
-    Returns
-    -------
-    The valid domain mesh; unused nodes are dropped.
-    """
-    keep = ~outside_cells(grid, points, cells, parameters.threshold)
-    keep |= enclosed_inside_voids(grid, points, cells, keep)
+def repaired(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, keep: np.ndarray,
+             parameters: SpuriousParameters, progress: ProgressCallback = None) -> np.ndarray:
+    """``keep`` made a valid domain: flat boundary cells peeled, small parts dropped, pinches mended, round after
+    round until the boundary is a manifold; enclosed voids filled."""
     for round_ in range(MAX_REPAIR_ROUNDS):
         report(progress, round_ / MAX_REPAIR_ROUNDS, "repairing the boundary")
         if not keep.any():
@@ -183,7 +159,50 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
         raise MeshingError(f"the boundary is still not a manifold after {MAX_REPAIR_ROUNDS} rounds of repair; "
                            "try a smaller radius or a finer grid_spacing")
     # filling a whole enclosed void of a manifold domain leaves it a manifold
+    return keep | enclosed_inside_voids(grid, points, cells, keep)
+
+
+def without_handles(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, keep: np.ndarray,
+                    parameters: SpuriousParameters, progress: ProgressCallback = None) -> np.ndarray:
+    """``keep`` with its handles thinner than about two cells cut or filled, repaired (a repair can reopen a fill:
+    then once more); what was done is logged."""
+    before, handles = keep, handle_count(cells[keep])
+    for round_ in range(HANDLE_ROUNDS):
+        report(progress, round_ / HANDLE_ROUNDS, "removing handles")
+        keep, removed = break_handles(grid, points, cells, keep)
+        if not removed:
+            break
+        keep = repaired(grid, points, cells, keep, parameters)
+    left = handle_count(cells[keep])
+    if left < handles:
+        logger.info("%d handle(s) thinner than two cells removed: %d cells cut, %d filled (handles = 'remove')",
+                    handles - left, int((before & ~keep).sum()), int((keep & ~before).sum()))
+    if left:
+        logger.info("%d handle(s) kept: thicker than two cells, or no single cut or fill removes them", left)
+    return keep
+
+
+def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
+                 parameters: SpuriousParameters = SpuriousParameters(),
+                 progress: ProgressCallback = None) -> Mesh:
+    """Keep the Delaunay cells of the domain and make it a valid one; with ``parameters.handles`` "remove" (3D),
+    without handles too (:func:`bitemesh.core.handles.break_handles`).
+
+    Parameters
+    ----------
+    grid : the implicit function f on the grid I
+    points : (n, k) float64, the nodes
+    cells : (m, k + 1) int64, all Delaunay cells of the nodes, positively oriented
+
+    Returns
+    -------
+    The valid domain mesh; unused nodes are dropped.
+    """
+    keep = ~outside_cells(grid, points, cells, parameters.threshold)
     keep |= enclosed_inside_voids(grid, points, cells, keep)
+    keep = repaired(grid, points, cells, keep, parameters, sub_progress(progress, 0.0, 0.8))
+    if parameters.handles == "remove" and cells.shape[1] == 4:
+        keep = without_handles(grid, points, cells, keep, parameters, sub_progress(progress, 0.8, 1.0))
     report(progress, 1.0, "repairing the boundary")
     mesh = compact(points, cells[keep])
     problems = check_valid_domain(mesh)

@@ -938,6 +938,13 @@ def sample_labelled(function: LabelledImplicit, lower, upper, implicit: Implicit
 LabelledMeshingResult = MeshingResult
 
 
+def is_myocardium(function: LabelledImplicit) -> bool:
+    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV): a ball, its cavities open
+    through the base plane (handles = "auto" removes the handles of its mesh)."""
+    return (set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
+
+
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
                  implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                  spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
@@ -982,16 +989,19 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     if cardiac and biting.radius is None and biting.cells == BitingParameters().cells:
         biting = replace(biting, radius=CARDIAC_RADIUS)
         notes += (f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)",)
+    spurious = spurious or SpuriousParameters()
+    if is_myocardium(function) and spurious.handles == "auto":
+        spurious = replace(spurious, handles="remove")
     for note in notes:
         logger.info(note)
     source = Source(function, lower, upper, frame, samples=function.surface_samples(), at_radius=at_radius,
                     noise=function.tracing_noise(), gap=function.contour_gap(),
                     open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
                     notes=notes)
-    result = mesh_source(source, implicit or ImplicitParameters(), biting, spurious or SpuriousParameters(), optimize,
+    result = mesh_source(source, implicit or ImplicitParameters(), biting, spurious, optimize,
                          sub_progress(progress, 0.3, 1.0), seconds, fidelity or FidelityParameters())
     result = replace(result, function=result.function.moved(frame.shift))
-    if cardiac and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN):
+    if is_myocardium(function):
         with timed(seconds, "plausibility"):
             check_heart(result.mesh, result.function, result.radius, result.fidelity,
                         allow_implausible=allow_implausible)

@@ -92,6 +92,10 @@ class SpuriousParameters(Parameters):
                                  "to the surface exceeds threshold x circumradius", low=0, high=1)
     min_component: float = parameter(0.01, "drop connected parts smaller than this fraction of the largest part's "
                                      "volume", low=0, high=1)
+    handles: str = parameter("auto", "remove: cut or fill the handles of the domain (tunnels and bridges thinner "
+                             "than a cell), for a domain known to have none; keep: the topology the cells give; "
+                             "auto: remove for a biv-me heart (a myocardium with its cavities open), else keep",
+                             choices=("auto", "keep", "remove"))
 
 
 @dataclass(frozen=True)

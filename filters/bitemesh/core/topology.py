@@ -135,3 +135,22 @@ def non_manifold_faces(cells: np.ndarray, n_points: int) -> list:
     if cells.shape[1] > 3:
         found.append(pinched_vertices(cells, n_points))
     return [faces for faces in found if len(faces)]
+
+
+def vertex_incidence(n_points: int, cells: np.ndarray) -> sparse.csr_matrix:
+    """(n_points, m) sparse, 1 where a point is a vertex of a cell."""
+    return sparse.csr_matrix((np.ones(cells.size), (cells.ravel(), np.repeat(np.arange(len(cells)), cells.shape[1]))),
+                             shape=(n_points, len(cells)))
+
+
+def euler_change(incidence: sparse.csr_matrix, cells: np.ndarray, keep: np.ndarray, changed: np.ndarray,
+                 value: bool) -> int:
+    """How much setting ``keep[changed] = value`` changes the Euler characteristic of the kept complex.
+
+    Only faces of the changed cells come or go, so the cells around their vertices suffice.  -1: a tunnel opens
+    (or two parts join twice); +1: a loop breaks (or a void closes).
+    """
+    near = np.flatnonzero(incidence[np.unique(cells[changed])].sum(axis=0).A1 > 0)
+    after = keep[near].copy()
+    after[np.isin(near, changed)] = value
+    return euler_characteristic(cells[near[after]]) - euler_characteristic(cells[near[keep[near]]])
