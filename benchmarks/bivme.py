@@ -42,6 +42,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
 from bitemesh.core import labelled
+from bitemesh.core.csg import domain_names, parse_domain
 from bitemesh.core.errors import BitemeshWarning
 from bitemesh.core.grid import sample_function
 from bitemesh.core.implicit import fit_mpu
@@ -55,6 +56,7 @@ from bitemesh.core.quality import (
     count_boundary_components,
     dihedral_angles,
 )
+from bitemesh.core.slices import contour_normals, slice_planes
 from bitemesh.core.topology import boundary_facets
 from bitemesh.io import read_labelled_points
 from scipy.spatial import cKDTree
@@ -213,15 +215,15 @@ def zero_level_distance(surface, points, iterations: int = 8):
 def leave_one_slice_out(points, labels, slices, options):
     """Per contour point of the used surfaces: distance to the surface refitted without the point's slice."""
     surfaces = labelled.default_surfaces(labels)
-    tree = labelled.parse_domain(labelled.BIVME_DEFAULT_DOMAIN, surfaces)
-    planes = labelled.slice_planes(points, slices)
+    tree = parse_domain(labelled.BIVME_DEFAULT_DOMAIN, surfaces)
+    planes = slice_planes(points, slices)
     fit_options = {key: options[key] for key in ("kernel", "offset", "smoothing") if key in options}
     errors = []
-    for name in labelled.domain_names(tree):
+    for name in domain_names(tree):
         members = np.isin(labels, surfaces[name])
         _, first = np.unique(points[members], axis=0, return_index=True)
         index = np.flatnonzero(members)[np.sort(first)]
-        normals = labelled.contour_normals(points[index], slices[index], planes, name=name)
+        normals = contour_normals(points[index], slices[index], planes, name=name)
         for held in np.unique(slices[index]):
             keep = slices[index] != held
             rbf = labelled.fit_contour_rbf(points[index][keep], normals[keep], **fit_options)

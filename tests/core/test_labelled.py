@@ -1,26 +1,23 @@
-"""Labelled contours (bitemesh.core.labelled): slices, in-plane normals, the CSG expression, the base plane, and a
-synthetic two-cavity shell sampled as sparse contours and meshed."""
+"""Labelled contours (bitemesh.core.labelled, .slices, .csg): slices, in-plane normals, the CSG expression, the base
+plane, and a synthetic two-cavity shell sampled as sparse contours and meshed."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from bitemesh.core import labelled
 from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.csg import evaluate_domain, parse_domain
 from bitemesh.core.labelled import (
     BIVME_DEFAULT_DOMAIN,
-    contour_normals,
-    evaluate_domain,
     fit_base_plane,
     fit_contour_rbf,
-    infer_slices,
     labelled_implicit,
     mesh_from_labelled_points,
-    parse_domain,
     run_labelled,
-    slice_planes,
 )
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.shapes import two_cavity_shell
+from bitemesh.core.slices import SlicePlane, contour_normals, infer_slices, slice_planes
 
 from tests.meshcheck import assert_valid_domain
 
@@ -184,7 +181,7 @@ def test_a_contour_along_a_line_encloses_nothing():
     line = np.column_stack([np.linspace(0, 30, 20), np.zeros(20), np.zeros(20)])
     points = np.vstack([line, circle(20, 5.0, z=10.0)])
     slices = np.repeat([0, 1], 20)
-    planes = {0: labelled.SlicePlane(np.zeros(3), np.array([0, 0, 1.0]), np.array([[1.0, 0, 0], [0, 1.0, 0]]))}
+    planes = {0: SlicePlane(np.zeros(3), np.array([0, 0, 1.0]), np.array([[1.0, 0, 0], [0, 1.0, 0]]))}
     planes.update({1: slice_planes(points, slices)[1]})
     with pytest.raises(InvalidInputError, match=r"the contour of LV in slice 0 encloses no area"):
         contour_normals(points, slices, planes, name="LV")

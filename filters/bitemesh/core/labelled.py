@@ -5,11 +5,11 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
 
 1. Labels -> surfaces (:data:`BIVME_SURFACES` for biv-me labels; otherwise each label is a surface).
 2. Slices: the points' slice ids (a GPFile's ``frameID``) or, without them, the planes found by
-   :func:`infer_slices`.
-3. In-plane normals (:func:`contour_normals`): per surface and slice, the points are ordered into polylines (the
-   longest path of their minimum spanning tree, cut at gaps), the polylines chained into one loop (a U-shaped
-   long-axis contour is closed across its open end), and each point's normal is perpendicular to the polyline in
-   the slice, pointing out of the loop's region.
+   :func:`~bitemesh.core.slices.infer_slices`.
+3. In-plane normals (:func:`~bitemesh.core.slices.contour_normals`): per surface and slice, the points are ordered
+   into polylines (the longest path of their minimum spanning tree, cut at gaps), the polylines chained into one
+   loop (a U-shaped long-axis contour is closed across its open end), and each point's normal is perpendicular to
+   the polyline in the slice, pointing out of the loop's region.
 4. One implicit per surface (:func:`fit_contour_rbf`): a polyharmonic RBF (Carr et al., SIGGRAPH 2001) that is 0
    on the points and +/- delta at off-surface points p -/+ delta n.  The biharmonic kernel phi(r) = r with
    delta = 4 mm was chosen by the measurements of ``benchmarks/bivme.py`` (against the triharmonic r^3, the thin
@@ -20,9 +20,9 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    constraints, the RBF is a partition of unity of RBFs on overlapping patches (:mod:`bitemesh.core.contour_rbf`),
    so that denser contours cost about linearly.  Each RBF is sampled once on a fine grid, exactly near its zero
    level (:func:`bitemesh.core.grid.sample_function` with levels), so the domain is cheap to evaluate on the grid I.
-5. The domain: a CSG expression (:func:`parse_domain`) of the surfaces, ``-`` difference, ``+`` union, ``&``
-   intersection, by min/max of the implicit values (:func:`evaluate_domain`; a difference keeps a thinnest wall
-   where two surfaces interpolated independently would cross), cut by a base plane (:func:`fit_base_plane`).
+5. The domain: a CSG expression (:mod:`bitemesh.core.csg`) of the surfaces, ``-`` difference, ``+`` union, ``&``
+   intersection, by min/max of the implicit values (a difference keeps a thinnest wall where two surfaces
+   interpolated independently would cross), cut by a base plane (:func:`fit_base_plane`).
 
 The septum: biv-me's ``*_RV_SEPTUM`` points lie on the right-ventricular face of the interventricular septum.  They
 bound the RV cavity (with the free wall, in ``RV_ENDO``) and, seen from the LV, they are the outer face of the LV
@@ -39,10 +39,7 @@ import re
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
-from scipy.spatial.distance import pdist
 
 from .cardiac import base_plane as cardiac_base_plane
 from .cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTLETS,  # noqa: F401 (re-exported)
@@ -51,6 +48,7 @@ from .cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTL
                       canonical_labels, default_surfaces, grown, is_bivme, needs_derived_epicardium,
                       unused_labels_note)
 from .contour_rbf import KERNELS, ContourRBF, fit_contour_rbf, off_surface_offsets  # noqa: F401
+from .csg import domain_names, evaluate_domain, parse_domain
 from .errors import InvalidInputError, check_choice, check_number, check_points
 from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
 from .implicit import grid_layout
@@ -58,6 +56,7 @@ from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
 from .samples import contour_gap, slice_spacing
+from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .source import Frame, Source
 from .spine import GRID_PER_RADIUS, MeshingResult, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
@@ -70,14 +69,6 @@ BASE = "BASE"
 
 #: no patch of a surface's fit is narrower than this x the median distance between its slices.
 PATCH_PER_GAP = 1.0
-#: a polyline breaks where its points are more than this x the median spacing apart.
-GAP_FACTOR = 3.0
-#: a contour loop encloses nothing when 4 pi area / perimeter^2 is below this.
-MIN_ROUNDNESS = 0.005
-#: a slice's contour of more points than this is ordered from a nearest-neighbour graph instead of all pairs.
-_DENSE_POINTS = 1500
-#: infer_slices counts the points of each candidate plane among at most this many points.
-_PLANE_SAMPLE = 4000
 
 
 # --- labels and slices -------------------------------------------------------------------------------------------
@@ -93,299 +84,6 @@ def _as_labels(labels, count: int) -> np.ndarray:
     return np.array([str(label).strip() for label in labels.tolist()], dtype=object).astype(str)
 
 
-def infer_slices(points, *, tolerance=None, min_points: int = 8, seed: int = 0, trials: int = 400) -> np.ndarray:
-    """Group contour points into the planes (image slices) they were drawn on, by sequential RANSAC.
-
-    Each round samples ``trials`` triangles of nearby points (a point and two of its 30 nearest neighbours, so that
-    the three are usually on one contour), takes the plane that holds the most points within ``tolerance``, refits
-    it to those points by least squares and removes them.  Rounds stop when no plane holds ``min_points`` points
-    that are not all on one line.  A point on the line where two slices cross goes to the larger slice.
-
-    Parameters
-    ----------
-    points : (n, 3) float64, input units
-    tolerance : float, input units, largest distance of a point from its plane; default 1e-3 x the bounding-box
-        diagonal (contours are drawn on image planes, so their points are coplanar to rounding)
-    min_points : int, fewest points a slice holds
-    seed : int, seed of the sampling (the same points and seed give the same slices)
-
-    Returns
-    -------
-    (n,) int64 slice ids 0, 1, ... (largest slice first); -1 for points on no plane
-    """
-    points = check_points(points, dims=(3,))
-    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
-    tolerance = 1e-3 * diagonal if tolerance is None else check_number(tolerance, "tolerance", low=0,
-                                                                          low_open=True)
-    min_points = int(check_number(min_points, "min_points", low=3))
-    rng = np.random.default_rng(seed)
-    slices = np.full(len(points), -1, dtype=np.int64)
-    remaining = np.arange(len(points))
-    for number in range(len(points)):
-        if len(remaining) < min_points:
-            break
-        subset = points[remaining]
-        k = min(30, len(subset) - 1)
-        _, near = cKDTree(subset).query(subset, k=k + 1)
-        first = rng.integers(0, len(subset), trials)
-        second, third = near[first, rng.integers(1, k + 1, trials)], near[first, rng.integers(1, k + 1, trials)]
-        a, b, c = subset[first], subset[second], subset[third]
-        normal = np.cross(b - a, c - a)
-        area = np.linalg.norm(normal, axis=1)
-        longest = np.max([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - a, axis=1),
-                          np.linalg.norm(c - b, axis=1)], axis=0)
-        good = area > 0.05 * longest ** 2   # not a sliver: the plane is well defined
-        if not good.any():
-            break
-        normal, a = normal[good] / area[good, None], a[good]
-        sample = subset if len(subset) <= _PLANE_SAMPLE else subset[rng.choice(len(subset), _PLANE_SAMPLE, False)]
-        counts = (np.abs(np.einsum("td,nd->tn", normal, sample) - np.einsum("td,td->t", normal, a)[:, None])
-                  < tolerance).sum(axis=1)
-        best = int(np.argmax(counts))
-        inliers = np.abs((subset - a[best]) @ normal[best]) < tolerance
-        for _ in range(2):   # least-squares refit on the inliers, then recount
-            centre = subset[inliers].mean(axis=0)
-            _, spread, axes = np.linalg.svd(subset[inliers] - centre, full_matrices=False)
-            inliers = np.abs((subset - centre) @ axes[2]) < tolerance
-        if inliers.sum() < min_points or spread[1] <= 1e-6 * spread[0]:
-            break
-        slices[remaining[inliers]] = number
-        remaining = remaining[~inliers]
-    return slices
-
-
-@dataclass(frozen=True)
-class SlicePlane:
-    """A slice: its centre, unit normal and two in-plane unit axes (right-handed: axes[0] x axes[1] = normal)."""
-
-    centre: np.ndarray
-    normal: np.ndarray
-    axes: np.ndarray
-
-    def project(self, points) -> np.ndarray:
-        """(m, 2) in-plane coordinates of (m, 3) points."""
-        return (np.asarray(points) - self.centre) @ self.axes.T
-
-
-def slice_planes(points, slices) -> dict:
-    """Slice id -> :class:`SlicePlane` fitted (least squares) to the points of each slice id >= 0.
-
-    A slice whose points lie on one line has no plane and is left out.
-    """
-    points = check_points(points, dims=(3,))
-    slices = np.asarray(slices)
-    planes = {}
-    for number in np.unique(slices[slices >= 0]).tolist():
-        members = points[slices == number]
-        if len(members) < 3:
-            continue
-        centre = members.mean(axis=0)
-        _, spread, axes = np.linalg.svd(members - centre, full_matrices=False)
-        if spread[1] <= 1e-6 * spread[0]:
-            continue
-        normal = np.cross(axes[0], axes[1])
-        planes[number] = SlicePlane(centre, normal / np.linalg.norm(normal), axes[:2].copy())
-    return planes
-
-
-# --- contours and their in-plane normals ---------------------------------------------------------------------------
-
-def _tree_path(tree, start: int):
-    """Farthest node from ``start`` along the (symmetric, weighted) tree, and the predecessor array."""
-    distance, predecessors = csgraph.dijkstra(tree, directed=False, indices=start, return_predecessors=True)
-    reachable = np.isfinite(distance)
-    farthest = int(np.flatnonzero(reachable)[np.argmax(distance[reachable])])
-    return farthest, predecessors
-
-
-def _polylines(q: np.ndarray, gap_factor: float):
-    """Order 2D points into polylines: the longest paths of the pieces of their minimum spanning tree.
-
-    The tree (of all pairs, or of the 16 nearest neighbours of each point when there are more than
-    :data:`_DENSE_POINTS`) is cut at edges longer than ``gap_factor`` x its median edge.  Returns a list of index
-    arrays (path order), the piece label of each point, and the median edge length.
-    """
-    count = len(q)
-    if count <= _DENSE_POINTS:
-        rows, cols = np.triu_indices(count, 1)
-        weights = pdist(q)
-    else:
-        distance, near = cKDTree(q).query(q, k=17)
-        rows, cols, weights = np.repeat(np.arange(count), 16), near[:, 1:].ravel(), distance[:, 1:].ravel()
-    scale = float(weights.max()) if len(weights) else 1.0
-    graph = sparse.csr_matrix((weights + 1e-12 * scale, (rows, cols)), shape=(count, count))   # no zero weight
-    tree = csgraph.minimum_spanning_tree(graph).tocoo()
-    spacing = float(np.median(tree.data)) if tree.nnz else 0.0
-    keep = tree.data <= gap_factor * spacing
-    forest = sparse.csr_matrix((tree.data[keep], (tree.row[keep], tree.col[keep])), shape=(count, count))
-    forest = forest + forest.T
-    pieces, piece = csgraph.connected_components(forest, directed=False)
-    paths = []
-    for number in range(pieces):
-        members = np.flatnonzero(piece == number)
-        if len(members) == 1:
-            paths.append(members)
-            continue
-        a, _ = _tree_path(forest, int(members[0]))
-        b, predecessors = _tree_path(forest, a)
-        path = [b]
-        while path[-1] != a:
-            path.append(int(predecessors[path[-1]]))
-        paths.append(np.array(path[::-1]))
-    return paths, piece, spacing
-
-
-def _signed_area(polygon: np.ndarray) -> float:
-    x, y = polygon[:, 0], polygon[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
-def _perimeter(polygon: np.ndarray) -> float:
-    return float(np.linalg.norm(polygon - np.roll(polygon, -1, axis=0), axis=1).sum())
-
-
-def _inside_polygon(point: np.ndarray, polygon: np.ndarray) -> bool:
-    """Even-odd rule."""
-    x, y = polygon[:, 0], polygon[:, 1]
-    x2, y2 = np.roll(x, -1), np.roll(y, -1)
-    crosses = (y > point[1]) != (y2 > point[1])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        at = x + (point[1] - y) * (x2 - x) / (y2 - y)
-    return bool(np.count_nonzero(crosses & (point[0] < at)) % 2)
-
-
-def _loops(q: np.ndarray, paths, spacing: float, gap_factor: float):
-    """Group polylines into closed loops: a polyline whose ends meet is a loop; the open ones are chained, nearest
-    end to nearest end, into one loop (closed across the remaining gap, e.g. a valve)."""
-    closed, open_ = [], []
-    for path in paths:
-        if len(path) < 2:
-            continue
-        meets = len(path) > 3 and np.linalg.norm(q[path[0]] - q[path[-1]]) <= gap_factor * spacing
-        (closed if meets else open_).append(path)
-    if open_:
-        open_.sort(key=len, reverse=True)
-        chain = [open_.pop(0)]
-        while open_:
-            end = q[chain[-1][-1]]
-            starts = np.array([np.linalg.norm(q[p[0]] - end) for p in open_])
-            ends = np.array([np.linalg.norm(q[p[-1]] - end) for p in open_])
-            best = int(np.argmin(np.minimum(starts, ends)))
-            piece = open_.pop(best)
-            chain.append(piece if starts[best] <= ends[best] else piece[::-1])
-        closed.append(chain)
-    return [loop if isinstance(loop, list) else [loop] for loop in closed]
-
-
-def _tangents(xy: np.ndarray, closed: bool, jump: float) -> np.ndarray:
-    """(m, 2) tangents of a polyline, each over +/- 2 points (contours traced on the pixel grid make neighbours alone
-    swing with its steps), never across a step longer than ``jump`` and 1.5 x the steps beside it (where the path
-    cuts across a side branch); 0 for a point with no neighbour on its side of such steps."""
-    count = len(xy)
-    length = np.linalg.norm(np.diff(np.vstack([xy, xy[:1]]), axis=0), axis=1)   # step i: from i to i + 1
-    if not closed:
-        length[-1] = 0.0
-    # a long step: longer than `jump` and than 1.5 x both steps beside it (so a change of spacing is no jump)
-    beside = np.maximum(np.roll(length, 1), np.roll(length, -1))
-    steps = (length > jump) & (length > 1.5 * beside)
-    if closed and not steps.any():
-        return np.roll(xy, -2, axis=0) - np.roll(xy, 2, axis=0)
-    # open (or a loop cut after a long step, rotated to start there): segments between long steps
-    start = (int(np.flatnonzero(steps)[0]) + 1) % count if closed else 0
-    order = np.roll(np.arange(count), -start)
-    line = xy[order]
-    segment = np.r_[0, np.cumsum(steps[order][:-1])]
-    index = np.arange(count)
-    ahead, behind = index.copy(), index.copy()
-    for shift in (1, 2):
-        forward, backward = np.minimum(index + shift, count - 1), np.maximum(index - shift, 0)
-        ahead = np.where(segment[forward] == segment, forward, ahead)
-        behind = np.where(segment[backward] == segment, backward, behind)
-    tangent = np.empty_like(xy)
-    tangent[order] = line[ahead] - line[behind]
-    return tangent
-
-
-def _normals_2d(q: np.ndarray, gap_factor: float, where: str) -> np.ndarray:
-    """(m, 2) outward in-plane unit normals of the points of one region in one slice (NaN where undefined)."""
-    normals = np.full(q.shape, np.nan)
-    if len(q) < 3:
-        return normals
-    paths, piece, spacing = _polylines(q, gap_factor)
-    loops = _loops(q, paths, spacing, gap_factor)
-    polygons = [q[np.concatenate(loop)] for loop in loops]
-    for loop, polygon in zip(loops, polygons):
-        area = _signed_area(polygon)
-        perimeter = _perimeter(polygon)
-        if 4 * np.pi * abs(area) < MIN_ROUNDNESS * perimeter ** 2:
-            raise InvalidInputError(
-                f"the contour of {where} encloses no area: its {len(polygon)} points lie along a line or a curve "
-                f"that does not bend around a region (4 pi area / perimeter^2 = "
-                f"{4 * np.pi * abs(area) / max(perimeter ** 2, 1e-300):.2g} < {MIN_ROUNDNESS}); "
-                "check its label, or remove it")
-        # A loop inside an odd number of other loops of the region bounds a hole: its normals point into it.
-        inner = sum(_inside_polygon(polygon[0], other) for other in polygons if other is not polygon) % 2
-        turn = (1.0 if area > 0 else -1.0) * (-1.0 if inner else 1.0)
-        closed_loop = len(loop) == 1 and np.linalg.norm(polygon[0] - polygon[-1]) <= gap_factor * spacing
-        for path in loop:
-            tangent = _tangents(q[path], closed_loop, 1.5 * spacing)
-            length = np.linalg.norm(tangent, axis=1)
-            ok = length > 0
-            normals[path[ok]] = turn * np.column_stack([tangent[ok, 1], -tangent[ok, 0]]) / length[ok, None]
-    # Points off the paths (side branches of the tree): the normal of the nearest path point of the same piece when
-    # they lie beside it (a doubled row of points); a longer branch (a hook where two contours meet) gets none.
-    known = np.flatnonzero(np.isfinite(normals[:, 0]))
-    for number in np.unique(piece):
-        members = np.flatnonzero(piece == number)
-        missing = members[~np.isfinite(normals[members, 0])]
-        sources = np.intersect1d(members, known)
-        if len(missing) and len(sources):
-            distance, nearest = cKDTree(q[sources]).query(q[missing])
-            beside = distance <= 0.5 * spacing
-            normals[missing[beside]] = normals[sources[nearest[beside]]]
-    return normals
-
-
-def contour_normals(points, slices, planes=None, *, gap_factor: float = GAP_FACTOR, name: str = "the surface"):
-    """Outward in-plane unit normals of the contour points of one surface (one region).
-
-    Per slice, the points are projected on the slice plane and ordered into polylines (the longest path of each
-    piece of their minimum spanning tree, cut at edges longer than ``gap_factor`` x the median edge); the polylines
-    are chained into loops (see the module docstring) and each point's normal is the in-plane perpendicular of
-    its polyline, pointing out of the loop's region (out of a hole for a loop nested in another).
-
-    Parameters
-    ----------
-    points : (n, 3) float64, the points of one surface (a cavity, or an epicardium), input units
-    slices : (n,) int, slice id per point (-1: none)
-    planes : dict slice id -> SlicePlane, default fitted to these points (better: to all points of each slice)
-    gap_factor : float, polyline break, x the median point spacing
-    name : str, the surface's name in error messages
-
-    Returns
-    -------
-    (n, 3) float64 unit normals in the slice planes; NaN rows for points without a slice, in slices with fewer
-    than 3 points of this surface, or isolated
-
-    Raises
-    ------
-    InvalidInputError
-        When a slice's contour of this surface encloses no area (its points lie along a line).
-    """
-    points = check_points(points, dims=(3,))
-    slices = np.asarray(slices)
-    planes = slice_planes(points, slices) if planes is None else planes
-    normals = np.full(points.shape, np.nan)
-    for number in np.unique(slices[slices >= 0]).tolist():
-        members = np.flatnonzero(slices == number)
-        plane = planes.get(number)
-        if plane is None or len(members) < 3:
-            continue
-        in_plane = _normals_2d(plane.project(points[members]), gap_factor, f"{name} in slice {number}")
-        normals[members] = in_plane @ plane.axes
-    return normals
-
-
 # --- fast evaluation on many points ---------------------------------------------------------------------------------
 
 #: each surface is sampled on a grid of at most this many nodes (256 MiB): its spacing grows if needed.
@@ -397,131 +95,6 @@ def _nodes(lower, spacing, shape) -> np.ndarray:
     """(prod(shape), 3) coordinates of the grid nodes, C order (axis 0 is x)."""
     axes = [lower[d] + np.arange(shape[d]) * spacing for d in range(3)]
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-
-
-# --- the domain expression -----------------------------------------------------------------------------------------
-
-_TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-z0-9_.:]+)|(?P<op>[-+&()]))")
-
-
-def parse_domain(expression: str, known) -> tuple:
-    """Parse a CSG expression of surface names into a tree.
-
-    Grammar: ``expr := term (('+' | '-') term)*``, ``term := atom ('&' atom)*``, ``atom := NAME | '(' expr ')'``;
-    ``-`` is the difference, ``+`` the union, ``&`` the intersection (binding tighter), left-associative:
-    ``EPI - LV_ENDO - RV_ENDO`` is ``(EPI - LV_ENDO) - RV_ENDO``.  Names are letters, digits, ``_``, ``.``, ``:``.
-
-    Returns
-    -------
-    tree of tuples: ``("name", NAME)`` or ``(op, left, right)`` with op one of ``-``, ``+``, ``&``
-
-    Raises
-    ------
-    InvalidInputError
-        On a syntax error (the message shows where) or a name that is not in ``known`` (the message lists them).
-    """
-    if not isinstance(expression, str) or not expression.strip():
-        raise InvalidInputError(f"domain must be a non-empty expression such as {BIVME_DEFAULT_DOMAIN!r}, got "
-                                f"{expression!r}")
-    known = list(known)
-    tokens, position = [], 0
-    text = expression.rstrip()
-    while position < len(text):
-        match = _TOKEN.match(text, position)
-        if not match:
-            raise InvalidInputError(
-                f"domain {expression!r}: unexpected character {text[position:].lstrip()[:1]!r} at position "
-                f"{len(text[:position]) + len(text[position:]) - len(text[position:].lstrip())}; use surface "
-                "names, '-', '+', '&' and parentheses")
-        tokens.append((match.group("name") and "name" or match.group("op"), match.group("name") or match.group("op"),
-                       match.start(match.lastgroup)))
-        position = match.end()
-    tokens.append(("end", "", len(text)))
-    at = 0
-
-    def fail(message):
-        where = tokens[at][2]
-        raise InvalidInputError(f"domain {expression!r}: {message} at position {where}\n    {expression}\n"
-                                f"    {' ' * where}^")
-
-    def atom():
-        nonlocal at
-        kind, value, _ = tokens[at]
-        if kind == "name":
-            if value not in known:
-                raise InvalidInputError(
-                    f"domain {expression!r} names the unknown surface {value!r}; known surfaces: "
-                    f"{', '.join(known) or '(none)'}")
-            at += 1
-            return ("name", value)
-        if kind == "(":
-            at += 1
-            tree = expr()
-            if tokens[at][0] != ")":
-                fail("expected ')'")
-            at += 1
-            return tree
-        fail("expected a surface name or '('" if kind != "end" else "the expression ends too early")
-
-    def term():
-        nonlocal at
-        tree = atom()
-        while tokens[at][0] == "&":
-            at += 1
-            tree = ("&", tree, atom())
-        return tree
-
-    def expr():
-        nonlocal at
-        tree = term()
-        while tokens[at][0] in "+-" and tokens[at][0] != "end":
-            op = tokens[at][0]
-            at += 1
-            tree = (op, tree, term())
-        return tree
-
-    tree = expr()
-    if tokens[at][0] != "end":
-        fail(f"unexpected {tokens[at][1]!r}")
-    return tree
-
-
-def domain_names(tree) -> list:
-    """The surface names a parsed domain uses, in order of first use."""
-    if tree[0] in ("name", "grow"):
-        return [tree[1]]
-    return list(dict.fromkeys(domain_names(tree[1]) + domain_names(tree[2])))
-
-
-def evaluate_domain(tree, values: dict, min_wall: float = 0.0):
-    """The CSG value of a parsed domain and, per point, the index (into ``values``' keys) of the surface giving it.
-
-    ``A + B = max(f_A, f_B)``, ``A & B = min(f_A, f_B)``, ``A - B = min(f_A, -f_B)``, and with ``min_wall`` = t > 0
-    ``A - B = min(f_A, max(-f_B, min(t - f_A, t + f_A - f_B)))``: a point within t inside A's boundary stays in the
-    domain where B reaches less than t beyond A's boundary (f_B - f_A < t, f_B - f_A being about how far B's
-    boundary lies beyond A's).  Where two independently interpolated surfaces (a thin RV free wall's epicardium
-    and endocardium) cross between slices, the wall keeps the thickness t instead of opening in a hole; where B
-    leaves A by more (a cavity opening through the base), nothing is added.  There the boundary is the offset of
-    A's, attributed to B (the cavity's wall).  A node ``("grow", name, t)`` (built by :func:`labelled_implicit`, not
-    parsed) is f_name + t: the region grown by t (f_name about a signed distance; t None: ``min_wall``).
-    """
-    names = list(values)
-
-    def walk(node):
-        if node[0] in ("name", "grow"):
-            value = values[node[1]]
-            if node[0] == "grow":   # ("grow", name, thickness or None for min_wall)
-                value = value + (min_wall if node[2] is None else node[2])
-            return value, np.full(len(value), names.index(node[1]))
-        (left, left_source), (right, right_source) = walk(node[1]), walk(node[2])
-        if node[0] == "-":
-            right = -right
-            if min_wall > 0:   # right is -f_B here
-                right = np.maximum(right, np.minimum(min_wall - left, min_wall + left + right))
-        take_right = right > left if node[0] == "+" else right < left
-        return np.where(take_right, right, left), np.where(take_right, right_source, left_source)
-
-    return walk(tree)
 
 
 # --- the base plane ------------------------------------------------------------------------------------------------
@@ -556,9 +129,9 @@ class LabelledImplicit:
     Attributes
     ----------
     surfaces : name -> callable implicit (f > 0 inside), the surfaces the domain uses
-    tree : the parsed domain (see :func:`parse_domain`); expression : its text
+    tree : the parsed domain (see :func:`~bitemesh.core.csg.parse_domain`); expression : its text
     base : (point, normal) of the base plane (normal out of the domain), or None
-    min_wall : float, input units, the thinnest wall a difference keeps (see :func:`evaluate_domain`)
+    min_wall : float, input units, the thinnest wall a difference keeps (see :func:`~bitemesh.core.csg.evaluate_domain`)
     lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
     points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
         where none); slices : name -> (n,) their slice ids
@@ -755,16 +328,17 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         perpendicular to the short-axis stack, :func:`bitemesh.core.cardiac.base_plane`; without a stack the
         least-squares plane of the valve points, the apex inside), None (no cut), or (point, normal) with the
         normal pointing out of the domain
-    slices : (n,) int slice id per point (a GPFile's frameID), or None to find them (:func:`infer_slices`)
+    slices : (n,) int slice id per point (a GPFile's frameID), or None to find them
+        (:func:`~bitemesh.core.slices.infer_slices`)
     surfaces : dict name -> labels, default :func:`default_surfaces`
     outlets : dict surface name -> valve labels through which that cavity opens (see :data:`BIVME_OUTLETS`, the
         default for biv-me labels; {} for none)
     kernel, offset, smoothing : of :func:`fit_contour_rbf`
     base_offset : float, input units, moves the base plane along its normal (> 0: away from the apex)
     min_wall : float, input units, the thinnest wall between a surface and what is subtracted from it (see
-        :func:`evaluate_domain`); 0 lets walls open where the surfaces cross
+        :func:`~bitemesh.core.csg.evaluate_domain`); 0 lets walls open where the surfaces cross
     rv_wall : float, mm, the RV free wall thickness a missing RV epicardium is derived with
-    gap_factor : float, of :func:`contour_normals`
+    gap_factor : float, of :func:`~bitemesh.core.slices.contour_normals`
     resolution : float, input units, the spacing of the grid each surface is sampled on (an ImplicitGrid);
         default 0.35 x the median spacing of the surface's points (1 mm for contours traced on 1.4 mm pixels), at
         least offset / 4 (denser contours say no more between the slices) and 1/400 of its bounding-box diagonal
