@@ -187,3 +187,30 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
         values[flat] = function(np.stack([axes[d][index[d]] for d in range(len(shape))], axis=1))
     report(progress, 1.0, "sampling f: done")
     return ImplicitGrid(origin=lower, spacing=spacing_array, values=values.reshape(shape))
+
+
+def bounding_box(points: np.ndarray):
+    """(lower (k,), upper (k,), diagonal) of the points' box."""
+    lower, upper = points.min(axis=0), points.max(axis=0)
+    return lower, upper, float(np.linalg.norm(upper - lower))
+
+
+def box_depth(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, *, gradient: bool = False):
+    """Signed distance to the boundary of the box [lower, upper], > 0 inside.
+
+    Returns the (m,) depth and, with ``gradient``, its (m, k) gradient.
+    """
+    beyond = x - np.clip(x, lower, upper)
+    distance_out = np.linalg.norm(beyond, axis=1)
+    to_faces = np.concatenate([x - lower, upper - x], axis=1)
+    nearest_face = np.argmin(to_faces, axis=1)
+    outside = distance_out > 0
+    depth = np.where(outside, -distance_out, to_faces[np.arange(len(x)), nearest_face])
+    if not gradient:
+        return depth
+    dim = x.shape[1]
+    inward = np.zeros_like(x)
+    inward[np.arange(len(x)), nearest_face % dim] = np.where(nearest_face < dim, 1.0, -1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        away = -beyond / distance_out[:, None]
+    return depth, np.where(outside[:, None], away, inward)
