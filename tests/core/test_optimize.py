@@ -18,8 +18,9 @@ from bitemesh.core.delaunay import delaunay
 from bitemesh.core.errors import Cancelled, InvalidInputError, MeshingError
 from bitemesh.core.grid import sample_function
 from bitemesh.core.mesh import Mesh, signed_measures
-from bitemesh.core.optimize import (flip, inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms, optimize_mesh,
-                                    peel, polygon_triangulations, relax, signed_radius_ratio, smooth)
+from bitemesh.core.cell_measures import inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms, signed_radius_ratio
+from bitemesh.core.flips import flip, polygon_triangulations
+from bitemesh.core.optimize import optimize_mesh, peel, relax, smooth
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.pipeline import mesh_from_grid, radius_for_cells
 from bitemesh.core.quality import check_valid_domain, dihedral_angles, edge_lengths, radius_ratio

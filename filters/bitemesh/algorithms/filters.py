@@ -20,7 +20,8 @@ from ..core.fidelity import check_fidelity, measure_fidelity, on_plane
 from ..core.grid import grid_shape
 from ..core.implicit import grid_layout
 from ..core.mesh import Mesh
-from ..core.optimize import mean_edge_length, optimize_mesh
+from ..core.cell_measures import mean_edge_length
+from ..core.optimize import optimize_mesh
 from ..core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, LabelledParameters,
                                LabelMapParameters, OptimizeParameters, OptimizeSwitch, QualityParameters,
                                SpuriousParameters)

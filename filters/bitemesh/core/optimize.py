@@ -7,10 +7,10 @@
    area-weighted mean of the centroids of its boundary facets, along the surface and back onto f = 0; then the
    nodes are triangulated again (Delaunay and the circumcentre test), until the mean radius ratio stops rising.
    The last state is carved into a valid domain (:func:`bitemesh.core.domain.carve_domain`).
-3. Sliver removal (:func:`remove_slivers`): rounds of flips (:func:`flip`), which replace the cells around an
-   interior edge (edge removal: 3-2, 4-4, 5-6 ... flips) or on both sides of an interior facet (2-3 flips; 2-2 in
-   2D) when that raises the worst radius ratio among them, then of smoothing (:func:`smooth`), which moves the nodes
-   down sum over the cells of (1 / mean ratio)^2 (Knupp's inverse mean ratio, infinite for a flat cell) with the
+3. Sliver removal (:func:`remove_slivers`): rounds of flips (:mod:`bitemesh.core.flips`), which replace the cells
+   around an interior edge (edge removal: 3-2, 4-4, 5-6 ... flips) or on both sides of an interior facet (2-3 flips;
+   2-2 in 2D) when that raises the worst radius ratio among them, then of smoothing (:func:`smooth`), which moves the
+   nodes down sum over the cells of (1 / mean ratio)^2 (Knupp's inverse mean ratio, infinite for a flat cell) with the
    boundary nodes sliding on f = 0.  A poor cell left (an angle below ``min_dihedral`` or a radius ratio below
    ``min_quality``) that lies on the surface is peeled (:func:`peel`).  The rounds end when no cell is poor (within
    ``SLIVER_ROUNDS``).
@@ -28,23 +28,23 @@ points.
 """
 from __future__ import annotations
 
-from itertools import combinations, permutations
-from math import factorial
-
 import numpy as np
 
 from .biting import project_to_surface
+from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
+                            mean_ratio_terms, off_surface_nodes, scatter_to_points, signed_radius_ratio,
+                            smallest_angles, tangential)
 from .delaunay import delaunay
 from .domain import carve_domain, compact
 from .errors import InvalidInputError, MeshingError
+from .flips import flip
 from .grid import ImplicitGrid
-from .mesh import Mesh, circumspheres
+from .mesh import Mesh, circumspheres, signed_measures
 from .parameters import OptimizeParameters, SpuriousParameters
 from .progress import ProgressCallback, report, sub_progress
-from .quality import (boundary_euler_characteristic, check_valid_domain, count_boundary_components, dihedral_angles,
-                      edge_lengths)
+from .quality import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 from .spurious import outside_cells
-from .topology import boundary_facets, facet_table, neighbour_pairs, non_manifold_faces, unique_rows
+from .topology import boundary_facets, facet_table, non_manifold_faces
 
 #: the relaxation, and the rounds of sliver removal once no cell is below the angle bound, stop when the mean
 #: radius ratio has not risen by MEAN_GAIN over their last PATIENCE iterations (rounds: over the last one).
@@ -57,14 +57,6 @@ INTERIOR_MARGIN = 0.3
 #: rounds of flips and smoothing, and the smoothing iterations in each round.
 SLIVER_ROUNDS = 4
 SMOOTH_ITERATIONS = 6
-#: a flip must raise the worst radius ratio of the cells it replaces by at least FLIP_GAIN; only groups of cells
-#: with a radius ratio below FLIP_QUALITY are tried (the others rarely gain: measured, no change in the result).
-FLIP_GAIN = 1e-3
-FLIP_QUALITY = 0.8
-#: passes of flips in a round (each pass makes a set of flips that share no cell), and the largest ring of cells
-#: around an edge that edge removal triangulates again (in 42 ways for 7).
-FLIP_PASSES = 12
-MAX_RING = 7
 #: smoothing: exponent p of the cost (1 / mean ratio)^p, longest move (x mean edge length), the step lengths tried.
 SMOOTH_POWER = 2
 MAX_MOVE = 0.2
@@ -72,140 +64,8 @@ STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.125)
 #: rounds in which moves that made a shared cell worse are taken back (smoothing), or in which peeled cells that
 #: pinched the boundary come back (peel).
 REVERT_ROUNDS = 10
-#: sum of squared edge lengths / V^(2/k) of the regular triangle and tetrahedron.
-MEAN_RATIO_SCALE = {2: 4.0 * np.sqrt(3.0), 3: 12.0 * 3.0 ** (2.0 / 3.0)}
 #: a boundary node is on the surface when |f| there is below this fraction of the mean edge length.
 SURFACE_TOLERANCE = 0.01
-
-
-# --- measures of cells ---------------------------------------------------------------------------------------------
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of (m, 3) arrays (faster than ``np.cross`` on short rows)."""
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
-
-
-def signed_radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """(m,) the radius ratio Q = k r_in / R_circ of each cell, negative for an inverted cell, 0 for a flat one.
-
-    Closed forms.  3D, with a, b, c the edges from vertex 0 and V6 = a . (b x c) six times the volume:
-    Q = 6 V6 |V6| / (S |N|), S twice the surface area, N = |a|^2 b x c + |b|^2 c x a + |c|^2 a x b
-    (R_circ = |N| / 2 |V6|).  2D: Q = 4 A2 |A2| / (P l_a l_b l_c), A2 twice the signed area, P the perimeter.
-    Equal to :func:`bitemesh.core.quality.radius_ratio` on positive cells, and several times faster.
-    """
-    corners = points[cells]
-    a, b = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    if points.shape[1] == 2:
-        twice_area = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-        sides = [np.sqrt(_dot(v, v)) for v in (a, b, b - a)]
-        numerator = 4.0 * twice_area * np.abs(twice_area)
-        denominator = (sides[0] + sides[1] + sides[2]) * sides[0] * sides[1] * sides[2]
-    else:
-        c = corners[:, 3] - corners[:, 0]
-        bc, ca, ab = _cross(b, c), _cross(c, a), _cross(a, b)
-        six_volume = _dot(a, bc)
-        centre = _dot(a, a)[:, None] * bc + _dot(b, b)[:, None] * ca + _dot(c, c)[:, None] * ab
-        facing = bc + ca + ab  # twice the area vector of the facet opposite vertex 0
-        surface = sum(np.sqrt(_dot(v, v)) for v in (bc, ca, ab, facing))
-        numerator = 6.0 * six_volume * np.abs(six_volume)
-        denominator = surface * np.sqrt(_dot(centre, centre))
-    return np.divide(numerator, denominator, out=np.zeros(len(cells)), where=denominator > 0)
-
-
-def mean_ratio_cost(volume: np.ndarray, squares: np.ndarray, k: int) -> np.ndarray:
-    """(m,) 1 / mean ratio of simplices of signed measure ``volume`` and sum of squared edge lengths ``squares``.
-
-    The mean ratio is eta = C_k V^(2/k) / (sum of squared edge lengths), 1 for the regular simplex.  1 / eta is
-    smooth, >= 1, and grows without bound as a cell flattens (inf for no or negative volume): a descent on it
-    cannot invert a cell.
-    """
-    cost = np.full(len(volume), np.inf)
-    positive = volume > 0
-    cost[positive] = squares[positive] / (MEAN_RATIO_SCALE[k] * volume[positive] ** (2.0 / k))
-    return cost
-
-
-def mean_ratio_terms(corners: np.ndarray):
-    """What :func:`mean_ratio_cost` and its derivatives need, for (m, k + 1, k) ``corners``.
-
-    Returns
-    -------
-    volume : (m,) signed measure
-    squares : (m,) sum of the squared edge lengths
-    volume_gradient : (m, k + 1, k) d volume / d vertex; the volume is linear in each vertex, so
-        volume + volume_gradient[:, i] . d is exact when vertex i alone moves by d
-    centred : (m, k + 1, k) the vertices minus their mean; when vertex i alone moves by d, squares grows by
-        2 (k + 1) centred[:, i] . d + k |d|^2
-    """
-    k = corners.shape[-1]
-    edges = corners[:, 1:] - corners[:, :1]
-    # d V / d x_i for i >= 1: the cofactors of the edge matrix; d V / d x_0 = -(their sum)
-    if k == 2:
-        cofactors = np.stack([np.stack([edges[:, 1, 1], -edges[:, 1, 0]], axis=1),
-                              np.stack([-edges[:, 0, 1], edges[:, 0, 0]], axis=1)], axis=1)
-    else:
-        cofactors = np.stack([_cross(edges[:, 1], edges[:, 2]), _cross(edges[:, 2], edges[:, 0]),
-                              _cross(edges[:, 0], edges[:, 1])], axis=1)
-    cofactors /= factorial(k)
-    volume = _dot(edges[:, 0], cofactors[:, 0])
-    volume_gradient = np.concatenate([-cofactors.sum(axis=1, keepdims=True), cofactors], axis=1)
-    total = edges.sum(axis=1)
-    squares = (k + 1) * np.einsum("mij,mij->m", edges, edges) - _dot(total, total)
-    centred = np.concatenate([np.zeros_like(edges[:, :1]), edges], axis=1) - total[:, None] / (k + 1)
-    return volume, squares, volume_gradient, centred
-
-
-def inverse_mean_ratio(corners: np.ndarray) -> np.ndarray:
-    """(m,) :func:`mean_ratio_cost` of the simplices with (m, k + 1, k) ``corners``."""
-    k = corners.shape[-1]
-    edges = corners[:, 1:] - corners[:, :1]
-    if k == 2:
-        volume = 0.5 * (edges[:, 0, 0] * edges[:, 1, 1] - edges[:, 0, 1] * edges[:, 1, 0])
-    else:
-        volume = _dot(edges[:, 0], _cross(edges[:, 1], edges[:, 2])) / 6.0
-    total = edges.sum(axis=1)
-    squares = (k + 1) * np.einsum("mij,mij->m", edges, edges) - _dot(total, total)
-    return mean_ratio_cost(volume, squares, k)
-
-
-def smallest_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """(m,) the smallest dihedral angle (3D) or interior angle (2D) of each cell, degrees; 0 for a flat cell."""
-    return np.nan_to_num(dihedral_angles(points, cells).min(axis=1), nan=0.0)
-
-
-def mean_edge_length(points: np.ndarray, cells: np.ndarray) -> float:
-    return float(edge_lengths(points, cells)[1].mean())
-
-
-def boundary_nodes(cells: np.ndarray, n_points: int) -> np.ndarray:
-    """(n_points,) bool, True for the vertices of the boundary facets."""
-    on_boundary = np.zeros(n_points, bool)
-    on_boundary[boundary_facets(cells).ravel()] = True
-    return on_boundary
-
-
-def off_surface_nodes(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, tolerance: float) -> np.ndarray:
-    """The boundary nodes where |f| exceeds ``tolerance``."""
-    nodes = np.flatnonzero(boundary_nodes(cells, len(points)))
-    return nodes[np.abs(grid.evaluate(points[nodes])) > tolerance]
-
-
-def _scatter(n_points: int, simplices: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """(n_points, k) the sums at each vertex of ``values`` (m, j, k), one row per corner of the (m, j) simplices."""
-    flat = values.reshape(simplices.size, -1)
-    return np.stack([np.bincount(simplices.ravel(), flat[:, d], n_points) for d in range(flat.shape[1])], axis=1)
-
-
-def _tangential(grid: ImplicitGrid, points: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """``vectors`` at ``points`` without their component along grad f."""
-    gradient = grid.gradient(points)
-    normals = gradient / np.maximum(np.linalg.norm(gradient, axis=1, keepdims=True), 1e-300)
-    return vectors - _dot(vectors, normals)[:, None] * normals
 
 
 # --- relaxation ----------------------------------------------------------------------------------------------------
@@ -219,19 +79,19 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
     """
     n, k = points.shape
     centres, _ = circumspheres(points, cells)
-    volume = np.abs(np.linalg.det(points[cells[:, 1:]] - points[cells[:, :1]])) / factorial(k)
+    volume = np.abs(signed_measures(points, cells))
     usable = np.isfinite(centres).all(axis=1)
     weight = np.bincount(cells[usable].ravel(), np.repeat(volume[usable], k + 1), n)
     weighted = np.repeat((volume[usable, None] * centres[usable])[:, None], k + 1, axis=1)
     targets = points.copy()
     inner = np.flatnonzero(weight > 0)
-    targets[inner] = _scatter(n, cells[usable], weighted)[inner] / weight[inner, None]
+    targets[inner] = scatter_to_points(n, cells[usable], weighted)[inner] / weight[inner, None]
 
     facets = boundary_facets(cells)
     corners = points[facets]
     spans = corners[:, 1:] - corners[:, :1]
-    area = np.linalg.norm(_cross(spans[:, 0], spans[:, 1]) if k == 3 else spans[:, 0], axis=1)
-    along = _scatter(n, facets, np.repeat((area[:, None] * corners.mean(axis=1))[:, None], k, axis=1))
+    area = np.linalg.norm(cross(spans[:, 0], spans[:, 1]) if k == 3 else spans[:, 0], axis=1)
+    along = scatter_to_points(n, facets, np.repeat((area[:, None] * corners.mean(axis=1))[:, None], k, axis=1))
     along_weight = np.bincount(facets.ravel(), np.repeat(area, k), n)
 
     on_boundary = boundary_nodes(cells, n)
@@ -240,11 +100,11 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
     shallow = inner[value < margin]
     if len(shallow):
         gradient = grid.gradient(targets[shallow])
-        squared = np.maximum(_dot(gradient, gradient), 1e-12)
+        squared = np.maximum(dot(gradient, gradient), 1e-12)
         targets[shallow] += ((margin - value[value < margin]) / squared)[:, None] * gradient
     outer = np.flatnonzero(on_boundary & (along_weight > 0))
     goal = along[outer] / along_weight[outer, None]
-    targets[outer] = project_to_surface(grid, points[outer] + _tangential(grid, points[outer], goal - points[outer]))
+    targets[outer] = project_to_surface(grid, points[outer] + tangential(grid, points[outer], goal - points[outer]))
     return targets
 
 
@@ -321,8 +181,8 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
             gradient = (SMOOTH_POWER * cost ** SMOOTH_POWER)[:, None, None] * (
                 2.0 * (k + 1) * centred / squares[:, None, None] - (2.0 / k) * volume_gradient / volume[:, None, None])
         current = np.bincount(corner_of, np.repeat(cost ** SMOOTH_POWER, k + 1), n)
-        descent = -_scatter(n, cells, gradient)
-        descent[on_boundary] = _tangential(grid, points[on_boundary], descent[on_boundary])
+        descent = -scatter_to_points(n, cells, gradient)
+        descent[on_boundary] = tangential(grid, points[on_boundary], descent[on_boundary])
         # a Newton-like scale: the cost of a node's cells changes by about its own size over an edge length
         descent *= (0.5 * length ** 2 * degree / np.maximum(current, 1e-300))[:, None]
         descent[~np.isfinite(descent).all(axis=1)] = 0.0
@@ -361,190 +221,6 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         points = new
     report(progress, 1.0, "smoothing")
     return points
-
-
-# --- flips ---------------------------------------------------------------------------------------------------------
-
-def polygon_triangulations(n: int):
-    """The triangulations of a convex polygon with vertices 0 .. n - 1.
-
-    Returns
-    -------
-    triangles : (t, 3) int64, every triangle (i < j < l) of the polygon, in the polygon's orientation
-    triangulations : (T, n - 2) int64, the rows of ``triangles`` that make up each triangulation (1, 2, 5, 14, 42
-        of them for n = 3 .. 7)
-    """
-    triangles = np.array(list(combinations(range(n), 3)), dtype=np.int64)
-    row = {tuple(t): i for i, t in enumerate(triangles.tolist())}
-
-    def triangulate(vertices):
-        if len(vertices) < 3:
-            return [[]]
-        first, last = vertices[0], vertices[-1]
-        return [left + [row[(first, apex, last)]] + right
-                for split, apex in enumerate(vertices[1:-1], start=1)
-                for left in triangulate(vertices[:split + 1]) for right in triangulate(vertices[split:])]
-    return triangles, np.array(triangulate(list(range(n))), dtype=np.int64)
-
-
-RING_TRIANGULATIONS = {n: polygon_triangulations(n) for n in range(3, MAX_RING + 1)}
-
-
-def _is_even(permutation) -> bool:
-    return sum(a > b for a, b in combinations(permutation, 2)) % 2 == 0
-
-
-#: for each edge (i, j) of a tetrahedron, the other two vertices (k, l) ordered so that (i, j, k, l) is an even
-#: permutation of (0, 1, 2, 3): then (v_i, v_j, v_k, v_l) is as positively oriented as (v_0, v_1, v_2, v_3).
-EDGE_PAIRS = np.array(list(combinations(range(4), 2)))
-EDGE_OTHERS = np.array([next(rest for rest in permutations(set(range(4)) - {i, j}) if _is_even((i, j) + rest))
-                        for i, j in EDGE_PAIRS])
-
-
-def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING) -> dict:
-    """The interior edges of a tetrahedral mesh with the cells around them in order.
-
-    Returns
-    -------
-    n -> (a, b, ring, around) for each ring size n in 3 .. ``max_ring``: the edges (a, b) (E,) whose cells close
-    a ring of n; ``ring`` (E, n) the vertices x_0 .. x_{n-1} around the edge, ordered so that every cell
-    (a, b, x_i, x_{i+1}) is positively oriented; ``around`` (E, n) the cell holding x_i and x_{i+1}.
-    """
-    a, b = cells[:, EDGE_PAIRS[:, 0]].ravel(), cells[:, EDGE_PAIRS[:, 1]].ravel()
-    x, y = cells[:, EDGE_OTHERS[:, 0]].ravel(), cells[:, EDGE_OTHERS[:, 1]].ravel()
-    swap = a > b  # (b, a, x, y) has the other orientation: the ring runs the other way
-    a, b, x, y = np.where(swap, b, a), np.where(swap, a, b), np.where(swap, y, x), np.where(swap, x, y)
-    owner = np.repeat(np.arange(len(cells)), len(EDGE_PAIRS))
-    edges, group, counts = unique_rows(np.stack([a, b], axis=1))
-    order = np.argsort(group, kind="stable")
-    start = np.concatenate([[0], np.cumsum(counts)])
-    rings = {}
-    for n in range(3, max_ring + 1):
-        chosen = np.flatnonzero(counts == n)
-        rows = order[start[chosen][:, None] + np.arange(n)]
-        xs, ys, cell = x[rows], y[rows], owner[rows]
-        every = np.arange(len(chosen))
-        ring, around = np.empty_like(xs), np.empty_like(cell)
-        ring[:, 0], around[:, 0], current = xs[:, 0], cell[:, 0], ys[:, 0]
-        closed = np.ones(len(chosen), bool)  # an edge on the boundary has an open fan of cells
-        for i in range(1, n):
-            hit = xs == current[:, None]
-            closed &= hit.sum(axis=1) == 1
-            column = np.argmax(hit, axis=1)
-            ring[:, i], around[:, i], current = current, cell[every, column], ys[every, column]
-        closed &= current == ring[:, 0]
-        rings[n] = (edges[chosen[closed], 0], edges[chosen[closed], 1], ring[closed], around[closed])
-    return rings
-
-
-def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray):
-    """The flips that raise the worst radius ratio of the cells they replace by more than ``FLIP_GAIN``, among
-    the groups of cells whose worst radius ratio is below ``FLIP_QUALITY``.
-
-    3D: edge removal (the n cells around an interior edge by the 2 (n - 2) cells of the best triangulation of
-    their ring joined to both ends of the edge; n = 3 is the 3-2 flip, n = 4 the 4-4 flip) and 2-3 flips (the two
-    cells on an interior facet by three around the edge joining their far vertices).  2D: 2-2 flips.  Every new
-    cell must be positively oriented, so the new cells fill exactly the old ones' place.
-
-    Returns
-    -------
-    list of (old (c, j) cell indices, new (c, j', k + 1) cells, gain (c,)), one entry per kind of flip
-    """
-    k = points.shape[1]
-    found = []
-    if k == 3:
-        for n, (a, b, ring, around) in edge_rings(cells).items():
-            worst_old = quality[around].min(axis=1)
-            poor = worst_old < FLIP_QUALITY
-            a, b, ring, around, worst_old = a[poor], b[poor], ring[poor], around[poor], worst_old[poor]
-            triangles, triangulations = RING_TRIANGULATIONS[n]
-            x, y, z = (ring[:, triangles[:, i]] for i in range(3))
-            apex_b, apex_a = (np.broadcast_to(v[:, None], x.shape) for v in (b, a))
-            new = np.stack([np.stack([x, y, z, apex_b], axis=-1), np.stack([x, z, y, apex_a], axis=-1)], axis=2)
-            worst = signed_radius_ratio(points, new.reshape(-1, 4)).reshape(new.shape[:3]).min(axis=2)
-            by_triangulation = worst[:, triangulations].min(axis=2)  # (E, T)
-            best = np.argmax(by_triangulation, axis=1) if len(a) else np.zeros(0, np.int64)
-            gain = by_triangulation[np.arange(len(a)), best] - worst_old
-            keep = gain > FLIP_GAIN
-            chosen = new[np.flatnonzero(keep)[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
-            found.append((around[keep], chosen, gain[keep]))
-    facets, inverse, _ = facet_table(cells)
-    first, second = neighbour_pairs(inverse)
-    cell_a, cell_b = first // (k + 1), second // (k + 1)
-    worst_old = np.minimum(quality[cell_a], quality[cell_b])
-    poor = worst_old < FLIP_QUALITY
-    first, second, cell_a, cell_b, worst_old = first[poor], second[poor], cell_a[poor], cell_b[poor], worst_old[poor]
-    a, b = cells[cell_a, first % (k + 1)], cells[cell_b, second % (k + 1)]
-    facet = facets[first]  # oriented out of cell_a, towards b
-    if k == 3:
-        new = np.stack([np.stack([a, b, facet[:, i], facet[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
-    else:
-        new = np.stack([np.stack([a, facet[:, 0], b], axis=1), np.stack([b, facet[:, 1], a], axis=1)], axis=1)
-    gain = signed_radius_ratio(points, new.reshape(-1, k + 1)).reshape(new.shape[:2]).min(axis=1) - worst_old
-    keep = gain > FLIP_GAIN
-    found.append((np.stack([cell_a, cell_b], axis=1)[keep], new[keep], gain[keep]))
-    return found
-
-
-def independent_flips(candidates: list, n_cells: int) -> np.ndarray:
-    """(c,) bool over all candidates in order: flips that share no cell, the largest gains first.
-
-    In rounds, a candidate wins when its gain is the largest among the candidates that share a cell with it; the
-    candidates that touch a winner's cells drop out.  Each round settles at least the largest gain left.
-    """
-    gains = np.concatenate([gain for _, _, gain in candidates])
-    offsets = np.cumsum([0] + [len(gain) for _, _, gain in candidates])
-    owners = np.concatenate([np.repeat(np.arange(len(old)) + offset, old.shape[1])
-                             for (old, _, _), offset in zip(candidates, offsets)])
-    touched = np.concatenate([old.ravel() for old, _, _ in candidates])
-    key = gains + 1e-12 * np.arange(len(gains)) / max(len(gains), 1)  # no ties
-    active = np.ones(len(gains), bool)
-    chosen = np.zeros(len(gains), bool)
-    for _ in range(len(gains)):
-        if not active.any():
-            break
-        live = active[owners]
-        best = np.full(n_cells, -np.inf)
-        np.maximum.at(best, touched[live], key[owners[live]])
-        beaten = np.zeros(len(gains), bool)
-        beaten[owners[live & (best[touched] > key[owners])]] = True
-        winners = active & ~beaten
-        chosen |= winners
-        used = np.zeros(n_cells, bool)
-        used[touched[winners[owners]]] = True
-        blocked = np.zeros(len(gains), bool)
-        blocked[owners[used[touched]]] = True
-        active &= ~blocked
-    return chosen
-
-
-def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
-         progress: ProgressCallback = None) -> np.ndarray:
-    """Apply improving flips (:func:`flip_candidates`), pass after pass, until none is left (at most ``passes``).
-
-    Flips replace cells inside the domain only: the boundary, the nodes and the volume stay as they are.
-
-    Returns
-    -------
-    (m', k + 1) int64, the new cells, positively oriented
-    """
-    for pass_ in range(passes):
-        candidates = flip_candidates(points, cells, signed_radius_ratio(points, cells))
-        found = sum(len(gain) for _, _, gain in candidates)
-        report(progress, pass_ / passes, f"flip pass {pass_ + 1}: {found} improving flips")
-        if not found:
-            break
-        chosen = independent_flips(candidates, len(cells))
-        removed = np.zeros(len(cells), bool)
-        added = []
-        start = 0
-        for old, new, gain in candidates:
-            take = chosen[start:start + len(gain)]
-            start += len(gain)
-            removed[old[take].ravel()] = True
-            added.append(new[take].reshape(-1, cells.shape[1]))
-        cells = np.concatenate([cells[~removed]] + added)
-    return cells
 
 
 # --- the step ------------------------------------------------------------------------------------------------------

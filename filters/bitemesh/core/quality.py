@@ -58,7 +58,7 @@ def _n_points(cells: np.ndarray) -> int:
     return int(cells.max()) + 1 if cells.size else 0
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Cross product over the last axis (faster than ``np.cross`` on small trailing axes)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
@@ -82,7 +82,7 @@ def facet_normals(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     first = corners[..., 1, :] - corners[..., 0, :]
     if points.shape[1] == 2:
         return np.stack([first[..., 1], -first[..., 0]], axis=-1)
-    return 0.5 * _cross(first, corners[..., 2, :] - corners[..., 0, :])
+    return 0.5 * cross(first, corners[..., 2, :] - corners[..., 0, :])
 
 
 def radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -130,7 +130,7 @@ def dihedral_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     if points.shape[1] == 2:
         sine = np.abs(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
     else:
-        sine = np.linalg.norm(_cross(a, b), axis=-1)
+        sine = np.linalg.norm(cross(a, b), axis=-1)
     # interior angle = 180 - angle between outward normals; atan2 stays accurate near 0 and 180
     angles = np.degrees(np.arctan2(sine, -np.einsum("mrk,mrk->mr", a, b)))
     zero = (np.linalg.norm(a, axis=-1) == 0) | (np.linalg.norm(b, axis=-1) == 0)

@@ -1,0 +1,137 @@
+"""Measures of cells and nodes that the optimizer moves and flips by: the signed radius ratio, Knupp's mean ratio
+and its gradient, the smallest angles, the mean edge length, the boundary nodes and those off f = 0.
+"""
+from __future__ import annotations
+
+from math import factorial
+
+import numpy as np
+
+from .grid import ImplicitGrid
+from .quality import cross, dihedral_angles, edge_lengths
+from .topology import boundary_facets
+
+#: sum of squared edge lengths / V^(2/k) of the regular triangle and tetrahedron.
+MEAN_RATIO_SCALE = {2: 4.0 * np.sqrt(3.0), 3: 12.0 * 3.0 ** (2.0 / 3.0)}
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", a, b)
+
+
+def signed_radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) the radius ratio Q = k r_in / R_circ of each cell, negative for an inverted cell, 0 for a flat one.
+
+    Closed forms.  3D, with a, b, c the edges from vertex 0 and V6 = a . (b x c) six times the volume:
+    Q = 6 V6 |V6| / (S |N|), S twice the surface area, N = |a|^2 b x c + |b|^2 c x a + |c|^2 a x b
+    (R_circ = |N| / 2 |V6|).  2D: Q = 4 A2 |A2| / (P l_a l_b l_c), A2 twice the signed area, P the perimeter.
+    Equal to :func:`bitemesh.core.quality.radius_ratio` on positive cells, and several times faster.
+    """
+    corners = points[cells]
+    a, b = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    if points.shape[1] == 2:
+        twice_area = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        sides = [np.sqrt(dot(v, v)) for v in (a, b, b - a)]
+        numerator = 4.0 * twice_area * np.abs(twice_area)
+        denominator = (sides[0] + sides[1] + sides[2]) * sides[0] * sides[1] * sides[2]
+    else:
+        c = corners[:, 3] - corners[:, 0]
+        bc, ca, ab = cross(b, c), cross(c, a), cross(a, b)
+        six_volume = dot(a, bc)
+        centre = dot(a, a)[:, None] * bc + dot(b, b)[:, None] * ca + dot(c, c)[:, None] * ab
+        facing = bc + ca + ab  # twice the area vector of the facet opposite vertex 0
+        surface = sum(np.sqrt(dot(v, v)) for v in (bc, ca, ab, facing))
+        numerator = 6.0 * six_volume * np.abs(six_volume)
+        denominator = surface * np.sqrt(dot(centre, centre))
+    return np.divide(numerator, denominator, out=np.zeros(len(cells)), where=denominator > 0)
+
+
+def mean_ratio_cost(volume: np.ndarray, squares: np.ndarray, k: int) -> np.ndarray:
+    """(m,) 1 / mean ratio of simplices of signed measure ``volume`` and sum of squared edge lengths ``squares``.
+
+    The mean ratio is eta = C_k V^(2/k) / (sum of squared edge lengths), 1 for the regular simplex.  1 / eta is
+    smooth, >= 1, and grows without bound as a cell flattens (inf for no or negative volume): a descent on it
+    cannot invert a cell.
+    """
+    cost = np.full(len(volume), np.inf)
+    positive = volume > 0
+    cost[positive] = squares[positive] / (MEAN_RATIO_SCALE[k] * volume[positive] ** (2.0 / k))
+    return cost
+
+
+def mean_ratio_terms(corners: np.ndarray):
+    """What :func:`mean_ratio_cost` and its derivatives need, for (m, k + 1, k) ``corners``.
+
+    Returns
+    -------
+    volume : (m,) signed measure
+    squares : (m,) sum of the squared edge lengths
+    volume_gradient : (m, k + 1, k) d volume / d vertex; the volume is linear in each vertex, so
+        volume + volume_gradient[:, i] . d is exact when vertex i alone moves by d
+    centred : (m, k + 1, k) the vertices minus their mean; when vertex i alone moves by d, squares grows by
+        2 (k + 1) centred[:, i] . d + k |d|^2
+    """
+    k = corners.shape[-1]
+    edges = corners[:, 1:] - corners[:, :1]
+    # d V / d x_i for i >= 1: the cofactors of the edge matrix; d V / d x_0 = -(their sum)
+    if k == 2:
+        cofactors = np.stack([np.stack([edges[:, 1, 1], -edges[:, 1, 0]], axis=1),
+                              np.stack([-edges[:, 0, 1], edges[:, 0, 0]], axis=1)], axis=1)
+    else:
+        cofactors = np.stack([cross(edges[:, 1], edges[:, 2]), cross(edges[:, 2], edges[:, 0]),
+                              cross(edges[:, 0], edges[:, 1])], axis=1)
+    cofactors /= factorial(k)
+    volume = dot(edges[:, 0], cofactors[:, 0])
+    volume_gradient = np.concatenate([-cofactors.sum(axis=1, keepdims=True), cofactors], axis=1)
+    total = edges.sum(axis=1)
+    squares = (k + 1) * np.einsum("mij,mij->m", edges, edges) - dot(total, total)
+    centred = np.concatenate([np.zeros_like(edges[:, :1]), edges], axis=1) - total[:, None] / (k + 1)
+    return volume, squares, volume_gradient, centred
+
+
+def inverse_mean_ratio(corners: np.ndarray) -> np.ndarray:
+    """(m,) :func:`mean_ratio_cost` of the simplices with (m, k + 1, k) ``corners``."""
+    k = corners.shape[-1]
+    edges = corners[:, 1:] - corners[:, :1]
+    if k == 2:
+        volume = 0.5 * (edges[:, 0, 0] * edges[:, 1, 1] - edges[:, 0, 1] * edges[:, 1, 0])
+    else:
+        volume = dot(edges[:, 0], cross(edges[:, 1], edges[:, 2])) / 6.0
+    total = edges.sum(axis=1)
+    squares = (k + 1) * np.einsum("mij,mij->m", edges, edges) - dot(total, total)
+    return mean_ratio_cost(volume, squares, k)
+
+
+def smallest_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) the smallest dihedral angle (3D) or interior angle (2D) of each cell, degrees; 0 for a flat cell."""
+    return np.nan_to_num(dihedral_angles(points, cells).min(axis=1), nan=0.0)
+
+
+def mean_edge_length(points: np.ndarray, cells: np.ndarray) -> float:
+    return float(edge_lengths(points, cells)[1].mean())
+
+
+def boundary_nodes(cells: np.ndarray, n_points: int) -> np.ndarray:
+    """(n_points,) bool, True for the vertices of the boundary facets."""
+    on_boundary = np.zeros(n_points, bool)
+    on_boundary[boundary_facets(cells).ravel()] = True
+    return on_boundary
+
+
+def off_surface_nodes(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, tolerance: float) -> np.ndarray:
+    """The boundary nodes where |f| exceeds ``tolerance``."""
+    nodes = np.flatnonzero(boundary_nodes(cells, len(points)))
+    return nodes[np.abs(grid.evaluate(points[nodes])) > tolerance]
+
+
+def scatter_to_points(n_points: int, simplices: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(n_points, k) the sums at each vertex of ``values`` (m, j, k), one row per corner of the (m, j) simplices."""
+    flat = values.reshape(simplices.size, -1)
+    return np.stack([np.bincount(simplices.ravel(), flat[:, d], n_points) for d in range(flat.shape[1])], axis=1)
+
+
+def tangential(grid: ImplicitGrid, points: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """``vectors`` at ``points`` without their component along grad f."""
+    gradient = grid.gradient(points)
+    normals = gradient / np.maximum(np.linalg.norm(gradient, axis=1, keepdims=True), 1e-300)
+    return vectors - dot(vectors, normals)[:, None] * normals

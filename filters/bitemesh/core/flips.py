@@ -1,0 +1,204 @@
+"""Flips that raise the worst radius ratio of the cells they replace: edge removal (the ring of cells around an
+interior edge triangulated again: 3-2, 4-4, 5-6 ... flips) and 2-3 flips across an interior facet (2-2 in 2D), in
+passes of flips that share no cell.
+"""
+from __future__ import annotations
+
+from itertools import combinations, permutations
+
+import numpy as np
+
+from .cell_measures import signed_radius_ratio
+from .progress import ProgressCallback, report
+from .topology import facet_table, neighbour_pairs, unique_rows
+
+#: a flip must raise the worst radius ratio of the cells it replaces by at least FLIP_GAIN; only groups of cells
+#: with a radius ratio below FLIP_QUALITY are tried (the others rarely gain: measured, no change in the result).
+FLIP_GAIN = 1e-3
+FLIP_QUALITY = 0.8
+#: passes of flips in a round (each pass makes a set of flips that share no cell), and the largest ring of cells
+#: around an edge that edge removal triangulates again (in 42 ways for 7).
+FLIP_PASSES = 12
+MAX_RING = 7
+
+
+def polygon_triangulations(n: int):
+    """The triangulations of a convex polygon with vertices 0 .. n - 1.
+
+    Returns
+    -------
+    triangles : (t, 3) int64, every triangle (i < j < l) of the polygon, in the polygon's orientation
+    triangulations : (T, n - 2) int64, the rows of ``triangles`` that make up each triangulation (1, 2, 5, 14, 42
+        of them for n = 3 .. 7)
+    """
+    triangles = np.array(list(combinations(range(n), 3)), dtype=np.int64)
+    row = {tuple(t): i for i, t in enumerate(triangles.tolist())}
+
+    def triangulate(vertices):
+        if len(vertices) < 3:
+            return [[]]
+        first, last = vertices[0], vertices[-1]
+        return [left + [row[(first, apex, last)]] + right
+                for split, apex in enumerate(vertices[1:-1], start=1)
+                for left in triangulate(vertices[:split + 1]) for right in triangulate(vertices[split:])]
+    return triangles, np.array(triangulate(list(range(n))), dtype=np.int64)
+
+
+RING_TRIANGULATIONS = {n: polygon_triangulations(n) for n in range(3, MAX_RING + 1)}
+
+
+def _is_even(permutation) -> bool:
+    return sum(a > b for a, b in combinations(permutation, 2)) % 2 == 0
+
+
+#: for each edge (i, j) of a tetrahedron, the other two vertices (k, l) ordered so that (i, j, k, l) is an even
+#: permutation of (0, 1, 2, 3): then (v_i, v_j, v_k, v_l) is as positively oriented as (v_0, v_1, v_2, v_3).
+EDGE_PAIRS = np.array(list(combinations(range(4), 2)))
+EDGE_OTHERS = np.array([next(rest for rest in permutations(set(range(4)) - {i, j}) if _is_even((i, j) + rest))
+                        for i, j in EDGE_PAIRS])
+
+
+def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING) -> dict:
+    """The interior edges of a tetrahedral mesh with the cells around them in order.
+
+    Returns
+    -------
+    n -> (a, b, ring, around) for each ring size n in 3 .. ``max_ring``: the edges (a, b) (E,) whose cells close
+    a ring of n; ``ring`` (E, n) the vertices x_0 .. x_{n-1} around the edge, ordered so that every cell
+    (a, b, x_i, x_{i+1}) is positively oriented; ``around`` (E, n) the cell holding x_i and x_{i+1}.
+    """
+    a, b = cells[:, EDGE_PAIRS[:, 0]].ravel(), cells[:, EDGE_PAIRS[:, 1]].ravel()
+    x, y = cells[:, EDGE_OTHERS[:, 0]].ravel(), cells[:, EDGE_OTHERS[:, 1]].ravel()
+    swap = a > b  # (b, a, x, y) has the other orientation: the ring runs the other way
+    a, b, x, y = np.where(swap, b, a), np.where(swap, a, b), np.where(swap, y, x), np.where(swap, x, y)
+    owner = np.repeat(np.arange(len(cells)), len(EDGE_PAIRS))
+    edges, group, counts = unique_rows(np.stack([a, b], axis=1))
+    order = np.argsort(group, kind="stable")
+    start = np.concatenate([[0], np.cumsum(counts)])
+    rings = {}
+    for n in range(3, max_ring + 1):
+        chosen = np.flatnonzero(counts == n)
+        rows = order[start[chosen][:, None] + np.arange(n)]
+        xs, ys, cell = x[rows], y[rows], owner[rows]
+        every = np.arange(len(chosen))
+        ring, around = np.empty_like(xs), np.empty_like(cell)
+        ring[:, 0], around[:, 0], current = xs[:, 0], cell[:, 0], ys[:, 0]
+        closed = np.ones(len(chosen), bool)  # an edge on the boundary has an open fan of cells
+        for i in range(1, n):
+            hit = xs == current[:, None]
+            closed &= hit.sum(axis=1) == 1
+            column = np.argmax(hit, axis=1)
+            ring[:, i], around[:, i], current = current, cell[every, column], ys[every, column]
+        closed &= current == ring[:, 0]
+        rings[n] = (edges[chosen[closed], 0], edges[chosen[closed], 1], ring[closed], around[closed])
+    return rings
+
+
+def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray):
+    """The flips that raise the worst radius ratio of the cells they replace by more than ``FLIP_GAIN``, among
+    the groups of cells whose worst radius ratio is below ``FLIP_QUALITY``.
+
+    3D: edge removal (the n cells around an interior edge by the 2 (n - 2) cells of the best triangulation of
+    their ring joined to both ends of the edge; n = 3 is the 3-2 flip, n = 4 the 4-4 flip) and 2-3 flips (the two
+    cells on an interior facet by three around the edge joining their far vertices).  2D: 2-2 flips.  Every new
+    cell must be positively oriented, so the new cells fill exactly the old ones' place.
+
+    Returns
+    -------
+    list of (old (c, j) cell indices, new (c, j', k + 1) cells, gain (c,)), one entry per kind of flip
+    """
+    k = points.shape[1]
+    found = []
+    if k == 3:
+        for n, (a, b, ring, around) in edge_rings(cells).items():
+            worst_old = quality[around].min(axis=1)
+            poor = worst_old < FLIP_QUALITY
+            a, b, ring, around, worst_old = a[poor], b[poor], ring[poor], around[poor], worst_old[poor]
+            triangles, triangulations = RING_TRIANGULATIONS[n]
+            x, y, z = (ring[:, triangles[:, i]] for i in range(3))
+            apex_b, apex_a = (np.broadcast_to(v[:, None], x.shape) for v in (b, a))
+            new = np.stack([np.stack([x, y, z, apex_b], axis=-1), np.stack([x, z, y, apex_a], axis=-1)], axis=2)
+            worst = signed_radius_ratio(points, new.reshape(-1, 4)).reshape(new.shape[:3]).min(axis=2)
+            by_triangulation = worst[:, triangulations].min(axis=2)  # (E, T)
+            best = np.argmax(by_triangulation, axis=1) if len(a) else np.zeros(0, np.int64)
+            gain = by_triangulation[np.arange(len(a)), best] - worst_old
+            keep = gain > FLIP_GAIN
+            chosen = new[np.flatnonzero(keep)[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
+            found.append((around[keep], chosen, gain[keep]))
+    facets, inverse, _ = facet_table(cells)
+    first, second = neighbour_pairs(inverse)
+    cell_a, cell_b = first // (k + 1), second // (k + 1)
+    worst_old = np.minimum(quality[cell_a], quality[cell_b])
+    poor = worst_old < FLIP_QUALITY
+    first, second, cell_a, cell_b, worst_old = first[poor], second[poor], cell_a[poor], cell_b[poor], worst_old[poor]
+    a, b = cells[cell_a, first % (k + 1)], cells[cell_b, second % (k + 1)]
+    facet = facets[first]  # oriented out of cell_a, towards b
+    if k == 3:
+        new = np.stack([np.stack([a, b, facet[:, i], facet[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
+    else:
+        new = np.stack([np.stack([a, facet[:, 0], b], axis=1), np.stack([b, facet[:, 1], a], axis=1)], axis=1)
+    gain = signed_radius_ratio(points, new.reshape(-1, k + 1)).reshape(new.shape[:2]).min(axis=1) - worst_old
+    keep = gain > FLIP_GAIN
+    found.append((np.stack([cell_a, cell_b], axis=1)[keep], new[keep], gain[keep]))
+    return found
+
+
+def independent_flips(candidates: list, n_cells: int) -> np.ndarray:
+    """(c,) bool over all candidates in order: flips that share no cell, the largest gains first.
+
+    In rounds, a candidate wins when its gain is the largest among the candidates that share a cell with it; the
+    candidates that touch a winner's cells drop out.  Each round settles at least the largest gain left.
+    """
+    gains = np.concatenate([gain for _, _, gain in candidates])
+    offsets = np.cumsum([0] + [len(gain) for _, _, gain in candidates])
+    owners = np.concatenate([np.repeat(np.arange(len(old)) + offset, old.shape[1])
+                             for (old, _, _), offset in zip(candidates, offsets)])
+    touched = np.concatenate([old.ravel() for old, _, _ in candidates])
+    key = gains + 1e-12 * np.arange(len(gains)) / max(len(gains), 1)  # no ties
+    active = np.ones(len(gains), bool)
+    chosen = np.zeros(len(gains), bool)
+    for _ in range(len(gains)):
+        if not active.any():
+            break
+        live = active[owners]
+        best = np.full(n_cells, -np.inf)
+        np.maximum.at(best, touched[live], key[owners[live]])
+        beaten = np.zeros(len(gains), bool)
+        beaten[owners[live & (best[touched] > key[owners])]] = True
+        winners = active & ~beaten
+        chosen |= winners
+        used = np.zeros(n_cells, bool)
+        used[touched[winners[owners]]] = True
+        blocked = np.zeros(len(gains), bool)
+        blocked[owners[used[touched]]] = True
+        active &= ~blocked
+    return chosen
+
+
+def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
+         progress: ProgressCallback = None) -> np.ndarray:
+    """Apply improving flips (:func:`flip_candidates`), pass after pass, until none is left (at most ``passes``).
+
+    Flips replace cells inside the domain only: the boundary, the nodes and the volume stay as they are.
+
+    Returns
+    -------
+    (m', k + 1) int64, the new cells, positively oriented
+    """
+    for pass_ in range(passes):
+        candidates = flip_candidates(points, cells, signed_radius_ratio(points, cells))
+        found = sum(len(gain) for _, _, gain in candidates)
+        report(progress, pass_ / passes, f"flip pass {pass_ + 1}: {found} improving flips")
+        if not found:
+            break
+        chosen = independent_flips(candidates, len(cells))
+        removed = np.zeros(len(cells), bool)
+        added = []
+        start = 0
+        for old, new, gain in candidates:
+            take = chosen[start:start + len(gain)]
+            start += len(gain)
+            removed[old[take].ravel()] = True
+            added.append(new[take].reshape(-1, cells.shape[1]))
+        cells = np.concatenate([cells[~removed]] + added)
+    return cells
