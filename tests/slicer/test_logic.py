@@ -49,6 +49,11 @@ from tests.vtk.test_labelled_filters import SHELL_VOLUME, labelled_polydata  # n
 MODULE = Path(__file__).resolve().parents[2] / "slicer_module" / "BiteMesh"
 sys.path.insert(0, str(MODULE))
 from BiteMeshLib import logic as bitemesh_logic  # noqa: E402
+from BiteMeshLib import contours as lib_contours  # noqa: E402
+from BiteMeshLib import outputs as lib_outputs  # noqa: E402
+from BiteMeshLib import parameters as lib_parameters  # noqa: E402
+from BiteMeshLib import points as lib_points  # noqa: E402
+from BiteMeshLib import requirements as lib_requirements  # noqa: E402
 from BiteMeshLib import selftest  # noqa: E402
 from BiteMeshLib.logic import BiteMeshLogic  # noqa: E402
 
@@ -199,7 +204,7 @@ def test_histogram_table_and_plot_nodes(scene, logic):
     assert (series.GetXColumnName(), series.GetYColumnName()) == ("BinCentre", "Count")
     assert series.GetPlotType() == series.PlotTypeBar
     assert chart.GetNumberOfPlotSeriesNodes() == 1 and chart.GetNthPlotSeriesNodeID(0) == series.GetID()
-    assert model.GetNodeReference(bitemesh_logic.TABLE_ROLE) is table
+    assert model.GetNodeReference(lib_outputs.TABLE_ROLE) is table
 
     # A second run reuses the same nodes instead of piling new ones into the scene.
     tables = scene.GetNumberOfNodesByClass("vtkMRMLTableNode")
@@ -316,9 +321,9 @@ def test_closed_curves_give_a_valid_mesh(scene, logic):
 def test_closed_curves_default_to_rbf(scene, logic):
     """Sparse contours take the RBF unless a method is given; the contour normals point outward."""
     nodes = closed_curves(scene, levels=(-0.5, 0.0, 0.5))
-    points, normals, slices = logic._scatteredPoints(nodes, "rbf")
+    points, normals, slices = lib_points.scatteredPoints(nodes, "rbf")
     assert len(np.unique(slices)) == len(nodes)   # one slice per curve
-    assert normals is not None and len(points) <= bitemesh_logic.RBF_CURVE_POINTS
+    assert normals is not None and len(points) <= lib_points.RBF_CURVE_POINTS
     outward = np.einsum("ij,ij->i", normals, points - CENTRE)
     assert (outward > 0).all()
     assert np.allclose(normals[:, 2], 0.0, atol=1e-9)   # in the contours' planes
@@ -352,7 +357,7 @@ def test_a_loaded_gpfile_meshes_as_run_labelled(scene, logic):
     ras = points * [-1.0, -1.0, 1.0]
     np.testing.assert_array_equal(point_coordinates(data), ras)
     assert data.GetPointData().GetAbstractArray("Label").IsA("vtkStringArray")
-    model_labels, model_slices = logic._modelLabels(node)
+    model_labels, model_slices = lib_contours.modelLabels(node)
     assert model_labels.tolist() == labels.tolist() and model_slices.tolist() == slices.tolist()
     as_ras = logic.loadLabelledPoints(GPFILE, "as RAS", scene=scene, coordinateSystem="RAS")
     np.testing.assert_array_equal(point_coordinates(as_ras.GetPolyData()), points)
@@ -382,7 +387,7 @@ def shell_curves(scene):
             curves.append((label, node))
     label, node = next((label, node) for label, node in curves[::-1] if label == "RV_ENDO")
     node.SetName("septum")
-    node.SetAttribute(bitemesh_logic.LABEL_ATTRIBUTE, label)
+    node.SetAttribute(lib_contours.LABEL_ATTRIBUTE, label)
     return [node for _, node in curves]
 
 
@@ -403,22 +408,22 @@ def test_labelled_points_take_their_slices_from_curves_and_models(scene, logic):
     points = point_list(scene, sphere_points(20), "EPI 2")
     model = scene.AddNewNodeByClass("vtkMRMLModelNode", "labelled")
     model.SetAndObservePolyData(labelled_polydata(sphere_points(6), [7] * 6, [4, 4, 4, 9, 9, 9]))
-    coordinates, labels, slices = logic._labelledPoints([*curves, points, model])
+    coordinates, labels, slices = lib_contours.labelledPoints([*curves, points, model])
     assert len(coordinates) == len(labels) == len(slices)
     assert set(labels.tolist()) == {"LV_ENDO", "EPI", "7"}
     assert slices[labels == "EPI"].tolist() == [-1] * 20 and slices[labels == "7"].tolist() == [6, 6, 6, 11, 11, 11]
     for number in (0, 1):   # each curve resampled evenly: at least its 12 control points, at most 5 mm apart
         contour = coordinates[slices == number]
         steps = np.linalg.norm(contour - np.roll(contour, 1, axis=0), axis=1)
-        assert len(contour) >= 12 and steps.max() <= bitemesh_logic.CONTOUR_SPACING
+        assert len(contour) >= 12 and steps.max() <= lib_contours.CONTOUR_SPACING
         assert steps.max() < 1.02 * steps.min() and set(labels[slices == number].tolist()) == {"LV_ENDO"}
-    assert logic._labelledPoints([points])[2] is None
+    assert lib_contours.labelledPoints([points])[2] is None
 
 
 @pytest.mark.parametrize("name, label", [("LV_ENDO", "LV_ENDO"), ("LV_ENDO_1", "LV_ENDO"), ("LV_ENDO 2", "LV_ENDO"),
                                          ("LV_ENDO-3", "LV_ENDO"), ("LV2", "LV2"), ("12", "12")])
 def test_a_contour_is_labelled_by_its_name_without_a_copy_number(scene, name, label):
-    assert bitemesh_logic.contourLabel(scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)) == label
+    assert lib_contours.contourLabel(scene.AddNewNodeByClass("vtkMRMLMarkupsClosedCurveNode", name)) == label
 
 
 def test_bad_labelled_input_is_refused(scene, logic, tmp_path):
@@ -534,13 +539,13 @@ def test_progress_goes_from_0_to_1(scene, logic):
 # --- parameters, requirements, the module's files -------------------------------------------------------------------
 
 def test_parameter_specs_follow_the_core_dataclasses():
-    specs = {spec.name: spec for spec in bitemesh_logic.parameterSpecs()}
-    assert list(specs) == list(bitemesh_logic.PARAMETERS)
+    specs = {spec.name: spec for spec in lib_parameters.parameterSpecs()}
+    assert list(specs) == list(lib_parameters.PARAMETERS)
     from bitemesh.core.parameters import FidelityParameters, OptimizeSwitch
     classes = {cls.__name__: cls for cls in (ImplicitParameters, BitingParameters, SpuriousParameters,
                                              QualityParameters, OptimizeSwitch, LabelledParameters,
                                              FidelityParameters)}
-    for name, (dataclass_name, field_name) in bitemesh_logic.PARAMETERS.items():
+    for name, (dataclass_name, field_name) in lib_parameters.PARAMETERS.items():
         item = {f.name: f for f in fields(classes[dataclass_name])}[field_name]
         spec = specs[name]
         assert spec.core == field_name and spec.help == item.metadata["help"]
@@ -563,18 +568,18 @@ def test_parameter_specs_follow_the_core_dataclasses():
     for spec in specs.values():
         if spec.automatic is not None:
             with pytest.raises(InvalidInputError):
-                classes[bitemesh_logic.PARAMETERS[spec.name][0]](**{spec.core: spec.automatic})
-    assert bitemesh_logic.coreParameters({"radius": 0.0, "gridSpacing": 0.5, "method": "rbf", "cells": 500}) == \
+                classes[lib_parameters.PARAMETERS[spec.name][0]](**{spec.core: spec.automatic})
+    assert lib_parameters.coreParameters({"radius": 0.0, "gridSpacing": 0.5, "method": "rbf", "cells": 500}) == \
         {"radius": None, "grid_spacing": 0.5, "method": "rbf", "cells": 500}
-    assert bitemesh_logic.coreParameters({"domain": "EPI - LV_ENDO", "basePlane": "none"}) == \
+    assert lib_parameters.coreParameters({"domain": "EPI - LV_ENDO", "basePlane": "none"}) == \
         {"domain": "EPI - LV_ENDO", "base_plane": "none"}
 
 
 def test_requirements_install_only_scipy(monkeypatch):
     import importlib.util
     calls = []
-    assert bitemesh_logic.missingRequirements() == []
-    assert bitemesh_logic.installRequirements(pipInstall=calls.append) == [] and calls == []
+    assert lib_requirements.missingRequirements() == []
+    assert lib_requirements.installRequirements(pipInstall=calls.append) == [] and calls == []
 
     real_find_spec = importlib.util.find_spec
     state = {"installed": False}
@@ -589,11 +594,11 @@ def test_requirements_install_only_scipy(monkeypatch):
         state["installed"] = True
 
     monkeypatch.setattr(importlib.util, "find_spec", find_spec)
-    assert bitemesh_logic.missingRequirements() == ["scipy>=1.9"]
-    with pytest.raises(bitemesh_logic.MissingRequirementError, match="not installed"):
-        bitemesh_logic.installRequirements(pipInstall=pip, confirm=lambda missing: False)
+    assert lib_requirements.missingRequirements() == ["scipy>=1.9"]
+    with pytest.raises(lib_requirements.MissingRequirementError, match="not installed"):
+        lib_requirements.installRequirements(pipInstall=pip, confirm=lambda missing: False)
     assert calls == []
-    assert bitemesh_logic.installRequirements(pipInstall=pip) == ["scipy>=1.9"]
+    assert lib_requirements.installRequirements(pipInstall=pip) == ["scipy>=1.9"]
     assert calls == [["scipy>=1.9", f"numpy=={np.__version__}"]]   # numpy pinned as bundled, never upgraded
     assert not any(name in " ".join(calls[0]).lower() for name in ("vtk", "simpleitk", "itk"))
 
@@ -605,9 +610,9 @@ def test_ui_file_binds_every_parameter():
         for prop in widget.findall("property"):
             if prop.get("name") == "SlicerParameterName":
                 bound[prop.find("string").text] = widget.get("class")
-    assert set(bitemesh_logic.PARAMETERS) <= set(bound)
-    assert set(bound) - set(bitemesh_logic.PARAMETERS) == {"inputNode", "outputModel"}
-    specs = {spec.name: spec for spec in bitemesh_logic.parameterSpecs()}
+    assert set(lib_parameters.PARAMETERS) <= set(bound)
+    assert set(bound) - set(lib_parameters.PARAMETERS) == {"inputNode", "outputModel"}
+    specs = {spec.name: spec for spec in lib_parameters.parameterSpecs()}
     for name, widget_class in bound.items():
         spec = specs.get(name)
         expected = ("qMRMLNodeComboBox" if spec is None else "QComboBox" if spec.choices else
@@ -734,7 +739,7 @@ def test_module_file_builds_its_parameter_node_class():
                                text=True, timeout=300, check=False)
     assert completed.returncode == 0, completed.stderr
     names = ast.literal_eval(completed.stdout.strip().splitlines()[-1])
-    assert set(names) == set(bitemesh_logic.PARAMETERS) | {"inputNode", "contours", "segmentId", "outputModel"}
+    assert set(names) == set(lib_parameters.PARAMETERS) | {"inputNode", "contours", "segmentId", "outputModel"}
 
 
 def test_optimize_runs_the_mesh_optimizer_like_bitemesh_run(scene, logic):

@@ -22,7 +22,7 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    level (:func:`bitemesh.core.grid.sample_function` with levels), so the domain is cheap to evaluate on the grid I.
 5. The domain: a CSG expression (:mod:`bitemesh.core.csg`) of the surfaces, ``-`` difference, ``+`` union, ``&``
    intersection, by min/max of the implicit values (a difference keeps a thinnest wall where two surfaces
-   interpolated independently would cross), cut by a base plane (:func:`fit_base_plane`).
+   interpolated independently would cross), cut by a base plane (:mod:`bitemesh.core.base_plane`).
 
 The septum: biv-me's ``*_RV_SEPTUM`` points lie on the right-ventricular face of the interventricular septum.  They
 bound the RV cavity (with the free wall, in ``RV_ENDO``) and, seen from the LV, they are the outer face of the LV
@@ -36,36 +36,33 @@ from __future__ import annotations
 
 import logging
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .cardiac import base_plane as cardiac_base_plane
+from .base_plane import choose_base_plane, fit_base_plane  # noqa: F401 (re-exported)
 from .cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTLETS,  # noqa: F401 (re-exported)
                       BIVME_SURFACES, BIVME_VALVES, CARDIAC_RADIUS, LV_DOMAIN, OUTLET_WALL, RV_WALL,
                       bivme_domain, check_heart,
                       canonical_labels, default_surfaces, grown, is_bivme, needs_derived_epicardium,
                       unused_labels_note)
 from .contour_rbf import KERNELS, ContourRBF, fit_contour_rbf, off_surface_offsets  # noqa: F401
-from .csg import domain_names, evaluate_domain, parse_domain
-from .errors import InvalidInputError, check_choice, check_number, check_points
+from .csg import domain_names, parse_domain
+from .errors import InvalidInputError, check_number, check_points
 from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
 from .implicit import grid_layout
+from .labelled_function import BASE, LabelledImplicit, boundary_surfaces  # noqa: F401 (re-exported)
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
-from .samples import contour_gap, slice_spacing
+from .samples import slice_spacing
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .source import Frame, Source
 from .spine import GRID_PER_RADIUS, MeshingResult, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
-from .topology import boundary_facets
 
 logger = logging.getLogger("bitemesh")
-
-#: the name the base plane takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
-BASE = "BASE"
 
 #: no patch of a surface's fit is narrower than this x the median distance between its slices.
 PATCH_PER_GAP = 1.0
@@ -91,142 +88,14 @@ MAX_SURFACE_NODES = 1 << 25
 #: and exactly only within this x its spacing of its zero level, on grids 2 and 4 times coarser first.
 SURFACE_BAND, SURFACE_LEVELS = 2.0, 3
 
+
 def _nodes(lower, spacing, shape) -> np.ndarray:
     """(prod(shape), 3) coordinates of the grid nodes, C order (axis 0 is x)."""
     axes = [lower[d] + np.arange(shape[d]) * spacing for d in range(3)]
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
-# --- the base plane ------------------------------------------------------------------------------------------------
-
-def fit_base_plane(valve_points, inside_point):
-    """The least-squares plane of the valve points, its normal pointing away from ``inside_point`` (the apex).
-
-    Returns
-    -------
-    point : (3,) the valve points' centroid; normal : (3,) unit, out of the domain
-    """
-    valve_points = check_points(valve_points, "valve points", dims=(3,))
-    if len(valve_points) < 3:
-        raise InvalidInputError(f"a base plane needs at least 3 valve points, got {len(valve_points)}")
-    centre = valve_points.mean(axis=0)
-    _, spread, axes = np.linalg.svd(valve_points - centre, full_matrices=False)
-    if spread[1] <= 1e-6 * spread[0]:
-        raise InvalidInputError(f"the {len(valve_points)} valve points lie on one line, so they give no base plane; "
-                                "give base_plane=(point, normal)")
-    normal = axes[2]
-    if (np.asarray(inside_point, float) - centre) @ normal > 0:
-        normal = -normal
-    return centre, normal
-
-
 # --- everything together ---------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class LabelledImplicit:
-    """The domain's f: the CSG of one implicit per surface, cut by the base plane; callable (m, 3) -> (m,).
-
-    Attributes
-    ----------
-    surfaces : name -> callable implicit (f > 0 inside), the surfaces the domain uses
-    tree : the parsed domain (see :func:`~bitemesh.core.csg.parse_domain`); expression : its text
-    base : (point, normal) of the base plane (normal out of the domain), or None
-    min_wall : float, input units, the thinnest wall a difference keeps (see :func:`~bitemesh.core.csg.evaluate_domain`)
-    lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
-    points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
-        where none); slices : name -> (n,) their slice ids
-    derived : names of the surfaces built from others, not fitted to contours (an RV epicardium grown from the
-        RV endocardium); notes : what was read, derived or chosen, one sentence each
-    """
-
-    surfaces: dict
-    tree: tuple
-    expression: str
-    base: tuple
-    min_wall: float
-    lower: np.ndarray
-    upper: np.ndarray
-    points: dict
-    normals: dict
-    slices: dict = field(default_factory=dict)
-    derived: tuple = ()
-    notes: tuple = ()
-
-    @property
-    def names(self) -> tuple:
-        """The surface names, then :data:`BASE`: the values of :meth:`active_surface`."""
-        return (*self.surfaces, BASE)
-
-    def _evaluate(self, x):
-        x = check_points(x, "x", dims=(3,))
-        value, source = evaluate_domain(self.tree, {name: function(x) for name, function in self.surfaces.items()},
-                                        self.min_wall)
-        if self.base is not None:
-            below = -(x - self.base[0]) @ self.base[1]
-            cut = below < value
-            value, source = np.where(cut, below, value), np.where(cut, len(self.surfaces), source)
-        return value, source
-
-    def __call__(self, x) -> np.ndarray:
-        """(m,) f at (m, 3) points, > 0 inside the domain."""
-        return self._evaluate(x)[0]
-
-    def active_surface(self, x) -> np.ndarray:
-        """(m,) index into :attr:`names` of the surface (or the base) whose implicit gives f at each point."""
-        return self._evaluate(x)[1]
-
-    def with_min_wall(self, min_wall: float) -> LabelledImplicit:
-        """The same surfaces, with another thinnest wall (input units)."""
-        return replace(self, min_wall=check_number(min_wall, "min_wall", low=0))
-
-    def moved(self, shift) -> LabelledImplicit:
-        """The same domain translated by ``shift`` (3,): every sampled surface, the base plane, the box, the points."""
-        shift = np.asarray(shift, dtype=np.float64)
-        return replace(self, surfaces={name: replace(grid, origin=grid.origin + shift)
-                                       for name, grid in self.surfaces.items()},
-                       base=None if self.base is None else (self.base[0] + shift, self.base[1]),
-                       lower=self.lower + shift, upper=self.upper + shift,
-                       points={name: points + shift for name, points in self.points.items()})
-
-    def surface_samples(self) -> np.ndarray:
-        """(n, 3) the points of every surface that lie below the base plane (those above it are cut away)."""
-        samples = np.vstack(list(self.points.values()))
-        return samples if self.base is None else samples[(samples - self.base[0]) @ self.base[1] <= 0]
-
-    def contour_gap(self) -> float:
-        """The gap the contours leave between their slices (:func:`bitemesh.core.samples.contour_gap`), the
-        largest over the surfaces (input units)."""
-        return max((contour_gap(points, self.slices[name]) for name, points in self.points.items()
-                    if name in self.slices), default=0.0)
-
-    def tracing_noise(self) -> float:
-        """The uncertainty of traced contours: half the median distance between neighbouring contour points
-        (input units), about the pixel size they were traced and resampled at."""
-        spacing = [cKDTree(points).query(points, k=2)[0][:, 1] for points in self.points.values() if len(points) > 1]
-        return 0.5 * float(np.median(np.concatenate(spacing))) if spacing else 0.0
-
-    def is_base(self, x) -> np.ndarray:
-        """(m,) True where the base plane, not a surface, gives f at (m, 3) points."""
-        return self.active_surface(x) == len(self.surfaces)
-
-    def is_unsampled(self, x) -> np.ndarray:
-        """(m,) True where no contour gives f at (m, 3) points: the base plane or a :attr:`derived` surface."""
-        unsampled = [len(self.surfaces)] + [list(self.surfaces).index(name) for name in self.derived]
-        return np.isin(self.active_surface(x), unsampled)
-
-
-def boundary_surfaces(mesh, function: LabelledImplicit):
-    """The boundary triangles of a mesh of ``function``'s domain, and the surface each lies on.
-
-    Returns
-    -------
-    facets : (b, 3) int64, boundary triangles oriented out of the domain
-    surface : (b,) int64, index into ``function.names`` (the surfaces, then "BASE") of the implicit active at each
-        triangle's centroid
-    """
-    facets = boundary_facets(np.asarray(mesh.cells))
-    return facets, function.active_surface(np.asarray(mesh.points)[facets].mean(axis=1))
-
 
 def _checked_surfaces(surfaces, labels) -> dict:
     if surfaces is None:
@@ -252,38 +121,6 @@ def _default_domain(surfaces: dict, labels) -> tuple:
     raise InvalidInputError(
         f"the points have {len(present)} surfaces ({', '.join(present)}): give domain, a CSG expression of them "
         f"such as {' - '.join(present[:3])!r}")
-
-
-def _base_plane(base_plane, points, labels, surface_points, slices, planes):
-    """(point, normal) of the base plane, or None; and a note."""
-    if base_plane is None or (isinstance(base_plane, str) and base_plane == "none"):
-        return None, ()
-    if isinstance(base_plane, str):
-        check_choice(base_plane, "base_plane", ("auto", "valves", "none"))
-        valves = np.isin(labels, BIVME_VALVES)
-        if is_bivme(labels) and (base_plane == "auto" or valves.sum() >= 3):
-            plane, notes = cardiac_base_plane(points, labels, slices, planes)
-            if plane is not None or valves.sum() < 3:
-                return plane, notes
-        elif base_plane == "auto" and valves.sum() < 3:
-            return None, ()
-        if valves.sum() < 3:
-            raise InvalidInputError(
-                f"base_plane='valves' needs at least 3 points labelled {', '.join(BIVME_VALVES)}; the input has "
-                f"{int(valves.sum())}; give base_plane=(point, normal) or base_plane=None")
-        apex = np.isin(labels, BIVME_APEX)
-        inside = points[apex].mean(axis=0) if apex.any() else surface_points.mean(axis=0)
-        return fit_base_plane(points[valves], inside), ()
-    try:
-        point, normal = (np.asarray(part, dtype=np.float64) for part in base_plane)
-    except (TypeError, ValueError):
-        raise InvalidInputError(
-            f"base_plane must be 'valves', 'auto', None or (point, normal), got {base_plane!r}") from None
-    if point.shape != (3,) or normal.shape != (3,) or not np.isfinite(point).all() or not np.isfinite(normal).all() \
-            or not np.linalg.norm(normal) > 0:
-        raise InvalidInputError(f"base_plane (point, normal) needs two finite 3-vectors, the normal nonzero (it "
-                                f"points out of the domain), got {base_plane!r}")
-    return (point, normal / np.linalg.norm(normal)), ()
 
 
 def _distinct(points, index) -> np.ndarray:
@@ -385,7 +222,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     planes = slice_planes(points, slices)
     outlets = (BIVME_OUTLETS if is_bivme(labels) else {}) if outlets is None else dict(outlets)
     in_any = np.isin(labels, [label for name in used if name not in grown_from for label in surfaces[name]])
-    base, note = _base_plane(base_plane, points, labels, points[in_any], slices, planes)
+    base, note = choose_base_plane(base_plane, points, labels, points[in_any], slices, planes)
     notes += note
     if base is not None:
         base = (base[0] + check_number(base_offset, "base_offset") * base[1], base[1])
