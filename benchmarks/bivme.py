@@ -237,7 +237,7 @@ def leave_one_slice_out(points, labels, slices, options):
 def measure(folder: Path, cells, options: dict, *, method: str = "rbf", loso: bool = False, seed: int = 0,
             optimize: bool = False, save=None, gpfile=None) -> dict:
     """One run on ``gpfile`` (default the folder's GPFile_000.txt); ``cells`` None: the library's default size."""
-    points, labels, slices = read_labelled_points(gpfile or folder / "GPFile_000.txt", slices=True)
+    points, labels, slices = read_labelled_points(gpfile or folder / "GPFile_000.txt")
     biting = BitingParameters(seed=seed) if cells is None else BitingParameters(cells=cells, seed=seed)
     clock = time.perf_counter()
     if method == "mpu":

@@ -50,7 +50,7 @@ def main(argv=None) -> None:
     print("| contours | guide points | labelled_implicit (s) | grid I at R = 2 mm (s) |\n|---|---|---|---|")
     with tempfile.TemporaryDirectory() as folder:
         for name in ("shipped", "denser 4x", "denser 6x"):
-            points, labels, slices = read_labelled_points(variant_file(SHIPPED, name, folder), slices=True)
+            points, labels, slices = read_labelled_points(variant_file(SHIPPED, name, folder))
             fit = median_seconds(args.repeats, labelled.labelled_implicit, points, labels, slices=slices)
             function, lower, upper = labelled.labelled_implicit(points, labels, slices=slices)
             grid = ImplicitParameters(grid_spacing=2.0 / GRID_PER_RADIUS)

@@ -197,23 +197,6 @@ def worker_pipeline(name: str, size: int, grid_path: str | None) -> dict:
                 metrics=mesh_metrics(result.mesh, shape, result.radius, name))
 
 
-def paper_outside_cells(grid, nodes, cells, threshold: float):
-    """The paper's test alone (section 4.2.2): outside when f(c) < 0 and |f(c)| / |grad f(c)| > threshold x R_circ.
-
-    c is the circumcentre.  The paper's text says "inferior to"; like bitemesh.core.spurious we read it as ">",
-    the reading that removes the spurious cells.  No centroid test, no other refinement.
-    """
-    import numpy as np
-    from bitemesh.core.mesh import circumspheres
-    centres, radii = circumspheres(nodes, cells)
-    finite = np.isfinite(radii)
-    outside = ~finite
-    value = grid.evaluate(centres[finite])
-    slope = np.maximum(np.linalg.norm(grid.gradient(centres[finite]), axis=1), 1e-12)
-    outside[finite] = (value < 0) & (np.abs(value) / slope > threshold * radii[finite])
-    return outside
-
-
 #: the baselines: name -> description (the outside test; none of them repairs the domain)
 BASELINES = {"paper": "circumcentre test only (the paper)",
              "outside_cells": "bitemesh.core.spurious.outside_cells, no repair"}
@@ -235,7 +218,7 @@ def worker_baseline(name: str, size: int, grid_path: str) -> dict:
     from bitemesh.core.parameters import BitingParameters, SpuriousParameters
     from bitemesh.core.quality import cell_quality
     from bitemesh.core.source import Frame
-    from bitemesh.core.spurious import outside_cells
+    from bitemesh.core.spurious import circumcentre_outside, outside_cells
 
     rss_imported = _maxrss_mb()
     shape = getattr(shapes, SHAPES[name])()
@@ -252,7 +235,10 @@ def worker_baseline(name: str, size: int, grid_path: str) -> dict:
     cells = delaunay(nodes)
     shared["delaunay"] = time.perf_counter() - clock
     variants = {}
-    for variant, test in (("paper", paper_outside_cells), ("outside_cells", outside_cells)):
+    def paper(grid, nodes, cells, threshold):   # the paper's circumcentre test alone
+        return circumcentre_outside(grid, nodes, cells, threshold)[0]
+
+    for variant, test in (("paper", paper), ("outside_cells", outside_cells)):
         # a fresh grid per variant: the cached gradient grids are computed (and timed) by each test
         fresh = ImplicitGrid(origin=origin, spacing=spacing, values=values)
         seconds = dict(shared)

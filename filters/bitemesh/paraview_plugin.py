@@ -180,47 +180,30 @@ def property_setter(item, vtk_setter):
 
 # -- filters -----------------------------------------------------------------------------------------------------
 
-class ParaViewPipeline:
-    """Mixin for every filter: find an upstream bitemesh error through the algorithms ParaView inserts.
-
-    ParaView puts a ``vtkPVPostFilter`` after each output port, so the producer of a filter's input is never the
-    bitemesh filter itself; without this, every filter below one that failed would report an empty input too.
-    """
-
-    def upstream_error(self):
-        """The first error of this filter's upstream chain (the root cause), through any algorithm, or None."""
-        seen = set()
-
-        def first_error(algorithm):
-            for port in range(algorithm.GetNumberOfInputPorts()):
-                for connection in range(algorithm.GetNumberOfInputConnections(port)):
-                    producer = algorithm.GetInputAlgorithm(port, connection)
-                    if producer is None or producer.__this__ in seen:
-                        continue
-                    seen.add(producer.__this__)
-                    error = first_error(producer) or getattr(producer, "last_error", None)
-                    if error is not None:
-                        return error
-            return None
-
-        return first_error(self)
-
-
 class LabelMapsNeedSimpleITK:
     """Mixin for PointsToImplicit: a label map input needs SimpleITK, which Debian does not package."""
 
-    def label_grid(self, image: vtkImageData, geometry_only: bool = False):
+    def label_grid_geometry(self, image: vtkImageData):
         # also when only the grid's geometry is asked for: announcing an extent that no output will fill makes
         # ParaView's post filter report an extent error after the real one
-        try:
-            import SimpleITK  # noqa: F401
-        except ImportError:
-            raise InvalidInputError(
-                "a label map (vtkImageData) input needs SimpleITK, which ParaView's Python cannot import "
-                "(Debian has no python3-simpleitk): install a SimpleITK for that Python version in a folder of its own "
-                "(pip install --target DIR SimpleITK) and add DIR to PYTHONPATH, mesh the label map with the "
-                "bitemesh command or the 3D Slicer module, or connect scattered points") from None
-        return super().label_grid(image, geometry_only)
+        require_simpleitk()
+        return super().label_grid_geometry(image)
+
+    def label_grid(self, image: vtkImageData):
+        require_simpleitk()
+        return super().label_grid(image)
+
+
+def require_simpleitk() -> None:
+    """Refuse a label map where ParaView's Python has no SimpleITK, saying how to get one."""
+    try:
+        import SimpleITK  # noqa: F401
+    except ImportError:
+        raise InvalidInputError(
+            "a label map (vtkImageData) input needs SimpleITK, which ParaView's Python cannot import "
+            "(Debian has no python3-simpleitk): install a SimpleITK for that Python version in a folder of its own "
+            "(pip install --target DIR SimpleITK) and add DIR to PYTHONPATH, mesh the label map with the "
+            "bitemesh command or the 3D Slicer module, or connect scattered points") from None
 
 
 def input_data_types(base) -> list:
@@ -238,7 +221,7 @@ def paraview_filter(class_name: str):
     namespace = {"__module__": __name__, "__qualname__": class_name, "__doc__": base.__doc__}
     for item in items:
         namespace[f"Set{camel(item.name)}"] = property_setter(item, getattr(base, f"Set{camel(item.name)}"))
-    bases = (ParaViewPipeline, *((LabelMapsNeedSimpleITK,) if hasattr(base, "label_grid") else ()), base)
+    bases = (*((LabelMapsNeedSimpleITK,) if hasattr(base, "label_grid") else ()), base)
     cls = type(class_name, bases, namespace)
 
     decorators = []  # innermost first; properties keep this order in the panel

@@ -29,7 +29,7 @@ def full_heart(tmp_path_factory):
     from tests.conftest import DATA
     if not DATA.is_dir():
         pytest.skip("no real data")
-    points, labels, slices = read_labelled_points(DATA / "bivme_patient1" / "GPFile_000.txt", slices=True)
+    points, labels, slices = read_labelled_points(DATA / "bivme_patient1" / "GPFile_000.txt")
     return labelled.run_labelled(points, labels, slices=slices)
 
 
@@ -37,8 +37,8 @@ def full_heart(tmp_path_factory):
 
 def test_the_header_may_say_slice_id_and_the_time_frame_be_any_single_one(shared_data, tmp_path):
     path = variant_file(shipped(shared_data), "sliceID header, frame 1", tmp_path)
-    points, labels, slices = read_labelled_points(path, slices=True)
-    reference = read_labelled_points(shipped(shared_data), slices=True)
+    points, labels, slices = read_labelled_points(path)
+    reference = read_labelled_points(shipped(shared_data))
     assert np.allclose(points, reference[0], atol=1e-5) and (labels == reference[1]).all()
     assert (slices == reference[2]).all()
 
@@ -49,7 +49,7 @@ def test_a_file_of_several_time_frames_is_refused_until_one_is_chosen(shared_dat
     both = write_gpfile({key: np.concatenate([gp[key], later[key]]) for key in gp}, tmp_path / "GPFile_all.txt")
     with pytest.raises(InvalidInputError, match=r"several time frames .*5 \(1814 points\).*--frame"):
         read_labelled_points(both)
-    points, labels = read_labelled_points(both, frame=5)
+    points, labels, _ = read_labelled_points(both, frame=5)
     assert len(points) == 1814 and np.allclose(points, gp["points"] + 1.5, atol=1e-5)
     with pytest.raises(InvalidInputError, match=r"frame = 3: .* no point of that time frame; its frames: 0, 1, 5"):
         read_labelled_points(both, frame=3)
@@ -102,7 +102,7 @@ MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x")]
 @pytest.mark.parametrize("name", MESHED)
 def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart):
     path = variant_file(shipped(shared_data), name, tmp_path)
-    points, labels, slices = read_labelled_points(path, slices=True)
+    points, labels, slices = read_labelled_points(path)
     result = labelled.run_labelled(points, labels, slices=slices)
     mesh = result.mesh
     assert_valid_domain(mesh, euler=2, components=1)   # no handle: a myocardium with its cavities open is a ball
@@ -139,7 +139,7 @@ def test_guide_points_far_from_the_boundary_are_refused_or_warned(full_heart):
 @pytest.mark.slow
 def test_walls_so_thick_that_they_fill_the_cavities_are_refused(shared_data):
     """The failure seen on a real case: R 6.3 mm gave 7.9 mm walls and a filled LV cavity (695 ml)."""
-    points, labels, slices = read_labelled_points(shipped(shared_data), slices=True)
+    points, labels, slices = read_labelled_points(shipped(shared_data))
     with pytest.raises(MeshingError, match=r"does not follow the data"):
         labelled.run_labelled(points, labels, slices=slices, min_wall=25.0)
     with pytest.raises(MeshingError, match=r"not plausible: the LV_ENDO cavity is (filled|closed)"):

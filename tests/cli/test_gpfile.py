@@ -33,13 +33,13 @@ def gpfile(shared_data) -> Path:
 # --- reading ------------------------------------------------------------------------------------------------------
 
 def test_the_gpfile_reads_with_its_label_counts_and_slices(shared_data):
-    points, labels, slices = read_labelled_points(gpfile(shared_data), slices=True)
+    points, labels, slices = read_labelled_points(gpfile(shared_data))
     assert points.shape == (1814, 3) and points.dtype == np.float64
     assert dict(zip(*np.unique(labels, return_counts=True))) == GPFILE_COUNTS
     assert sorted(np.unique(slices).tolist()) == [2, 3, 4, 5, 6, 7, 8, 9, 11]
     assert points[0].tolist() == [-42.09469, -25.37305, -29.46908] and labels[0] == "SAX_RV_FREEWALL"
     assert (points.min(axis=0) > [-75, -37, -114]).all() and (points.max(axis=0) < [58, 57, 7]).all()
-    same_points, same_labels = read_labelled_points(gpfile(shared_data))
+    same_points, same_labels, _ = read_labelled_points(gpfile(shared_data))
     assert np.array_equal(same_points, points) and np.array_equal(same_labels, labels)
 
 
@@ -55,7 +55,7 @@ def test_a_csv_with_integer_labels_and_a_header_reads(tmp_path, separator):
     path = tmp_path / "contours.csv"
     rows = ["x y z label slice".replace(" ", separator), "1.5 2 3 1 7", "4 5 6 2 7", "7 8 9.25 2.0 8"]
     path.write_text("# exported contours\n" + "\n".join(row.replace(" ", separator) for row in rows) + "\n")
-    points, labels, slices = read_labelled_points(path, slices=True)
+    points, labels, slices = read_labelled_points(path)
     assert points.tolist() == [[1.5, 2, 3], [4, 5, 6], [7, 8, 9.25]]
     assert labels.tolist() == ["1", "2", "2"] and slices.tolist() == [7, 7, 8]
 
@@ -63,11 +63,11 @@ def test_a_csv_with_integer_labels_and_a_header_reads(tmp_path, separator):
 def test_a_headerless_csv_with_string_labels_and_named_columns_in_any_order(tmp_path):
     path = tmp_path / "plain.txt"
     path.write_text("0 0 0 EPI\n1 0 0 LV_ENDO\n")
-    points, labels, slices = read_labelled_points(path, slices=True)
+    points, labels, slices = read_labelled_points(path)
     assert labels.tolist() == ["EPI", "LV_ENDO"] and slices is None and points[1].tolist() == [1, 0, 0]
     path = tmp_path / "reordered.csv"
     path.write_text("Surface,Z,Y,X\nRV,3,2,1\n")
-    points, labels = read_labelled_points(path)
+    points, labels, _ = read_labelled_points(path)
     assert points.tolist() == [[1, 2, 3]] and labels.tolist() == ["RV"]
 
 
@@ -132,7 +132,7 @@ def write_vtp(path, points, arrays):
 def test_a_vtp_with_a_label_array_reads(tmp_path, labels, expected):
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.5]])
     write_vtp(tmp_path / "labelled.vtp", points, {"Label": labels, "Slice": np.array([0, 0, 4], dtype=np.int64)})
-    read, read_labels, slices = read_labelled_points(tmp_path / "labelled.vtp", slices=True)
+    read, read_labels, slices = read_labelled_points(tmp_path / "labelled.vtp")
     assert np.array_equal(read, points) and read_labels.tolist() == expected and slices.tolist() == [0, 0, 4]
 
 
@@ -174,7 +174,7 @@ def distance_to_surface(points, vertices, facets, candidates=24):
 
 @cache
 def heart(path: str, cells: int):
-    points, labels, slices = read_labelled_points(path, slices=True)
+    points, labels, slices = read_labelled_points(path)
     return labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells))
 
 
@@ -204,7 +204,7 @@ def check_heart(result, source, *, mean_bound, max_bound):
     # third short-axis slice, frameID 4) is outside the mesh
     volume = result.mesh.cell_data["Volume"].sum()
     assert 140e3 < volume < 210e3   # mm^3
-    points, labels, slices = read_labelled_points(source, slices=True)
+    points, labels, slices = read_labelled_points(source)
     for name in ("LV_ENDO", "RV_ENDO"):
         centre = points[np.isin(labels, labelled.BIVME_SURFACES[name]) & (slices == 4)].mean(axis=0)
         assert function.surfaces[name](centre[None])[0] > 4 and function(centre[None])[0] < 0
@@ -228,7 +228,7 @@ def test_the_patient_meshes_as_one_valid_myocardium_near_its_contours(shared_dat
 def test_the_myocardium_is_one_closed_surface_whatever_the_seed():
     """At 30,000 cells seeds 7, 8 and 13 gave Euler characteristics -2, 0 and 0 (a hole punched through the RV wall
     where it is about one cell thick, a one-cell void at the RV cavity's tip) before the repair weighed topology."""
-    points, labels, slices = read_labelled_points(PACKAGED / "GPFile_000.txt", slices=True)
+    points, labels, slices = read_labelled_points(PACKAGED / "GPFile_000.txt")
     first = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=30000, seed=7))
     for seed in (7, 8, 13):
         mesh = first.mesh if seed == 7 else mesh_from_grid(first.implicit,
@@ -252,7 +252,7 @@ def test_the_patient_at_136000_cells_meets_the_goals(shared_data):
 # --- bad real input -------------------------------------------------------------------------------------------------
 
 def test_a_gpfile_without_rv_labels_names_the_missing_surface(shared_data):
-    points, labels, slices = read_labelled_points(gpfile(shared_data), slices=True)
+    points, labels, slices = read_labelled_points(gpfile(shared_data))
     keep = ~np.isin(labels, ["SAX_RV_FREEWALL", "LAX_RV_FREEWALL", "SAX_RV_SEPTUM", "LAX_RV_SEPTUM"])
     with pytest.raises(InvalidInputError, match=r"surface RV_ENDO needs points labelled SAX_RV_FREEWALL or "
                                                 r"LAX_RV_FREEWALL or SAX_RV_SEPTUM or LAX_RV_SEPTUM or .*, and the "
@@ -269,7 +269,7 @@ def test_a_gpfile_without_rv_labels_names_the_missing_surface(shared_data):
 
 
 def test_a_domain_naming_an_unknown_surface_lists_the_biv_me_surfaces(shared_data):
-    points, labels = read_labelled_points(gpfile(shared_data))
+    points, labels, _ = read_labelled_points(gpfile(shared_data))
     with pytest.raises(InvalidInputError, match=r"names the unknown surface 'RV'; known surfaces: EPI, LV_ENDO, "
                                                 r"RV_ENDO, LV_EPI"):
         labelled.labelled_implicit(points, labels, "EPI - LV_ENDO - RV")
@@ -277,7 +277,7 @@ def test_a_domain_naming_an_unknown_surface_lists_the_biv_me_surfaces(shared_dat
 
 def test_a_contour_that_encloses_nothing_is_named(shared_data):
     """The LV endocardium of slice 4 replaced by a straight line of points in that slice."""
-    points, labels, slices = read_labelled_points(gpfile(shared_data), slices=True)
+    points, labels, slices = read_labelled_points(gpfile(shared_data))
     contour = np.flatnonzero((labels == "SAX_LV_ENDOCARDIAL") & (slices == 4))
     start, end = points[contour[0]], points[contour[len(contour) // 2]]
     points[contour] = start + np.linspace(0, 1, len(contour))[:, None] * (end - start)

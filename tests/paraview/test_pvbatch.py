@@ -193,7 +193,7 @@ def test_a_gpfile_read_as_a_table_gives_the_myocardium_of_run_labelled(pvbatch_r
     """The README's ParaView path for a GPFile: its "contour type" and "frameID" columns are the labels and slices."""
     from bitemesh.io import read_labelled_points
     assert_checks(pvbatch_run, "gpfile")
-    points, labels, slices = read_labelled_points(GPFILE, slices=True)
+    points, labels, slices = read_labelled_points(GPFILE)
     with pytest.warns(BitemeshWarning, match="not plausible: the LV_ENDO cavity is closed at the base"):
         expected = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=LABELLED_CELLS),
                                 allow_implausible=True).mesh

@@ -351,7 +351,7 @@ def test_model_points_and_normals_through_its_transform(scene, logic):
 def test_a_loaded_gpfile_meshes_as_run_labelled(scene, logic):
     """biv-me's guide points, loaded as a model (LPS file -> RAS), give run_labelled's mesh of the same points."""
     node = logic.loadLabelledPoints(GPFILE, scene=scene)
-    points, labels, slices = read_labelled_points(GPFILE, slices=True)
+    points, labels, slices = read_labelled_points(GPFILE)
     data = node.GetPolyData()
     assert node.GetName() == "GPFile_000" and data.GetNumberOfVerts() == len(points)
     ras = points * [-1.0, -1.0, 1.0]
@@ -762,7 +762,7 @@ def test_a_gpfile_as_real_exports_write_it_meshes_as_run_labelled(scene, logic, 
     from tests.cardiac_variants import variant_file
     path = variant_file(GPFILE, "like GPFile of issue 10", tmp_path)
     node = logic.loadLabelledPoints(path, scene=scene)
-    points, labels, slices = read_labelled_points(path, slices=True)
+    points, labels, slices = read_labelled_points(path)
     model = output_model(scene)
     result = logic.process(node, model)
     expected = run_labelled(points * [-1.0, -1.0, 1.0], labels, slices=slices)

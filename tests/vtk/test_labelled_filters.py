@@ -153,7 +153,7 @@ def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path, 
     from tests.cardiac_variants import read_gpfile, unprefixed, variant_file, write_gpfile
     path = variant_file(shared_data / "bivme_patient1" / "GPFile_000.txt", "like GPFile of issue 10", tmp_path)
     path = write_gpfile(unprefixed(read_gpfile(path)), tmp_path / "GPFile_unprefixed.txt")
-    points, labels, slices = read_labelled_points(path, slices=True)
+    points, labels, slices = read_labelled_points(path)
     one_step = MeshFromPoints()
     one_step.SetInputData(labelled_polydata(points, labels, slices))
     mesh = unstructured_to_mesh(one_step.update())

@@ -187,15 +187,27 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
             vtkOutputWindow.GetInstance().DisplayErrorText(f"ERROR: {message}\n")
 
     def upstream_error(self):
-        """The first error of this filter's upstream chain (the root cause), or None."""
-        for port in range(self.GetNumberOfInputPorts()):
-            for connection in range(self.GetNumberOfInputConnections(port)):
-                producer = self.GetInputAlgorithm(port, connection)
-                if isinstance(producer, BitemeshAlgorithm):
-                    error = producer.upstream_error() or producer.last_error
+        """The first error of this filter's upstream chain (the root cause), or None.
+
+        The chain is walked through every algorithm, not only bitemesh's: ParaView puts a ``vtkPVPostFilter`` after
+        each output port, and a VTK script may put any filter between two of ours; without this, every filter below
+        one that failed would report an empty input too.
+        """
+        seen = set()
+
+        def first_error(algorithm):
+            for port in range(algorithm.GetNumberOfInputPorts()):
+                for connection in range(algorithm.GetNumberOfInputConnections(port)):
+                    producer = algorithm.GetInputAlgorithm(port, connection)
+                    if producer is None or producer.__this__ in seen:
+                        continue
+                    seen.add(producer.__this__)
+                    error = first_error(producer) or getattr(producer, "last_error", None)
                     if error is not None:
                         return error
-        return None
+            return None
+
+        return first_error(self)
 
     def update(self, port: int = 0):
         """Update and return the output of ``port``; raise the error that stopped this filter or one upstream."""

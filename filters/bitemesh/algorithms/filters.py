@@ -114,7 +114,7 @@ class PointsToImplicit(BitemeshAlgorithm):
     def grid_geometry(self, source):
         """(origin, spacing, shape) of the grid this input will give."""
         if isinstance(source, vtkImageData):
-            return self.label_grid(source, geometry_only=True)
+            return self.label_grid_geometry(source)
         parameters = self.parameters(ImplicitParameters)
         fit = self.labelled_fit(source)
         points = check_points(scattered_points(source)[0]) if fit is None else np.array(fit[1:])
@@ -122,15 +122,20 @@ class PointsToImplicit(BitemeshAlgorithm):
         shape = grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=parameters.max_memory_mb)
         return lower - margin, np.full(len(lower), spacing), shape
 
-    def label_grid(self, image: vtkImageData, geometry_only: bool = False):
-        """The label map's signed distance on its grid and its voxel faces (the samples); with ``geometry_only``,
-        only the grid's (origin, spacing, shape)."""
-        from ..labelmap import PAD_VOXELS, label_map_to_grid, label_mask, mask_faces
+    def label_grid_geometry(self, image: vtkImageData):
+        """(origin, spacing, shape) of the grid a label map gives: its voxels, padded."""
+        from ..labelmap import PAD_VOXELS
         dims = image.GetDimensions()
         dim = 2 if dims[2] == 1 else 3
         origin, spacing = np.array(image.GetOrigin()[:dim]), np.array(image.GetSpacing()[:dim])
-        if geometry_only:
-            return origin - PAD_VOXELS * spacing, spacing, tuple(n + 2 * PAD_VOXELS for n in dims[:dim])
+        return origin - PAD_VOXELS * spacing, spacing, tuple(n + 2 * PAD_VOXELS for n in dims[:dim])
+
+    def label_grid(self, image: vtkImageData):
+        """The label map's signed distance on its grid and its voxel faces (the samples)."""
+        from ..labelmap import label_map_to_grid, label_mask, mask_faces
+        dims = image.GetDimensions()
+        dim = 2 if dims[2] == 1 else 3
+        origin, spacing = np.array(image.GetOrigin()[:dim]), np.array(image.GetSpacing()[:dim])
         scalars = image.GetPointData().GetScalars()
         if scalars is None:
             raise InvalidInputError("the label map has no point scalars (the labels)")

@@ -55,7 +55,7 @@ def mesh_heart(args, progress):
     from ..core.labelled import run_labelled
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
     with resources.as_file(source) as path:
-        points, labels, slices = read_labelled_points(path, slices=True)
+        points, labels, slices = read_labelled_points(path)
     print(f"heart: {len(points)} guide points on short- and long-axis cardiac MR contours (biv-me patient1, "
           "Apache-2.0), mm")
     cells = round(args.cells * HEART_CELLS / 136000) if args.cells else HEART_CELLS

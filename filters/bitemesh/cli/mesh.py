@@ -101,7 +101,7 @@ def mesh_labelled_points(args, steps: dict, progress, path=None, columns=None, f
     """Labelled contour points (``path``, default the input; time frame ``frame``) to the mesh of the domain of
     ``--domain``."""
     from ..core.labelled import run_labelled
-    points, labels, slices = read_labelled_points(path or args.input, slices=True, columns=columns, frame=frame)
+    points, labels, slices = read_labelled_points(path or args.input, columns=columns, frame=frame)
     options = read_labelled_config(args.config) if args.config else {}
     options.update(labelled_flags(args))   # a flag given wins over the config file
     return run_labelled(points, labels, slices=slices, progress=progress, **steps, **options)

@@ -60,7 +60,7 @@ def project_to_surface(grid: ImplicitGrid, points: np.ndarray, *, steps: int = 4
 
 
 def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: int = 0, jitter: float = 0.15,
-         project_boundary: bool = True, progress: ProgressCallback = None) -> np.ndarray:
+         progress: ProgressCallback = None) -> np.ndarray:
     """Place mesh nodes at least about ``radius`` apart inside {f > 0}.
 
     Parameters
@@ -70,7 +70,6 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     order : ``"boundary"`` (border first, then inward) or ``"random"``
     seed : seed of the generator that breaks ties and jitters the nodes
     jitter : interior nodes move by up to ``jitter`` grid spacings per axis, so qhull never sees an exact lattice
-    project_boundary : move the nodes of the border layer onto f = 0
 
     Returns
     -------
@@ -119,9 +118,8 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
             f"(at least {MIN_NODES} are needed); use a smaller radius")
 
     nodes = grid.node_coordinates(chosen) + rng.uniform(-jitter, jitter, (chosen.size, grid.dim)) * spacing
-    if project_boundary:
-        on_border = border.ravel()[chosen]
-        nodes[on_border] = project_to_surface(grid, nodes[on_border])
+    on_border = border.ravel()[chosen]   # the nodes of the border layer go onto f = 0
+    nodes[on_border] = project_to_surface(grid, nodes[on_border])
     if not np.isfinite(nodes).all():
         raise MeshingError("projecting the border nodes onto f = 0 failed (non-finite coordinates); "
                            "the implicit function may be flat there: try a finer grid_spacing")

@@ -195,19 +195,19 @@ def bounding_box(points: np.ndarray):
     return lower, upper, float(np.linalg.norm(upper - lower))
 
 
-def box_depth(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, *, gradient: bool = False):
-    """Signed distance to the boundary of the box [lower, upper], > 0 inside.
+def box_depth(x: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """(m,) signed distance of (m, k) points to the boundary of the box [lower, upper], > 0 inside."""
+    return box_depth_gradient(x, lower, upper)[0]
 
-    Returns the (m,) depth and, with ``gradient``, its (m, k) gradient.
-    """
+
+def box_depth_gradient(x: np.ndarray, lower: np.ndarray, upper: np.ndarray):
+    """(m,) :func:`box_depth` and its (m, k) gradient."""
     beyond = x - np.clip(x, lower, upper)
     distance_out = np.linalg.norm(beyond, axis=1)
     to_faces = np.concatenate([x - lower, upper - x], axis=1)
     nearest_face = np.argmin(to_faces, axis=1)
     outside = distance_out > 0
     depth = np.where(outside, -distance_out, to_faces[np.arange(len(x)), nearest_face])
-    if not gradient:
-        return depth
     dim = x.shape[1]
     inward = np.zeros_like(x)
     inward[np.arange(len(x)), nearest_face % dim] = np.where(nearest_face < dim, 1.0, -1.0)

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import InvalidInputError, check_number, check_points
-from .grid import bounding_box, box_depth
+from .grid import bounding_box, box_depth, box_depth_gradient
 from .normals import unit_normals
 from .progress import ProgressCallback, report
 
@@ -320,8 +320,10 @@ class MPUImplicit:
             value[part], grad = self._blend(x[part], gradient)
             if gradient:
                 slope[part] = grad
-        box = box_depth(x, self.lower, self.upper, gradient=gradient)
-        depth, box_slope = box if gradient else (box, None)
+        if gradient:
+            depth, box_slope = box_depth_gradient(x, self.lower, self.upper)
+        else:
+            depth = box_depth(x, self.lower, self.upper)
         clamp = depth < value
         value[clamp] = depth[clamp]
         if gradient:

@@ -11,8 +11,6 @@ from typing import Optional
 
 from .errors import InvalidInputError, check_choice, check_number
 
-INF = float("inf")
-
 
 def parameter(default, help: str, *, unit: str = "", low=None, high=None, low_open=False, high_open=False,
               choices=None, integer=False, text=False):

@@ -25,12 +25,25 @@ def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, thr
       surface (the flat cells lying on it).  A cell with a deeper vertex is an ordinary boundary cell whose
       circumcentre pokes out; removing it bared an interior node (a notch 0.6 R deep on the sphere and torus).
     """
+    far, radii = circumcentre_outside(grid, points, cells, threshold)
+    shallow = grid.evaluate(points)[cells].max(axis=1) < SHALLOW * radii
+    return (far & (shallow | ~np.isfinite(radii))) | (grid.evaluate(points[cells].mean(axis=1)) < 0)
+
+
+def circumcentre_outside(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4):
+    """The paper's test alone (section 4.2.2), read as ">" (see :func:`outside_cells`).
+
+    Returns
+    -------
+    outside : (m,) bool, f(c) < 0 and |f(c)| / |grad f(c)| > ``threshold`` x R_circ at the circumcentre c, or a
+        flat cell (no finite circumsphere)
+    radii : (m,) circumradii R_circ (input units; inf for a flat cell)
+    """
     check_number(threshold, "threshold", low=0, high=1)
     centres, radii = circumspheres(points, cells)
     finite = np.isfinite(radii)
     outside = ~finite
     value = grid.evaluate(centres[finite])
     slope = np.maximum(np.linalg.norm(grid.gradient(centres[finite]), axis=1), 1e-12)
-    shallow = grid.evaluate(points)[cells].max(axis=1) < SHALLOW * radii
-    outside[finite] = (value < 0) & (np.abs(value) / slope > threshold * radii[finite]) & shallow[finite]
-    return outside | (grid.evaluate(points[cells].mean(axis=1)) < 0)
+    outside[finite] = (value < 0) & (np.abs(value) / slope > threshold * radii[finite])
+    return outside, radii

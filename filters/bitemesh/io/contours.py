@@ -2,6 +2,8 @@
 small config file that says which domain to mesh from them."""
 from __future__ import annotations
 
+import warnings
+
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +22,7 @@ LABELLED_EXTENSIONS = LABELLED_TEXT_EXTENSIONS + LABELLED_VTK_EXTENSIONS
 LABEL_COLUMNS = tuple(name for name, given in NAMES.items() if given == "label")
 
 
-def read_labelled_points(path, *, slices: bool = False, columns: str | None = None, frame: float | None = None):
+def read_labelled_points(path, *, columns: str | None = None, frame: float | None = None, slices=None):
     """Read contour points with a label per point: a biv-me GPFile, a CSV table, or a VTK file with a Label array.
 
     Parameters
@@ -34,8 +36,7 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
         a header: ``x y z label [slice]``.  Labels are strings or integers; ``#`` starts a comment line.
         ``.vtp``, ``.vtk``, ``.vtu``: the points of the dataset and its point-data array ``Label`` (integer or
         string), and optionally ``Slice`` or ``FrameID``.
-    slices : bool
-        Also return the slice id of each point.
+    slices : deprecated and ignored (the slice ids are always returned)
     columns : comma-separated role of each column of a table (x, y, z, label, slice, frame, skip), e.g.
         "x,y,z,label,skip"; default: from the header's names (see :mod:`bitemesh.io.tables`)
     frame : the time frame to read (a value of the time-frame column); default: every point, which a file whose
@@ -46,7 +47,7 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
     -------
     points : (n, 3) float64, input units
     labels : (n,) str array (integer labels as their decimal text, "1")
-    slice_ids : (n,) int64, only with ``slices=True``; None when the file has no slice column or array
+    slice_ids : (n,) int64, or None when the file has no slice column or array
 
     Raises
     ------
@@ -55,6 +56,9 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
         message names the file and the line), an empty label, no points, several time frames and no ``frame``, or a
         ``frame`` the file does not hold.
     """
+    if slices is not None:
+        warnings.warn("read_labelled_points(slices=...) is deprecated: it always returns (points, labels, slice_ids)",
+                      DeprecationWarning, stacklevel=2)
     path = existing_file(path, "labelled points", LABELLED_EXTENSIONS)
     frames = None
     if path.suffix.lower() in LABELLED_TEXT_EXTENSIONS:
@@ -72,7 +76,7 @@ def read_labelled_points(path, *, slices: bool = False, columns: str | None = No
     if empty.any():
         raise InvalidInputError(f"cannot read labelled points from '{path}': {int(empty.sum())} points have an "
                                 f"empty label (first: point {int(np.argmax(empty))})")
-    return (points, labels, slice_ids) if slices else (points, labels)
+    return points, labels, slice_ids
 
 
 def looks_labelled(path) -> bool:

@@ -54,7 +54,7 @@ def loadLabelledPoints(path, name=None, scene=None, coordinateSystem="LPS"):
     from bitemesh.io import read_labelled_points
 
     check_choice(coordinateSystem, "coordinateSystem", COORDINATE_SYSTEMS)
-    points, labels, slices = read_labelled_points(path, slices=True)
+    points, labels, slices = read_labelled_points(path)
     if coordinateSystem == "LPS":
         points = points * np.array([-1.0, -1.0, 1.0])
     polydata = nodes_to_polydata(points)

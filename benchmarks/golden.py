@@ -1,0 +1,108 @@
+"""Fingerprints of the meshes bitemesh makes, to hold a refactoring to "the same meshes bit for bit".
+
+Each case is meshed in this process and fingerprinted by the SHA-1 of its node coordinates and cells (float64 and
+int64 bytes).  ``--record`` writes them to ``golden.json`` beside this file, with the versions of Python, numpy,
+scipy and the platform they were made with (floating point may differ elsewhere); without it the cases are meshed
+and compared, and the exit status is 1 when one differs.  ``tests/test_golden.py`` compares the quick cases.
+
+    python benchmarks/golden.py                  # compare every case
+    python benchmarks/golden.py --record         # after a change that is meant to change meshes: say why in the commit
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import platform
+import sys
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import scipy
+
+RECORD = Path(__file__).with_name("golden.json")
+
+
+def fingerprint(mesh) -> str:
+    """SHA-1 (hex, 16 digits) of a mesh's float64 coordinates and int64 cells."""
+    digest = hashlib.sha1(np.ascontiguousarray(mesh.points, dtype=np.float64).tobytes())
+    digest.update(np.ascontiguousarray(mesh.cells, dtype=np.int64).tobytes())
+    return digest.hexdigest()[:16]
+
+
+def die_demo(cells: int = 10000, optimize: bool = False):
+    """``bitemesh demo`` (die): its points, its parameters."""
+    from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
+    from bitemesh.core.pipeline import run
+    from bitemesh.core.shapes import die, sample_surface
+    points, normals = sample_surface(die(), spacing=0.04, noise=0.002, seed=1)
+    return run(points, normals, ImplicitParameters(), BitingParameters(cells=cells),
+               optimize=OptimizeParameters() if optimize else None).mesh
+
+
+def heart_demo(cells: int = 40000):
+    """``bitemesh demo heart --cells N``'s mesh (the shipped biv-me guide points)."""
+    from bitemesh.core.labelled import run_labelled
+    from bitemesh.core.parameters import BitingParameters
+    from bitemesh.io import read_labelled_points
+    source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
+    with resources.as_file(source) as path:
+        points, labels, slices = read_labelled_points(path)
+    return run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells)).mesh
+
+
+def benchmark_shape(name: str, cells: int):
+    """A shape of ``benchmarks/run_benchmarks.py`` from its noisy scattered points, default parameters."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from run_benchmarks import SEED, make_input
+
+    from bitemesh.core.parameters import BitingParameters
+    from bitemesh.core.pipeline import run
+    _, points, normals, _ = make_input(name, cells)
+    return run(points, normals, biting=BitingParameters(cells=cells, seed=SEED)).mesh
+
+
+#: name -> (how to mesh it, quick enough for the test suite)
+CASES = {
+    "die 10k": (lambda: die_demo(), True),
+    "die 3k optimized": (lambda: die_demo(3000, optimize=True), True),
+    "heart 40k": (lambda: heart_demo(), True),
+    "sphere 10k": (lambda: benchmark_shape("sphere", 10000), True),
+    "torus 10k": (lambda: benchmark_shape("torus", 10000), True),
+    "two-cavity 10k": (lambda: benchmark_shape("two-cavity", 10000), True),
+    "die 136k": (lambda: benchmark_shape("die", 136000), False),
+    "heart 155k": (lambda: heart_demo(155000), False),
+}
+
+
+def environment() -> dict:
+    """What floating point results depend on here."""
+    return dict(python=platform.python_version(), numpy=np.__version__, scipy=scipy.__version__,
+                machine=platform.machine(), system=platform.system())
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--record", action="store_true", help="write golden.json instead of comparing")
+    parser.add_argument("--quick", action="store_true", help="only the cases the test suite runs")
+    args = parser.parse_args(argv)
+    names = [name for name, (_, quick) in CASES.items() if quick or not args.quick]
+    found = {}
+    for name in names:
+        found[name] = fingerprint(CASES[name][0]())
+        print(f"{name:20s} {found[name]}", flush=True)
+    if args.record:
+        RECORD.write_text(json.dumps(dict(environment=environment(), meshes=found), indent=1) + "\n")
+        print(f"recorded {len(found)} meshes in {RECORD}")
+        return 0
+    recorded = json.loads(RECORD.read_text())
+    if recorded["environment"] != environment():
+        print(f"note: recorded with {recorded['environment']}, running with {environment()}")
+    differ = [name for name in names if recorded["meshes"].get(name) != found[name]]
+    print("all the same" if not differ else f"different: {', '.join(differ)}")
+    return 1 if differ else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
