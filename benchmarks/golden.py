@@ -41,15 +41,17 @@ def die_demo(cells: int = 10000, optimize: bool = False):
                optimize=OptimizeParameters() if optimize else None).mesh
 
 
-def heart_demo(cells: int = 40000):
-    """``bitemesh demo heart --cells N``'s mesh (the shipped biv-me guide points)."""
+def heart_demo(cells: int | None = 40000):
+    """``bitemesh demo heart --cells N``'s mesh (the shipped biv-me guide points); None: the cardiac default
+    (R = 2 mm), as ``bitemesh mesh GPFile_000.txt`` meshes it."""
     from bitemesh.core.labelled import run_labelled
     from bitemesh.core.parameters import BitingParameters
     from bitemesh.io import read_labelled_points
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
     with resources.as_file(source) as path:
         points, labels, slices = read_labelled_points(path)
-    return run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells)).mesh
+    biting = BitingParameters() if cells is None else BitingParameters(cells=cells)
+    return run_labelled(points, labels, slices=slices, biting=biting).mesh
 
 
 def benchmark_shape(name: str, cells: int):
@@ -63,6 +65,22 @@ def benchmark_shape(name: str, cells: int):
     return run(points, normals, biting=BitingParameters(cells=cells, seed=SEED)).mesh
 
 
+def label_map_ball(cells: int = 10000):
+    """Two labels of a voxel ball (an inner ball and its shell), anisotropic voxels, a rotated direction, meshed as
+    their union by :func:`bitemesh.labelmap.mesh_label_grid`."""
+    from bitemesh.core.parameters import BitingParameters
+    from bitemesh.labelmap import mesh_label_grid
+    index = np.indices((48, 40, 56)).transpose(1, 2, 3, 0) - np.array([24, 20, 28])
+    spacing = np.array([1.0, 1.2, 0.85])
+    radius = np.linalg.norm(index * spacing, axis=-1)
+    labels = np.where(radius < 12, 1, np.where(radius < 19, 2, 0))
+    angle = 0.3
+    rotation = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    matrix = np.eye(4)
+    matrix[:3, :3], matrix[:3, 3] = rotation * spacing, [-80.0, 120.0, 35.0]
+    return mesh_label_grid(labels, matrix, labels={1, 2}, biting=BitingParameters(cells=cells)).mesh
+
+
 #: name -> (how to mesh it, quick enough for the test suite)
 CASES = {
     "die 10k": (lambda: die_demo(), True),
@@ -71,8 +89,10 @@ CASES = {
     "sphere 10k": (lambda: benchmark_shape("sphere", 10000), True),
     "torus 10k": (lambda: benchmark_shape("torus", 10000), True),
     "two-cavity 10k": (lambda: benchmark_shape("two-cavity", 10000), True),
+    "label map 10k": (lambda: label_map_ball(), True),
     "die 136k": (lambda: benchmark_shape("die", 136000), False),
     "heart 155k": (lambda: heart_demo(155000), False),
+    "heart R 2 mm": (lambda: heart_demo(None), False),
 }
 
 
@@ -86,14 +106,18 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--record", action="store_true", help="write golden.json instead of comparing")
     parser.add_argument("--quick", action="store_true", help="only the cases the test suite runs")
+    parser.add_argument("--cases", nargs="+", choices=list(CASES), help="only these cases")
     args = parser.parse_args(argv)
-    names = [name for name, (_, quick) in CASES.items() if quick or not args.quick]
+    names = [name for name, (_, quick) in CASES.items() if (quick or not args.quick)
+             and (not args.cases or name in args.cases)]
     found = {}
     for name in names:
         found[name] = fingerprint(CASES[name][0]())
         print(f"{name:20s} {found[name]}", flush=True)
     if args.record:
-        RECORD.write_text(json.dumps(dict(environment=environment(), meshes=found), indent=1) + "\n")
+        meshes = json.loads(RECORD.read_text())["meshes"] if RECORD.exists() and args.cases else {}
+        meshes = {name: found.get(name, meshes.get(name)) for name in CASES if name in found or name in meshes}
+        RECORD.write_text(json.dumps(dict(environment=environment(), meshes=meshes), indent=1) + "\n")
         print(f"recorded {len(found)} meshes in {RECORD}")
         return 0
     recorded = json.loads(RECORD.read_text())

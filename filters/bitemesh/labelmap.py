@@ -26,8 +26,7 @@ from __future__ import annotations
 
 import numbers
 import re
-import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +37,7 @@ from .core.parameters import (BitingParameters, FidelityParameters, ImplicitPara
                               SpuriousParameters, optimize_parameters)
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.source import Frame, Source
-from .core.spine import MeshingResult, mesh_source
+from .core.spine import MeshingResult, mesh_source, timed
 
 #: voxels of background added on every side, so that a label touching the image border still closes.
 PAD_VOXELS = 2
@@ -335,6 +334,48 @@ def mask_faces(mask: np.ndarray, origin, spacing) -> np.ndarray:
 LabelMapMeshingResult = MeshingResult
 
 
+def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
+                      implicit: ImplicitParameters = ImplicitParameters(), smoothing: float = SMOOTHING_VOXELS,
+                      progress: ProgressCallback = None) -> Source:
+    """The chosen labels of a voxel array as a :class:`~bitemesh.core.source.Source`: their signed distance on the
+    voxel grid (cropped to the labels' box, smoothed, :func:`label_map_to_grid`) in the local frame (index x
+    spacing), the voxel faces as samples, and the frame to physical space that ``ijk_to_physical`` gives.
+
+    See :func:`mesh_label_grid` for the parameters; ``implicit.max_memory_mb`` bounds the distance's memory.
+    """
+    labels_ijk = np.asarray(labels_ijk)
+    dim = labels_ijk.ndim
+    matrix = np.asarray(ijk_to_physical, dtype=np.float64)
+    if dim not in (2, 3) or matrix.shape != (dim + 1, dim + 1) or not np.isfinite(matrix).all():
+        raise InvalidInputError(f"ijk_to_physical must be a finite {dim + 1} x {dim + 1} matrix for a {dim}D label "
+                                f"array, got shape {matrix.shape}")
+    spacing = np.linalg.norm(matrix[:dim, :dim], axis=0)
+    if not (spacing > 0).all() or abs(np.linalg.det(matrix[:dim, :dim] / spacing)) < 1e-6:
+        raise InvalidInputError("ijk_to_physical: its linear part must be invertible (voxel sizes > 0)")
+    mask, chosen = label_mask(labels_ijk, labels)
+
+    # Crop to the domain's bounding box: the distance and the grid need not cover empty image.
+    box = [np.flatnonzero(mask.any(axis=tuple(a for a in range(dim) if a != axis))) for axis in range(dim)]
+    first = np.array([b[0] for b in box])
+    mask = mask[tuple(slice(b[0], b[-1] + 1) for b in box)]
+    smoothing = check_number(smoothing, "smoothing", low=0, high=10, hint="in voxels; 1 is the default, 0 is off")
+    padding = 2 * (PAD_VOXELS + _filter_padding(smoothing))
+    needed_mb = np.prod(np.array(mask.shape, float) + padding) * DISTANCE_BYTES_PER_VOXEL / 2**20
+    if needed_mb > implicit.max_memory_mb:
+        raise InvalidInputError(
+            f"the labels span {' x '.join(map(str, mask.shape))} voxels; their signed distance needs about "
+            f"{needed_mb:.0f} MiB, more than max_memory_mb = {implicit.max_memory_mb:g}; raise max_memory_mb or "
+            "resample the label map to coarser voxels")
+
+    report(progress, 0.5, "signed distance of the labels")
+    grid = label_map_to_grid(mask, first * spacing, spacing, smoothing=smoothing)
+    # Local frame (index x spacing) -> physical: the unit columns of the matrix, then its translation.
+    frame = Frame(matrix[:dim, :dim] / spacing[None, :], matrix[:dim, dim])
+    voxel = float(np.max(spacing))
+    return Source(grid, grid.origin, grid.upper, frame, grid=grid, samples=mask_faces(mask, first * spacing, spacing),
+                  noise=STAIRCASE_NOISE * voxel, gap=float(np.linalg.norm(spacing)), labels=chosen)
+
+
 def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                     implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                     spurious: SpuriousParameters | None = None,
@@ -370,44 +411,11 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     """
     seconds = {} if seconds is None else seconds
     implicit = ImplicitParameters() if implicit is None else implicit
-    biting = BitingParameters() if biting is None else biting
-    spurious = SpuriousParameters() if spurious is None else spurious
-    clock = time.perf_counter()
-    labels_ijk = np.asarray(labels_ijk)
-    dim = labels_ijk.ndim
-    matrix = np.asarray(ijk_to_physical, dtype=np.float64)
-    if dim not in (2, 3) or matrix.shape != (dim + 1, dim + 1) or not np.isfinite(matrix).all():
-        raise InvalidInputError(f"ijk_to_physical must be a finite {dim + 1} x {dim + 1} matrix for a {dim}D label "
-                                f"array, got shape {matrix.shape}")
-    spacing = np.linalg.norm(matrix[:dim, :dim], axis=0)
-    if not (spacing > 0).all() or abs(np.linalg.det(matrix[:dim, :dim] / spacing)) < 1e-6:
-        raise InvalidInputError("ijk_to_physical: its linear part must be invertible (voxel sizes > 0)")
-    mask, chosen = label_mask(labels_ijk, labels)
-
-    # Crop to the domain's bounding box: the distance and the grid need not cover empty image.
-    box = [np.flatnonzero(mask.any(axis=tuple(a for a in range(dim) if a != axis))) for axis in range(dim)]
-    first = np.array([b[0] for b in box])
-    mask = mask[tuple(slice(b[0], b[-1] + 1) for b in box)]
-    smoothing = check_number(smoothing, "smoothing", low=0, high=10, hint="in voxels; 1 is the default, 0 is off")
-    padding = 2 * (PAD_VOXELS + _filter_padding(smoothing))
-    needed_mb = np.prod(np.array(mask.shape, float) + padding) * DISTANCE_BYTES_PER_VOXEL / 2**20
-    if needed_mb > implicit.max_memory_mb:
-        raise InvalidInputError(
-            f"the labels span {' x '.join(map(str, mask.shape))} voxels; their signed distance needs about "
-            f"{needed_mb:.0f} MiB, more than max_memory_mb = {implicit.max_memory_mb:g}; raise max_memory_mb or "
-            "resample the label map to coarser voxels")
-
-    report(progress, 0.05, "signed distance of the labels")
-    grid = label_map_to_grid(mask, first * spacing, spacing, smoothing=smoothing)
-    seconds["distance"] = seconds.get("distance", 0.0) + time.perf_counter() - clock
-    # Local frame (index x spacing) -> physical: the unit columns of the matrix, then its translation.
-    frame = Frame(matrix[:dim, :dim] / spacing[None, :], matrix[:dim, dim])
-    voxel = float(np.max(spacing))
-    source = Source(grid, grid.origin, grid.upper, frame, grid=grid, samples=mask_faces(mask, first * spacing, spacing),
-                    noise=STAIRCASE_NOISE * voxel, gap=float(np.linalg.norm(spacing)))
-    result = mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.1, 1.0), seconds,
-                         fidelity or FidelityParameters())
-    return replace(result, labels=chosen)
+    with timed(seconds, "distance"):
+        source = label_grid_source(labels_ijk, ijk_to_physical, labels=labels, implicit=implicit,
+                                   smoothing=smoothing, progress=sub_progress(progress, 0.0, 0.1))
+    return mesh_source(source, implicit, biting or BitingParameters(), spurious or SpuriousParameters(), optimize,
+                       sub_progress(progress, 0.1, 1.0), seconds, fidelity or FidelityParameters())
 
 
 def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spacing=None, ras=False,

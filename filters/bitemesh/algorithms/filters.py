@@ -25,7 +25,8 @@ from ..core.optimize import optimize_mesh
 from ..core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, LabelledParameters,
                                LabelMapParameters, OptimizeParameters, OptimizeSwitch, QualityParameters,
                                SpuriousParameters)
-from ..core.pipeline import points_source, radius_for_cells, run, sample_source
+from ..core.pipeline import points_source, run, sample_source
+from ..core.spine import radius_on_grid
 from ..core.progress import sub_progress
 from ..core.quality import cell_quality, quality_histogram, quality_summary
 from ..labelmap import STAIRCASE_NOISE
@@ -185,7 +186,7 @@ class BitingSampler(BitemeshAlgorithm):
     def execute(self, request, inInfo, outInfo):
         parameters = self.parameters(BitingParameters)
         grid = image_to_grid(vtkImageData.GetData(inInfo[0]))
-        radius = parameters.radius or radius_for_cells(grid.inside_volume(), parameters.cells, grid.dim)
+        radius = parameters.radius or radius_on_grid(grid, parameters.cells)
         nodes = bite(grid, radius, order=parameters.order, seed=parameters.seed, progress=self.progress)
         output = vtkPolyData.GetData(outInfo)
         output.ShallowCopy(nodes_to_polydata(nodes))

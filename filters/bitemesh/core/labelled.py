@@ -356,30 +356,13 @@ def is_myocardium(function: LabelledImplicit) -> bool:
             and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
 
 
-def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
-                 implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
-                 spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
-                 fidelity: FidelityParameters | None = None, allow_implausible: bool = False,
-                 progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
-    """Every step on labelled contour points: :func:`labelled_implicit`, then the spine
-    (:func:`~bitemesh.core.spine.mesh_source`).
-
-    R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain (as
-    the spine does); for biv-me surfaces with neither given (cells at its default), R = 2 mm
-    (:data:`~bitemesh.core.cardiac.CARDIAC_RADIUS`).  The two-cavity or LV myocardium is checked for plausibility
-    (:func:`~bitemesh.core.cardiac.check_heart`; ``allow_implausible`` turns a refusal into a warning).
-    Parameters left None take their defaults; ``min_wall`` defaults to
-    :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would open in
-    holes).  ``implicit`` gives
-    the grid I (grid_spacing, margin, max_memory_mb; its method is not used).  ``optimize`` (None: skipped) runs
-    the MeshOptimizer on the valid domain.  ``options`` go to
-    :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
-
-    The contours are fitted and meshed centred on their bounding box (in mm still); ``result.function`` is the
-    domain's LabelledImplicit moved back to the input's coordinates, like the mesh.  The fidelity check compares
-    the mesh with the surface points below the base plane, the base plane's cap left out (``fidelity``: its
-    bounds, default FidelityParameters()).
-    """
+def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
+                    progress: ProgressCallback = None, **options) -> Source:
+    """Labelled contour points as a :class:`~bitemesh.core.source.Source`: :func:`labelled_implicit` fitted
+    centred on the points' bounding box (in mm still), the thinnest wall following R unless ``min_wall`` is given
+    (:func:`thinnest_wall`), R = 2 mm by default for biv-me surfaces
+    (:data:`~bitemesh.core.cardiac.CARDIAC_RADIUS`), handles removed from a myocardium, and the surface points
+    below the base plane as the samples (the base plane's cap and derived surfaces left out of the fidelity)."""
     points = check_points(points, dims=(3,))
     frame = Frame.around(points, scaled=False)   # millimetres stay millimetres: the defaults are in mm
     if base_plane is not None and not isinstance(base_plane, str):
@@ -388,31 +371,52 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
             base_plane = (np.asarray(point, dtype=np.float64) - frame.shift, normal)
         except (TypeError, ValueError):
             pass   # labelled_implicit refuses it with its message
+    function, lower, upper = labelled_implicit(points - frame.shift, labels, domain, base_plane, slices=slices,
+                                               surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
+                                               else min_wall, progress=progress, **options)
+    for note in function.notes:
+        logger.info(note)
+    cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+    return Source(function, lower, upper, frame, samples=function.surface_samples(),
+                  at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None
+                  else None,
+                  noise=function.tracing_noise(), gap=function.contour_gap(),
+                  open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
+                  notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
+                  radius_note=f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)"
+                  if cardiac else "", handles="remove" if is_myocardium(function) else "keep")
+
+
+def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
+                 implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
+                 spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
+                 fidelity: FidelityParameters | None = None, allow_implausible: bool = False,
+                 progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
+    """Every step on labelled contour points: :func:`labelled_source`, then the spine
+    (:func:`~bitemesh.core.spine.mesh_source`), then, for a two-cavity or LV myocardium, the plausibility check
+    (:func:`~bitemesh.core.cardiac.check_heart`; ``allow_implausible`` turns a refusal into a warning).
+
+    R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain; for biv-me surfaces
+    with neither given (cells at its default), R = 2 mm.  Parameters left None take their defaults; ``min_wall``
+    defaults to :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would
+    open in holes).  ``implicit`` gives the grid I (grid_spacing, margin, max_memory_mb; its method is not used).
+    ``optimize`` (None: skipped) runs the MeshOptimizer on the valid domain.  ``options`` go to
+    :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
+
+    ``result.function`` is the domain's LabelledImplicit in the input's coordinates, like the mesh.  The fidelity
+    check compares the mesh with the surface points below the base plane, the base plane's cap left out
+    (``fidelity``: its bounds, default FidelityParameters()).
+    """
     seconds = {}
     with timed(seconds, "implicit fit"):
-        function, lower, upper = labelled_implicit(points - frame.shift, labels, domain, base_plane, slices=slices,
-                                                   surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
-                                                   else min_wall, progress=sub_progress(progress, 0.0, 0.3),
-                                                   **options)
-    at_radius = (lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None else None
-    biting, notes = biting or BitingParameters(), function.notes
-    cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
-    if cardiac and biting.radius is None and biting.cells == BitingParameters().cells:
-        biting = replace(biting, radius=CARDIAC_RADIUS)
-        notes += (f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)",)
-    spurious = spurious or SpuriousParameters()
-    if is_myocardium(function) and spurious.handles == "auto":
-        spurious = replace(spurious, handles="remove")
-    for note in notes:
-        logger.info(note)
-    source = Source(function, lower, upper, frame, samples=function.surface_samples(), at_radius=at_radius,
-                    noise=function.tracing_noise(), gap=function.contour_gap(),
-                    open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
-                    notes=notes)
-    result = mesh_source(source, implicit or ImplicitParameters(), biting, spurious, optimize,
-                         sub_progress(progress, 0.3, 1.0), seconds, fidelity or FidelityParameters())
-    result = replace(result, function=result.function.moved(frame.shift))
-    if is_myocardium(function):
+        source = labelled_source(points, labels, domain=domain, base_plane=base_plane, slices=slices,
+                                 surfaces=surfaces, min_wall=min_wall, progress=sub_progress(progress, 0.0, 0.3),
+                                 **options)
+    result = mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
+                         spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
+                         fidelity or FidelityParameters())
+    result = replace(result, function=result.function.moved(source.frame.shift))
+    if is_myocardium(source.function):
         with timed(seconds, "plausibility"):
             check_heart(result.mesh, result.function, result.radius, result.fidelity,
                         allow_implausible=allow_implausible)

@@ -1,8 +1,8 @@
 """What a source of data hands to the meshing spine: f in a local frame, and the frame back to the user's.
 
 Scattered points (:func:`bitemesh.core.pipeline.points_source`), labelled contours
-(:func:`bitemesh.core.labelled.run_labelled`) and voxels (:func:`bitemesh.labelmap.mesh_label_grid`) each build a
-:class:`Source`; :func:`bitemesh.core.spine.mesh_source` meshes it.
+(:func:`bitemesh.core.labelled.labelled_source`) and voxels (:func:`bitemesh.labelmap.label_grid_source`) each build
+a :class:`Source`; :func:`bitemesh.core.spine.mesh_source` meshes it.
 """
 from __future__ import annotations
 
@@ -113,6 +113,11 @@ class Source:
     open_boundary : callable (f, k) points -> (f,) bool, where the boundary is made by the method rather than the
         data (a base plane), or None
     notes : what the source did to the data that the user should hear of (points dropped, columns read)
+    radius : R (local units) when the user gives neither radius nor cells (cells left at its default): the data's
+        own element size (2 mm for cardiac contours), or None to choose R for the default cell count;
+        radius_note : the sentence that says so when it is used
+    handles : what SpuriousParameters.handles "auto" means for this data ("keep", or "remove" for a myocardium)
+    labels : the labels meshed, for a label map
     """
 
     function: Callable[[np.ndarray], np.ndarray]
@@ -126,6 +131,10 @@ class Source:
     gap: float = 0.0
     open_boundary: Optional[Callable[[np.ndarray], np.ndarray]] = None
     notes: tuple = ()
+    radius: Optional[float] = None
+    radius_note: str = ""
+    handles: str = "keep"
+    labels: tuple = ()
 
     @property
     def size(self) -> float:

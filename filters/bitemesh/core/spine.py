@@ -1,17 +1,19 @@
 """The one meshing spine: each source of data hands over f in a local frame, and one function meshes it.
 
-A source (scattered points in :mod:`~bitemesh.core.pipeline`, labelled contours in :mod:`~bitemesh.core.labelled`,
-voxels in :mod:`bitemesh.labelmap`) returns a :class:`~bitemesh.core.source.Source`: the implicit function f
-(f > 0 inside) in a local frame, the box that holds {f > 0}, the data's own surface samples and the map back to
-the user's coordinates.  :func:`mesh_source` owns everything after that: choosing R, sampling the grid I, biting,
+A source (scattered points: :func:`~bitemesh.core.pipeline.points_source`, labelled contours:
+:func:`~bitemesh.core.labelled.labelled_source`, voxels: :func:`bitemesh.labelmap.label_grid_source`) returns a
+:class:`~bitemesh.core.source.Source`: the implicit function f (f > 0 inside) in a local frame, the box that holds
+{f > 0}, the data's own surface samples, the map back to the user's coordinates and what the data implies for R
+and the handles.  :func:`mesh_source` owns everything after that: choosing R, sampling the grid I, biting,
 Delaunay, the spurious test and the repair, the MeshOptimizer, the quality, the fidelity check, and mapping the
 mesh back.
 """
 from __future__ import annotations
 
+import logging
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Optional
 
 import numpy as np
@@ -30,6 +32,8 @@ from .parameters import (BitingParameters, FidelityParameters, ImplicitParameter
 from .progress import ProgressCallback, report, sub_progress
 from .quality import cell_quality
 from .source import Frame, Source
+
+logger = logging.getLogger("bitemesh")
 
 #: cells per unit measure x R^k of a biting mesh (measured on a sphere, a torus and a die: 5.1 to 5.7 in 3D).
 CELLS_PER_VOLUME = {2: 2.3, 3: 5.4}
@@ -101,7 +105,7 @@ def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: Spuri
     With ``optimize``, the MeshOptimizer step (relaxation, sliver removal) runs on the valid domain.
     """
     seconds = {} if seconds is None else seconds
-    radius = biting.radius or radius_for_cells(grid.inside_volume(), biting.cells, grid.dim)
+    radius = biting.radius or radius_on_grid(grid, biting.cells)
     carved = 0.9 if optimize is None else 0.6
     with timed(seconds, "biting"):
         nodes = bite(grid, radius, order=biting.order, seed=biting.seed, progress=sub_progress(progress, 0, 0.3))
@@ -119,6 +123,11 @@ def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: Spuri
     return MeshingResult(mesh=mesh, implicit=grid, nodes=nodes, radius=radius, seconds=seconds)
 
 
+def radius_on_grid(grid: ImplicitGrid, cells: int) -> float:
+    """R for about ``cells`` cells in {f > 0} of a sampled f, from its volume counted on the grid."""
+    return radius_for_cells(grid.inside_volume(), cells, grid.dim)
+
+
 def choose_radius(source: Source, cells: int, implicit: ImplicitParameters) -> float:
     """R (local units) for about ``cells`` cells, from the volume of {f > 0}: counted on the source's own grid, or
     on a coarse grid of :data:`COARSE_GRID_NODES` nodes along the box's longest side, refined (up to
@@ -126,7 +135,7 @@ def choose_radius(source: Source, cells: int, implicit: ImplicitParameters) -> f
     rod thinner than the coarse spacing hardly shows on it, and R would come out far too small."""
     dim = source.frame.dim
     if source.grid is not None:
-        return radius_for_cells(source.grid.inside_volume(), cells, dim)
+        return radius_on_grid(source.grid, cells)
     finest = _local(implicit.grid_spacing, source) or 0.0
     affordable = implicit.max_memory_mb * 2**20 / BYTES_PER_NODE   # nodes
     coarse = max(source.size / COARSE_GRID_NODES, finest,
@@ -263,9 +272,19 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     ``optimize`` is None), quality, measure the fidelity to the source's samples (refused beyond the bounds of
     ``fidelity``, see :func:`~bitemesh.core.fidelity.check_fidelity`), and map the mesh to user coordinates.
 
-    Lengths in the parameters (radius, grid_spacing, margin) are in user units.
+    Lengths in the parameters (radius, grid_spacing, margin) are in user units.  R is ``biting.radius``, else the
+    source's own :attr:`~bitemesh.core.source.Source.radius` when ``biting.cells`` is left at its default, else
+    chosen for ``biting.cells`` cells (:func:`choose_radius`).  ``spurious.handles`` "auto" takes the source's
+    meaning.
     """
     seconds = {} if seconds is None else seconds
+    notes = source.notes
+    if biting.radius is None and source.radius is not None and biting.cells == BitingParameters().cells:
+        biting = replace(biting, radius=source.radius * source.frame.scale)
+        notes += (source.radius_note,) if source.radius_note else ()
+        logger.info(source.radius_note)
+    if spurious.handles == "auto":
+        spurious = replace(spurious, handles=source.handles)
     with timed(seconds, "implicit sampling"):
         check_spacing(source, implicit)
         radius = _local(biting.radius, source)
@@ -288,4 +307,4 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     report(progress, 1.0, "done")
     return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
                          radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,
-                         fidelity=measured, notes=source.notes)
+                         labels=source.labels, fidelity=measured, notes=notes)
