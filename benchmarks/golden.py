@@ -57,7 +57,7 @@ def heart_demo(cells: int | None = 40000):
 def benchmark_shape(name: str, cells: int):
     """A shape of ``benchmarks/run_benchmarks.py`` from its noisy scattered points, default parameters."""
     sys.path.insert(0, str(Path(__file__).parent))
-    from run_benchmarks import SEED, make_input
+    from shape_worker import SEED, make_input
 
     from bitemesh.core.parameters import BitingParameters
     from bitemesh.core.pipeline import run

@@ -17,7 +17,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 sys.path.insert(0, str(HERE))
 
-from run_benchmarks import SEED, SHAPES, make_input, mesh_metrics  # noqa: E402
+from shape_worker import SEED, SHAPES, make_input, mesh_metrics  # noqa: E402
 
 from bitemesh.core.parameters import (BitingParameters, ImplicitParameters, OptimizeParameters,  # noqa: E402
                                       SpuriousParameters)

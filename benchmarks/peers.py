@@ -43,7 +43,7 @@ for p in (str(SOURCE_ROOT), str(HERE)):
 from bitemesh.core import shapes  # noqa: E402
 from bitemesh.core.mesh import Mesh  # noqa: E402
 from bitemesh.core.quality import check_valid_domain, quality_summary  # noqa: E402
-from run_benchmarks import make_input  # noqa: E402
+from shape_worker import make_input  # noqa: E402
 
 CALIBRATION_TOLERANCE = 0.05  # stop calibrating once the tet count is within 5 % of the target
 CALIBRATION_ROUNDS = 3
