@@ -20,3 +20,11 @@ def assert_valid_domain(mesh, *, euler=None, components=1, measure=None, measure
         assert arrays["Volume"].sum() == pytest.approx(measure, rel=measure_tolerance)
     if mean_quality is not None:
         assert np.mean(arrays["RadiusRatio"]) >= mean_quality
+
+
+def centroid(mesh) -> np.ndarray:
+    """The centre of mass of the meshed solid (each cell weighed by its signed measure)."""
+    from bitemesh.core.mesh import signed_measures
+    corners = mesh.points[mesh.cells]
+    volumes = signed_measures(mesh.points, mesh.cells)
+    return (corners.mean(axis=1) * volumes[:, None]).sum(axis=0) / volumes.sum()

@@ -10,9 +10,7 @@ from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.grid import sample_function
 from bitemesh.core.shapes import annulus, sphere, torus
 
-
-def sampled(shape, spacing):
-    return sample_function(shape.function, shape.lower, shape.upper, spacing, margin=3 * spacing)
+from tests.builders import sampled
 
 
 @pytest.mark.parametrize("shape", [sphere(), torus(), annulus()], ids=lambda s: s.name)

@@ -14,11 +14,8 @@ from bitemesh.core.pipeline import mesh_from_grid
 from bitemesh.core.shapes import annulus, die, sphere, torus, two_cavity_shell
 from bitemesh.core.spurious import outside_cells
 
+from tests.builders import sampled
 from tests.meshcheck import assert_valid_domain
-
-
-def sampled(shape, spacing):
-    return sample_function(shape.function, shape.lower, shape.upper, spacing, margin=3 * spacing)
 
 
 @pytest.mark.parametrize("shape, radius", [(sphere(), 0.1), (torus(), 0.09), (die(), 0.11),

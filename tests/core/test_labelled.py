@@ -19,54 +19,11 @@ from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.shapes import two_cavity_shell
 from bitemesh.core.slices import SlicePlane, contour_normals, infer_slices, slice_planes
 
+from tests.builders import ELLIPSOIDS, SCALE, SHELL_DOMAIN, sample_shell
 from tests.meshcheck import assert_valid_domain
 
-#: the two-cavity shell of bitemesh.core.shapes in mm: half an ellipsoid (z < 0) minus two half-ellipsoidal cavities
-SCALE = 50.0
-ELLIPSOIDS = {"EPI": ((0.0, 0.0, 0.0), (1.0, 0.9, 1.6)), "LV_ENDO": ((0.3, 0.0, 0.0), (0.4, 0.4, 1.2)),
-              "RV_ENDO": ((-0.55, 0.0, 0.0), (0.22, 0.55, 1.0))}
-SHELL_DOMAIN = "EPI - LV_ENDO - RV_ENDO"
+#: the shell's base plane: z = 0, the cavities open above it
 BASE = ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-
-
-def ellipse_section(centre, axes, origin, u, v, spacing):
-    """Points about ``spacing`` apart on the section of an ellipsoid by the plane origin + s u + t v, or None."""
-    weight = 1.0 / np.asarray(axes) ** 2
-    offset = origin - centre
-    form = np.array([[np.sum(weight * u * u), np.sum(weight * u * v)],
-                     [np.sum(weight * u * v), np.sum(weight * v * v)]])
-    linear = np.array([np.sum(weight * offset * u), np.sum(weight * offset * v)])
-    middle = -np.linalg.solve(form, linear)
-    level = 1.0 - np.sum(weight * offset * offset) + linear @ np.linalg.solve(form, linear)
-    if level <= 0:
-        return None
-    values, vectors = np.linalg.eigh(form)
-    radii = np.sqrt(level / values)
-    count = max(8, int(2 * np.pi * np.sqrt(0.5 * np.sum(radii ** 2)) / spacing))
-    angle = np.linspace(0, 2 * np.pi, count, endpoint=False)
-    st = middle + np.stack([radii[0] * np.cos(angle), radii[1] * np.sin(angle)], axis=1) @ vectors.T
-    return origin + st[:, :1] * u + st[:, 1:] * v
-
-
-def sample_shell(spacing=3.0, sax=tuple(range(-75, 0, 10)), lax_degrees=(0, 60, 120), tilt_degrees=5.0):
-    """The shell's three ellipsoids cut by tilted short-axis planes 10 mm apart and long-axis planes at three angles.
-
-    Returns points (n, 3), labels (n,) and slice ids (n,).
-    """
-    tilt = np.radians(tilt_degrees)
-    planes = [(np.array([0.0, 0.0, float(z)]), np.array([np.cos(tilt), 0.0, -np.sin(tilt)]), np.array([0.0, 1.0, 0.0]))
-              for z in sax]
-    planes += [(np.zeros(3), np.array([np.cos(a), np.sin(a), 0.0]), np.array([0.0, 0.0, 1.0]))
-               for a in np.radians(lax_degrees)]
-    points, labels, slices = [], [], []
-    for number, (origin, u, v) in enumerate(planes):
-        for name, (centre, axes) in ELLIPSOIDS.items():
-            section = ellipse_section(np.array(centre) * SCALE, np.array(axes) * SCALE, origin, u, v, spacing)
-            if section is not None:
-                points.append(section)
-                labels += [name] * len(section)
-                slices += [number] * len(section)
-    return np.vstack(points), np.array(labels), np.array(slices)
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,6 @@ import pytest
 from bitemesh.core import optimize as optimizer
 from bitemesh.core.delaunay import delaunay
 from bitemesh.core.errors import Cancelled, InvalidInputError, MeshingError
-from bitemesh.core.grid import sample_function
 from bitemesh.core.mesh import Mesh, signed_measures
 from bitemesh.core.cell_measures import inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms, signed_radius_ratio
 from bitemesh.core.flips import flip, polygon_triangulations
@@ -27,6 +26,7 @@ from bitemesh.core.quality import check_valid_domain, dihedral_angles, edge_leng
 from bitemesh.core.shapes import annulus, die, sphere, torus, two_cavity_shell
 from bitemesh.core.topology import boundary_facets, unique_rows
 
+from tests.builders import sampled
 from tests.meshcheck import assert_valid_domain
 
 #: the shapes of the issue and their sizes (cells); the grid resolves R / GRID_PER_RADIUS, fine enough that the
@@ -40,7 +40,7 @@ def meshed(shape, cells, seed=0):
     """The grid, the unoptimised mesh of the pipeline and R."""
     radius = radius_for_cells(shape.measure, cells, shape.dim)
     spacing = radius / GRID_PER_RADIUS
-    grid = sample_function(shape.function, shape.lower, shape.upper, spacing, margin=3 * spacing)
+    grid = sampled(shape, spacing)
     return grid, mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed)).mesh, radius
 
 

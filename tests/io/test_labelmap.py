@@ -13,7 +13,8 @@ from bitemesh.core.quality import dihedral_angles
 from bitemesh.io import read_mesh
 from bitemesh.labelmap import LabelMap, label_map_mesh, label_map_to_grid, mesh_label_grid, read_label_map
 
-from tests.meshcheck import assert_valid_domain
+from tests.builders import rotation
+from tests.meshcheck import assert_valid_domain, centroid
 
 sitk = pytest.importorskip("SimpleITK")
 
@@ -23,14 +24,6 @@ ORIGIN = np.array([-80.5, 40.25, 12.0])          # mm, LPS
 LABEL = 5
 CELLS = 20000
 LPS_TO_RAS = np.diag([-1.0, -1.0, 1.0])
-
-
-def rotation(axis, degrees) -> np.ndarray:
-    """Rotation matrix about ``axis`` (Rodrigues)."""
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    angle = np.radians(degrees)
-    cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
 
 
 DIRECTION = rotation([1.0, 2.0, 3.0], 35.0)      # the image's direction: oblique to every axis
@@ -60,12 +53,6 @@ def write_image(labels, path, spacing=SPACING, origin=ORIGIN, direction=DIRECTIO
     image.SetDirection(tuple(map(float, np.asarray(direction).ravel())))
     sitk.WriteImage(image, str(path))
     return image
-
-
-def centroid(mesh) -> np.ndarray:
-    corners = mesh.points[mesh.cells]
-    volumes = signed_measures(mesh.points, mesh.cells)
-    return (corners.mean(axis=1) * volumes[:, None]).sum(axis=0) / volumes.sum()
 
 
 def covariance(mesh) -> np.ndarray:

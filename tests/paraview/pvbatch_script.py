@@ -11,7 +11,9 @@ with "Volume Mesh From Points" and with the five-filter chain, and compares each
 reader) with "Volume Mesh From Points" and the given Domain (base plane none), after trying the bad domain.  Writes
 ``DIR/one_shot.vtu``, ``DIR/chain.vtu``, ``DIR/labelled.vtu`` and ``DIR/results.json``: every check by name with
 ``ok`` and a detail, and the facts the test compares again in its own Python.  No check stops the script: the test
-reports each one.
+reports each one.  The record-keeping, the mesh comparisons and the checks of the environment and of the generated
+properties are in pvbatch_checks.py beside this script (pvbatch, like python, puts the script's folder first on
+sys.path).
 """
 from __future__ import annotations
 
@@ -23,11 +25,9 @@ if not hasattr(inspect, "getargspec"):
 
 import argparse
 import json
-import math
 import sys
 import time
 import traceback
-from dataclasses import fields
 from pathlib import Path
 
 import bitemesh
@@ -36,13 +36,13 @@ from bitemesh import algorithms
 from bitemesh.convert import nodes_to_polydata, unstructured_to_mesh
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
-from bitemesh.core.quality import boundary_euler_characteristic, check_valid_domain, connected_components
 from paraview import servermanager, simple
 from paraview.simple import CSVReader, LoadPlugin, ProgrammableFilter, SaveData, TableToPoints, TrivialProducer
+from pvbatch_checks import (check, checks, environment, facts, guarded, properties, same_mesh, timed, updated,
+                            valid_sphere)
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonDataModel import vtkImageData
 
-SPHERE_VOLUME = 4.0 / 3.0 * math.pi
 #: bitemesh class name -> the plugin's filter in paraview.simple
 FILTERS = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
            "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
@@ -57,134 +57,6 @@ points = vtk_to_numpy(self.GetInput().GetPoints().GetData())     # (n, 3): the i
 mesh = bitemesh.mesh_from_points(points, cells=CELLS)             # any parameter of bitemesh.mesh_from_points
 self.GetOutput().ShallowCopy(mesh_to_unstructured(mesh))
 """
-
-checks: dict = {}
-facts: dict = {"seconds": {}}
-
-
-def check(name: str, ok, detail="") -> bool:
-    """Record one named check (never raise: the test reports every check)."""
-    checks[name] = {"ok": bool(ok), "detail": str(detail)}
-    print(f"{'ok  ' if ok else 'FAIL'} {name}: {detail}", flush=True)
-    return bool(ok)
-
-
-def guarded(name: str):
-    """Run a block of checks; an exception becomes a failed check named after the block."""
-    def decorate(function):
-        def run(*args, **kwargs):
-            try:
-                return function(*args, **kwargs)
-            except Exception:  # noqa: BLE001 - reported as a failed check with its traceback
-                check(name, False, traceback.format_exc())
-                return None
-        return run
-    return decorate
-
-
-def updated(proxy, port: int = 0):
-    """The VTK output of a proxy (builtin session: the algorithm itself), updated.
-
-    (Not named ``output``: a Programmable Filter runs its script in ``__main__`` and then deletes the names
-    ``inputs``, ``output``, ``request`` and ``myarg`` there.)
-    """
-    proxy.UpdatePipeline()
-    return proxy.GetClientSideObject().GetOutputDataObject(port)
-
-
-def same_mesh(name: str, mesh, reference) -> bool:
-    """Same number of points and cells, same coordinates and connectivity, bit for bit."""
-    shapes = (mesh.points.shape, mesh.cells.shape), (reference.points.shape, reference.cells.shape)
-    equal = shapes[0] == shapes[1] and np.array_equal(mesh.points, reference.points) and \
-        np.array_equal(mesh.cells, reference.cells)
-    detail = f"{len(mesh.points)} points, {len(mesh.cells)} cells vs {len(reference.points)}, {len(reference.cells)}"
-    if shapes[0] == shapes[1] and not equal:
-        detail += f"; largest coordinate difference {np.abs(mesh.points - reference.points).max():.3g}"
-    return check(name, equal, detail)
-
-
-def valid_sphere(name: str, mesh) -> None:
-    """A valid domain: no problem found, one component, boundary Euler characteristic 2, volume within 3 %."""
-    problems = check_valid_domain(mesh)
-    check(f"{name}: valid domain", problems == [], problems or "no problem found")
-    components = int(connected_components(mesh.cells).max()) + 1
-    check(f"{name}: one component", components == 1, f"{components} components")
-    euler = boundary_euler_characteristic(mesh)
-    check(f"{name}: boundary euler 2", euler == 2, f"euler {euler}")
-    volume = float(signed_measures(mesh.points, mesh.cells).sum())
-    check(f"{name}: volume within 3 %", abs(volume / SPHERE_VOLUME - 1) < 0.03,
-          f"{volume:.4f} vs {SPHERE_VOLUME:.4f} ({100 * (volume / SPHERE_VOLUME - 1):+.2f} %)")
-    check(f"{name}: quality arrays", {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume"}
-          <= set(mesh.cell_data), sorted(mesh.cell_data))
-
-
-def timed(name: str, proxy, port: int = 0):
-    clock = time.perf_counter()
-    data = updated(proxy, port)
-    facts["seconds"][name] = round(time.perf_counter() - clock, 3)
-    return data
-
-
-@guarded("environment")
-def environment(plugin: Path) -> None:
-    import scipy
-    import vtkmodules
-    from vtkmodules.vtkCommonCore import vtkVersion
-    facts["versions"] = {"python": sys.version.split()[0], "numpy": np.__version__, "scipy": scipy.__version__,
-                         "vtk": vtkVersion.GetVTKVersion(),
-                         "paraview": servermanager.vtkSMProxyManager.GetParaViewSourceVersion()}
-    # the pip wheel lives in a site-packages folder; ParaView's VTK in its own (Debian: dist-packages)
-    check("ParaView's own VTK (no pip vtk wheel)", "site-packages" not in vtkmodules.__file__, vtkmodules.__file__)
-    check("bitemesh from the clone", Path(bitemesh.__file__).resolve().parent == plugin.resolve().parent,
-          bitemesh.__file__)
-
-
-@guarded("properties follow the parameter dataclasses")
-def properties(proxies: dict) -> None:
-    """Every field of each filter's dataclasses is a property with its default, range, choices or free text, and
-    help."""
-    problems = []
-    for class_name, proxy in proxies.items():
-        for item in (f for dataclass in getattr(algorithms, class_name).parameter_classes for f in fields(dataclass)):
-            name = "".join(part.capitalize() for part in item.name.split("_"))
-            prop = proxy.GetProperty(name)
-            if prop is None:
-                problems.append(f"{class_name}.{name} missing")
-                continue
-            meta = item.metadata
-            default = prop.GetElement(0)  # a new proxy holds the defaults
-            help_text = prop.GetDocumentation().GetDescription() if prop.GetDocumentation() else ""
-            if meta["help"] not in " ".join(help_text.split()):
-                problems.append(f"{class_name}.{name}: help {help_text!r}")
-            if "text" in meta:  # a string property without a domain
-                domains = prop.NewDomainIterator()
-                domains.Begin()
-                if not prop.IsA("vtkSMStringVectorProperty") or default != item.default or not domains.IsAtEnd():
-                    problems.append(f"{class_name}.{name}: {prop.GetClassName()}, default {default!r}, a domain "
-                                    f"{None if domains.IsAtEnd() else domains.GetKey()}")
-                continue
-            if "choices" in meta:
-                domain = prop.GetDomain("list")
-                strings = [domain.GetString(i) for i in range(domain.GetNumberOfStrings())] if domain else None
-                if strings != list(meta["choices"]) or default != item.default:
-                    problems.append(f"{class_name}.{name}: choices {strings}, default {default}")
-                continue
-            low, high, low_open, _ = meta["range"]
-            domain = prop.GetDomain("range")
-            minimum = domain.GetMinimum(0) if domain and domain.GetMinimumExists(0) else None
-            maximum = domain.GetMaximum(0) if domain and domain.GetMaximumExists(0) else None
-            if item.default is None:  # optional: the automatic value (0, or -1 where 0 is valid) and the words
-                automatic = 0 if (low == 0 and low_open) else -1
-                if default != automatic or minimum != automatic or f"{automatic} means automatic" not in help_text:
-                    problems.append(f"{class_name}.{name}: automatic {default}, min {minimum}")
-            elif default != item.default or minimum != low:
-                problems.append(f"{class_name}.{name}: default {default} vs {item.default}, min {minimum} vs {low}")
-            expected_max = None if high is None or not math.isfinite(high) else min(high, 2**31 - 1)
-            if maximum != expected_max:
-                problems.append(f"{class_name}.{name}: max {maximum} vs {expected_max}")
-            if meta["unit"] and f"[{meta['unit']}]" not in help_text:
-                problems.append(f"{class_name}.{name}: no unit in help")
-    check("properties follow the parameter dataclasses", not problems, problems or "every field checked")
 
 
 @guarded("one-shot filter")

@@ -1,4 +1,6 @@
-"""The VTK tests fail when VTK prints an error or a warning (as pyvista's test suite does).
+"""The VTK tests' fixtures: the sphere's samples and the filter chains on them, and VTK's output checked.
+
+The VTK tests fail when VTK prints an error or a warning (as pyvista's test suite does).
 
 A vtkStringOutputWindow replaces VTK's output window while the tests of this folder run (and the previous window
 comes back afterwards), so that nothing VTK prints is lost; each test then fails if VTK printed "ERROR" or
@@ -9,6 +11,8 @@ from __future__ import annotations
 
 import pytest
 from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
+
+from tests import builders
 
 #: what VTK's error and warning macros (and bitemesh's filters) put in front of their messages.
 ALARMS = ("ERROR", "Warning")
@@ -67,3 +71,28 @@ def vtk_errors(vtk_output, fail_on_vtk_errors):
     vtk_output.clear()
     vtk_output.expected = True
     return vtk_output
+
+
+# --- the sphere and the filter chains on it ----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="package")
+def sphere_samples():
+    """Noisy scattered points on the unit sphere, with their exact outward normals."""
+    return builders.sphere_samples(0.1, noise=0.002, seed=1)
+
+
+@pytest.fixture(scope="package")
+def sphere_chain(sphere_samples):
+    """The pipeline on the sphere's points with normals, about 8000 cells, run once."""
+    points, normals = sphere_samples
+    pipeline = builders.chain(builders.polydata(points, normals), cells=8000)
+    pipeline.quality.update()
+    return pipeline
+
+
+@pytest.fixture
+def small_chain(sphere_samples):
+    """A quick pipeline (coarse grid, about 1000 cells) on the sphere's points with normals, not yet run."""
+    points, normals = sphere_samples
+    return builders.chain(builders.polydata(points, normals), cells=1000, grid_spacing=0.06)

@@ -10,6 +10,8 @@ import numpy as np
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
 
+from tests.builders import sphere_samples
+
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "vtk_pipeline.py"
 
@@ -59,9 +61,7 @@ def test_the_vtk_pipeline_example_meshes_the_die_and_renders_a_coloured_cut(tmp_
 
 
 def test_the_vtk_pipeline_example_reads_points_from_a_file(tmp_path):
-    from bitemesh.core.shapes import sample_surface, sphere
-
-    points, normals = sample_surface(sphere(), 0.1, seed=3)
+    points, normals = sphere_samples(0.1, seed=3)
     source = tmp_path / "sphere.xyz"
     np.savetxt(source, np.column_stack([points, normals]))
     picture = tmp_path / "sphere.png"

@@ -2,7 +2,7 @@
 PointsToImplicit (Domain, BasePlane, MinWall) and the rest of the chain, or through MeshFromPoints in one step,
 and give what the core gives.
 
-The synthetic case is the two-cavity shell of tests/core/test_labelled.py, sampled whole (no base plane): a closed
+The synthetic case is the two-cavity shell of tests/builders.py, sampled whole (no base plane): a closed
 ellipsoidal shell with two closed cavities, whose volume is known.
 """
 from __future__ import annotations
@@ -16,39 +16,18 @@ from bitemesh.core.labelled import run_labelled
 from bitemesh.core.parameters import BitingParameters
 from bitemesh.core.pipeline import GRID_PER_RADIUS
 from vtkmodules.util.numpy_support import numpy_to_vtk
-from vtkmodules.vtkCommonCore import vtkStringArray
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
-from tests.core.test_labelled import ELLIPSOIDS, SCALE, SHELL_DOMAIN, sample_shell
+from tests.builders import SHELL_DOMAIN, SHELL_VOLUME, chain, closed_shell_contours, labelled_polydata
 from tests.meshcheck import assert_valid_domain
-from tests.vtk.test_filters import chain
 
 CELLS = 6000
-#: the closed shell: the outer ellipsoid minus both cavities, mm^3
-SHELL_VOLUME = 4 / 3 * np.pi * SCALE**3 * sum(sign * np.prod(axes) for sign, (_, axes)
-                                               in zip((1, -1, -1), ELLIPSOIDS.values()))
-
-
-def labelled_polydata(points, labels, slices=None) -> vtkPolyData:
-    """Points with a string ``Label`` array and an integer ``Slice`` array, as a VTP of contours would hold."""
-    result = vtkPolyData()
-    result.SetPoints(vtk_points(points))
-    names = vtkStringArray()
-    names.SetName("Label")
-    for label in labels:
-        names.InsertNextValue(str(label))
-    result.GetPointData().AddArray(names)
-    if slices is not None:
-        ids = numpy_to_vtk(np.asarray(slices, dtype=np.int32), deep=True)
-        ids.SetName("Slice")
-        result.GetPointData().AddArray(ids)
-    return result
 
 
 @pytest.fixture(scope="module")
 def closed_shell():
     """The whole shell's contours (short-axis slices over its full height) and their vtkPolyData."""
-    points, labels, slices = sample_shell(spacing=5.0, sax=tuple(range(-75, 80, 10)))
+    points, labels, slices = closed_shell_contours()
     return points, labels, slices, labelled_polydata(points, labels, slices)
 
 

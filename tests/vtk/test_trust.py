@@ -5,23 +5,24 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from bitemesh.algorithms import MeshFromPoints
 from bitemesh.convert import unstructured_to_mesh
 from bitemesh.core.errors import MeshingError
-from bitemesh.core.shapes import sample_surface, sphere
 
+from tests.builders import chain, field_value, output, polydata, sphere_samples
 from tests.meshcheck import assert_valid_domain
-from tests.vtk.test_filters import ROOT, chain, field_value, output, polydata
 
+ROOT = Path(__file__).resolve().parents[2]
 SPHERE_VOLUME = 4 / 3 * np.pi
 
 
 @pytest.fixture(scope="module")
 def samples():
-    return sample_surface(sphere(), spacing=0.1, seed=0)
+    return sphere_samples(0.1)
 
 
 def with_far_outliers(points):
@@ -95,7 +96,7 @@ def test_bad_input_leaves_the_interpreter_running():
     code = """
 import numpy as np
 from bitemesh.algorithms import MeshFromPoints
-from tests.vtk.test_filters import polydata
+from tests.builders import polydata
 for points in (np.eye(3), np.full((40, 3), np.nan), np.zeros((0, 3))):
     algorithm = MeshFromPoints()
     algorithm.SetInputData(polydata(points))

@@ -1,0 +1,57 @@
+"""Fixtures of the command-line tests: the input files, a reference mesh, a spy on the pipeline, sphere samples.
+
+The data fixtures are built once for the folder (package scope): the tests only read them.
+"""
+from __future__ import annotations
+
+import pytest
+from bitemesh.cli import mesh as mesh_command
+from bitemesh.core import pipeline
+from bitemesh.core.shapes import annulus, sample_surface
+
+from tests import builders
+from tests.cli.commands import run_quietly, save_table
+
+
+@pytest.fixture(scope="package")
+def inputs(tmp_path_factory):
+    """Scattered points of the unit sphere in several files, and of an annulus (2D, with normals)."""
+    folder = tmp_path_factory.mktemp("inputs")
+    points, normals = builders.sphere_samples(0.08, seed=1)
+    files = {
+        "xyz+normals": save_table(folder / "sphere_n.xyz", points, normals),
+        "xyz": save_table(folder / "sphere.xyz", points),
+        "csv+header": save_table(folder / "sphere.csv", points, normals, delimiter=",", header="x,y,z,nx,ny,nz"),
+        "txt": save_table(folder / "sphere.txt", points),
+    }
+    ring, ring_normals = sample_surface(annulus(), 0.05, seed=1)
+    files["annulus"] = save_table(folder / "annulus.xyz", ring, ring_normals)
+    return files
+
+
+@pytest.fixture(scope="package")
+def reference(inputs, tmp_path_factory):
+    """The sphere meshed once by ``bitemesh mesh --cells 2000`` (seed 0), as a .vtu."""
+    path = tmp_path_factory.mktemp("reference") / "sphere.vtu"
+    assert run_quietly(["mesh", str(inputs["xyz+normals"]), "-o", str(path), "--cells", "2000"]) == 0
+    return path
+
+
+@pytest.fixture
+def pipeline_spy(monkeypatch):
+    """Records whether ``bitemesh mesh`` reached the pipeline (bitemesh.cli imports its commands in ``main``: the
+    command's module is imported here, whatever ran before)."""
+    calls = []
+
+    def spy(*args, **kwargs):
+        calls.append(args)
+        return pipeline.run(*args, **kwargs)
+    monkeypatch.setattr(mesh_command, "run_pipeline", spy)
+    return calls
+
+
+@pytest.fixture(scope="package")
+def sphere_samples():
+    """(points, unit outward normals) on the unit sphere, about 0.1 apart: the awkward inputs' sphere (1,500
+    points), each test making its own variant of it."""
+    return builders.sphere_samples(0.1)

@@ -1,0 +1,41 @@
+"""bitemesh.io writes every mesh atomically: a failing writer leaves no file where there was none, and every
+format is written whole and replaces the previous file without leftovers.  (The ``bitemesh`` command's full disk and
+Ctrl-C: tests/cli/test_safe_writing.py.)"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bitemesh.core.mesh import Mesh
+from bitemesh.io import read_mesh, write_mesh
+
+
+def leftovers(folder: Path) -> list:
+    """The names of the half-written files left in ``folder``."""
+    return [path.name for path in folder.iterdir() if ".partial" in path.name]
+
+
+def test_a_failing_writer_leaves_no_file_where_there_was_none(monkeypatch, tmp_path):
+    import meshio
+    path = tmp_path / "new.msh"
+
+    def failing(target, mesh, **options):
+        Path(target).write_text("$MeshFormat\n2.2 0 8\n")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(meshio, "write", failing)
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    with pytest.raises(Exception, match="No space left on device"):
+        write_mesh(Mesh(points, np.array([[0, 1, 2, 3]])), path)
+    assert not path.exists() and leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("extension", [".vtu", ".vtk", ".msh", ".inp", ".mesh"])
+def test_every_format_is_written_whole_and_replaces_the_previous_file(tmp_path, extension):
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=float)
+    path = tmp_path / f"mesh{extension}"
+    write_mesh(Mesh(points[:4], np.array([[0, 1, 2, 3]])), path)
+    write_mesh(Mesh(points, np.array([[0, 1, 2, 3], [1, 2, 3, 4]])), path)
+    assert len(read_mesh(path).cells) == 2
+    assert leftovers(tmp_path) == []

@@ -1,0 +1,81 @@
+"""The chained VTK filters give valid meshes: scattered sphere points with and without normals, 2D annulus points
+(triangles), a label map (the ball in its place), and MeshFromPoints in one filter.
+
+Every test here also fails if VTK printed an error or a warning (tests/vtk/conftest.py), unless it asks for the
+``vtk_errors`` fixture.
+"""
+from __future__ import annotations
+
+
+import numpy as np
+import pytest
+from bitemesh.algorithms import MeshFromPoints
+from bitemesh.convert import cell_types, point_coordinates, unstructured_to_mesh
+from bitemesh.core.quality import cell_quality, count_boundary_components
+from bitemesh.core.shapes import annulus, sample_surface
+from vtkmodules.vtkCommonDataModel import VTK_TETRA, VTK_TRIANGLE
+
+from tests.builders import ball_label_map, chain, field_value, output, polydata
+from tests.meshcheck import assert_valid_domain
+
+SPHERE_VOLUME = 4 / 3 * np.pi
+
+
+# ------------------------------------------------------------------------------------------------ valid meshes
+
+
+@pytest.mark.parametrize("with_normals", [True, False], ids=["normals", "estimated-normals"])
+def test_the_chain_meshes_scattered_sphere_points(sphere_samples, sphere_chain, with_normals):
+    if with_normals:
+        pipeline = sphere_chain
+    else:
+        pipeline = chain(polydata(sphere_samples[0]), cells=8000)
+        pipeline.quality.update()
+    result = output(pipeline.quality)
+    assert set(cell_types(result)) == {VTK_TETRA}
+    mesh = unstructured_to_mesh(result)
+    assert_valid_domain(mesh, euler=2, components=1, measure=SPHERE_VOLUME, measure_tolerance=0.03,
+                        mean_quality=0.75)
+    assert 0.8 * 8000 < len(mesh.cells) < 1.2 * 8000
+    assert field_value(result, "total_volume") == pytest.approx(SPHERE_VOLUME, rel=0.03)
+
+
+def test_a_2d_chain_on_annulus_points_gives_triangles():
+    shape = annulus()
+    points, normals = sample_surface(shape, 0.02, seed=2)
+    pipeline = chain(polydata(points, normals), cells=1500, method="rbf", grid_spacing=0.01)
+    result = pipeline.quality.update()
+    assert output(pipeline.implicit).GetDimensions()[2] == 1  # a one-slice image
+    assert set(cell_types(result)) == {VTK_TRIANGLE}
+    assert np.all(point_coordinates(result)[:, 2] == 0)
+    mesh = unstructured_to_mesh(result)
+    assert mesh.cells.shape[1] == 3
+    assert_valid_domain(mesh, measure=shape.measure, measure_tolerance=0.03, mean_quality=0.8)
+    assert count_boundary_components(mesh) == 2
+    assert 0.6 * 1500 < len(mesh.cells) < 1.4 * 1500
+
+
+def test_a_label_map_gives_a_mesh_of_the_ball_in_its_place():
+    image, centre, radius, voxel_volume = ball_label_map()
+    pipeline = chain(image, cells=8000)
+    pipeline.implicit.SetLabel(3)
+    mesh = unstructured_to_mesh(pipeline.quality.update())
+    ball_volume = 4 / 3 * np.pi * radius**3
+    assert_valid_domain(mesh, euler=2, components=1, measure=ball_volume, measure_tolerance=0.03)
+    volumes = cell_quality(mesh)["Volume"]
+    assert volumes.sum() == pytest.approx(voxel_volume, rel=0.03)
+    centroid = (mesh.points[mesh.cells].mean(axis=1) * volumes[:, None]).sum(axis=0) / volumes.sum()
+    np.testing.assert_allclose(centroid, centre, atol=0.05)  # a third of the smallest voxel size
+    distance = np.linalg.norm(mesh.points - centre, axis=1)
+    assert distance.max() < radius + 0.2
+    assert 0.8 * 8000 < len(mesh.cells) < 1.2 * 8000
+
+
+def test_mesh_from_points_gives_a_valid_mesh_in_one_filter(sphere_samples):
+    points, normals = sphere_samples
+    whole = MeshFromPoints()
+    whole.SetInputData(polydata(points, normals))
+    whole.SetCells(3000)
+    result = whole.update()
+    assert_valid_domain(unstructured_to_mesh(result), euler=2, measure=SPHERE_VOLUME, measure_tolerance=0.03)
+    assert field_value(result, "Radius") > 0
