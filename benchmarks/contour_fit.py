@@ -24,8 +24,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
 from bitemesh.core import labelled  # noqa: E402
-from bitemesh.core.parameters import ImplicitParameters  # noqa: E402
-from bitemesh.core.spine import GRID_PER_RADIUS  # noqa: E402
+from bitemesh.core.parameters import BitingParameters, ImplicitParameters  # noqa: E402
+from bitemesh.core.spine import grid_for_source  # noqa: E402
 from bitemesh.io import read_labelled_points  # noqa: E402
 
 from tests.cardiac_variants import variant_file  # noqa: E402
@@ -52,9 +52,9 @@ def main(argv=None) -> None:
         for name in ("shipped", "denser 4x", "denser 6x"):
             points, labels, slices = read_labelled_points(variant_file(SHIPPED, name, folder))
             fit = median_seconds(args.repeats, labelled.labelled_implicit, points, labels, slices=slices)
-            function, lower, upper = labelled.labelled_implicit(points, labels, slices=slices)
-            grid = ImplicitParameters(grid_spacing=2.0 / GRID_PER_RADIUS)
-            sampling = median_seconds(args.repeats, labelled.sample_labelled, function, lower, upper, grid)
+            source = labelled.labelled_source(points, labels, slices=slices)
+            sampling = median_seconds(args.repeats, grid_for_source, source, ImplicitParameters(),
+                                      BitingParameters(radius=2.0))
             print(f"| {name} | {len(points):,} | {fit:.2f} | {sampling:.2f} |", flush=True)
 
 

@@ -234,10 +234,10 @@ def chain(source, *, cells=1500, radius=None, grid_spacing=None, method="mpu", m
     implicit.SetMethod(method)
     implicit.SetGridSpacing(grid_spacing)
     implicit.SetMargin(margin)
+    implicit.SetCells(cells)   # the grid I is laid out for R; BitingSampler takes that R from the image
+    implicit.SetRadius(radius)
     biting = BitingSampler()
     biting.SetInputConnection(implicit.GetOutputPort())
-    biting.SetCells(cells)
-    biting.SetRadius(radius)
     biting.SetSeed(seed)
     tetra = DelaunayTetra()
     tetra.SetInputConnection(biting.GetOutputPort())

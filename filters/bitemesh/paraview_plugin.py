@@ -31,7 +31,7 @@ if not hasattr(inspect, "getargspec"):
 import math
 import os
 import sys
-from dataclasses import fields
+
 from xml.sax.saxutils import escape, quoteattr
 
 #: this file; None where ParaView runs it from a string (paraview --script): then bitemesh must be on PYTHONPATH
@@ -58,6 +58,7 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 from bitemesh import algorithms
 from bitemesh.algorithms.base import camel
 from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.parameters import automatic_value, is_optional
 
 paraview_plugin_name = "bitemesh"
 paraview_plugin_version = bitemesh.__version__
@@ -81,18 +82,6 @@ FILTERS = {
 
 # -- parameters: dataclass field -> ParaView property ------------------------------------------------------------
 
-def automatic_value(item):
-    """The number that stands for None in ParaView: 0 when 0 is outside the field's range, else -1."""
-    low, _, low_open, _ = item.metadata["range"]
-    zero_allowed = low is None or low < 0 or (low == 0 and not low_open)
-    return -1 if zero_allowed else 0
-
-
-def optional(item) -> bool:
-    """True for a field that is None by default (chosen automatically)."""
-    return item.default is None and "range" in item.metadata
-
-
 def property_label(name: str) -> str:
     """``grid_spacing`` -> ``Grid Spacing`` (paraview.simple names the property ``GridSpacing``, as its setter)."""
     return " ".join(word.capitalize() for word in name.split("_"))
@@ -115,7 +104,7 @@ def documentation(item) -> str:
     if "text" in meta:
         return f"{text}."
     text += f". Valid values: {range_text(item)}"
-    if optional(item):
+    if is_optional(item):
         text += (f". {automatic_value(item)} means automatic (None in bitemesh: the default described above); "
                  "any other value outside the range is refused with an error naming the parameter")
     return text + "."
@@ -125,7 +114,7 @@ def domain_bounds(item):
     """(min, max) of the range domain (None where unbounded); an optional field's domain includes its automatic
     value."""
     low, high, _, _ = item.metadata["range"]
-    minimum = automatic_value(item) if optional(item) else low
+    minimum = automatic_value(item) if is_optional(item) else low
     maximum = high if high is not None and math.isfinite(high) else None
     if item.metadata["integer"]:
         minimum = None if minimum is None else max(int(minimum), -INT_MAX)
@@ -135,7 +124,7 @@ def domain_bounds(item):
 
 def default_value(item):
     """The property's default: the field's, or the automatic value for None."""
-    return automatic_value(item) if optional(item) else item.default
+    return automatic_value(item) if is_optional(item) else item.default
 
 
 def property_decorators(item):
@@ -162,14 +151,12 @@ def property_decorators(item):
 
 
 def property_setter(item, vtk_setter):
-    """``Set<Name>(value)`` for ParaView: the automatic value becomes None, then the VTK filter's setter."""
-    automatic = automatic_value(item) if optional(item) else None
+    """``Set<Name>(value)`` for ParaView: a whole float becomes an int, then the VTK filter's setter (which takes
+    the automatic value for None)."""
     integer = item.metadata.get("integer", False)
 
     def set_value(self, value):
-        if automatic is not None and value == automatic:
-            value = None
-        elif integer and isinstance(value, float) and value.is_integer():
+        if integer and isinstance(value, float) and value.is_integer():
             value = int(value)
         vtk_setter(self, value)
 
@@ -183,15 +170,10 @@ def property_setter(item, vtk_setter):
 class LabelMapsNeedSimpleITK:
     """Mixin for PointsToImplicit: a label map input needs SimpleITK, which Debian does not package."""
 
-    def label_grid_geometry(self, image: vtkImageData):
-        # also when only the grid's geometry is asked for: announcing an extent that no output will fill makes
-        # ParaView's post filter report an extent error after the real one
+    def label_source(self, image: vtkImageData):
+        # before any work on the label map: ParaView reports the real error, not an extent error after it
         require_simpleitk()
-        return super().label_grid_geometry(image)
-
-    def label_grid(self, image: vtkImageData):
-        require_simpleitk()
-        return super().label_grid(image)
+        return super().label_source(image)
 
 
 def require_simpleitk() -> None:
@@ -217,11 +199,11 @@ def paraview_filter(class_name: str):
     """The ParaView proxy class of a bitemesh VTK filter: its parameters as properties, its inputs and outputs."""
     label, inputs, outputs = FILTERS[class_name]
     base = getattr(algorithms, class_name)
-    items = [item for dataclass in base.parameter_classes for item in fields(dataclass)]
+    items = list(base.parameter_fields)
     namespace = {"__module__": __name__, "__qualname__": class_name, "__doc__": base.__doc__}
     for item in items:
         namespace[f"Set{camel(item.name)}"] = property_setter(item, getattr(base, f"Set{camel(item.name)}"))
-    bases = (*((LabelMapsNeedSimpleITK,) if hasattr(base, "label_grid") else ()), base)
+    bases = (*((LabelMapsNeedSimpleITK,) if hasattr(base, "label_source") else ()), base)
     cls = type(class_name, bases, namespace)
 
     decorators = []  # innermost first; properties keep this order in the panel

@@ -81,12 +81,12 @@ def _annotated(spec):
         return Annotated[str, Choice(list(spec.choices))]
     if spec.kind is str:   # free text
         return str
-    high = spec.high
+    high, low = spec.high, spec.low if spec.automatic is None else min(spec.low, spec.automatic)
     if spec.kind is int:
         high = _INT_MAX if high is None else min(high, _INT_MAX)
     if high is None:
-        return Annotated[spec.kind, Minimum(spec.low)]
-    return Annotated[spec.kind, WithinRange(spec.low, high)]
+        return Annotated[spec.kind, Minimum(low)]
+    return Annotated[spec.kind, WithinRange(low, high)]
 
 
 def parameterNodeClass():

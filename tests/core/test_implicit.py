@@ -206,7 +206,7 @@ def test_rbf_annulus_signs_with_and_without_normals():
     points, normals = annulus_contours()
     probes = np.array([[0, 0], [0.75, 0], [0, -0.75], [1.2, 0], [5, 5]])
     for given_normals in (normals, None):
-        grid = points_to_implicit(points, given_normals, method="rbf", grid_spacing=0.02)
+        grid = points_to_implicit(points, given_normals, method="rbf", grid_spacing=0.02, cells=1000)
         assert np.array_equal(np.sign(grid.evaluate(probes)), [-1, 1, 1, -1, -1])
     f = fit_rbf(points, normals)
     assert np.abs(f(points)).max() < 1e-6
@@ -223,26 +223,29 @@ def test_rbf_refuses_too_many_points():
 # --- the step ------------------------------------------------------------------------------------------------------
 
 def test_points_to_implicit_grid_follows_the_documented_defaults():
+    """The grid I of run: spacing R / 4 for R chosen for the cells (at least 1/40 of the box's side), and a
+    margin of 3 spacings around the points' box."""
+    from bitemesh.core.pipeline import run
     points, normals, _ = sphere_sample(2000)
     lower, upper = points.min(axis=0), points.max(axis=0)
-    spacing = np.linalg.norm(upper - lower) / 100
     grid = points_to_implicit(points, normals)
-    assert np.allclose(grid.spacing, spacing)
-    assert np.allclose(grid.origin, lower - 3 * spacing)
-    assert grid.shape == tuple(np.floor((upper - lower + 6 * spacing) / spacing + 1e-9).astype(int) + 1)
-    assert np.all(grid.upper <= upper + 3 * spacing + 1e-12) and np.all(grid.upper > upper + 2 * spacing)
+    radius = run(points, normals).radius
+    spacing = min(radius / 4, float(np.max(upper - lower)) / 40)
+    assert np.allclose(grid.spacing, spacing, rtol=1e-9)
+    assert np.allclose(grid.origin, lower - 3 * spacing, rtol=0, atol=1e-9)
     assert grid.evaluate(np.zeros((1, 3)))[0] > 0.9
     assert (grid.values[0] < 0).all() and (grid.values[-1] < 0).all()
-    custom = points_to_implicit(points, normals, grid_spacing=0.1, margin=0.25)
-    assert np.allclose(custom.spacing, 0.1) and np.allclose(custom.origin, lower - 0.25)
+    custom = points_to_implicit(points, normals, grid_spacing=0.05, margin=0.25)
+    assert np.allclose(custom.spacing, 0.05) and np.allclose(custom.origin, lower - 0.25)
 
 
 def test_points_to_implicit_drops_duplicates_and_reports_progress():
     points, normals, _ = sphere_sample(1000)
     calls = []
-    grid = points_to_implicit(points, normals, grid_spacing=0.1, progress=lambda f, m: calls.append(f))
+    grid = points_to_implicit(points, normals, grid_spacing=0.1, cells=1000,
+                              progress=lambda f, m: calls.append(f))
     doubled = points_to_implicit(np.vstack([points, points[:300]]), np.vstack([normals, normals[:300]]),
-                                 grid_spacing=0.1)
+                                 grid_spacing=0.1, cells=1000)
     assert np.array_equal(grid.values, doubled.values)
     assert calls[-1] == 1.0 and calls == sorted(calls)
 
@@ -257,7 +260,7 @@ def test_fit_implicit_returns_the_function_that_points_to_implicit_samples():
     points, normals, _ = sphere_sample(1000)
     f = fit_implicit(np.vstack([points, points[:10]]), method="mpu")
     assert isinstance(f, MPUImplicit) and len(f.points) == 1000
-    grid = points_to_implicit(points, normals, grid_spacing=0.1)
+    grid = points_to_implicit(points, normals, grid_spacing=0.1, cells=1000)
     nodes = grid.node_coordinates(np.arange(grid.values.size))
     exact = fit_implicit(points, normals)(nodes)
     near = np.abs(exact) < 0.2  # sampled exactly near f = 0 (EXACT_WITHIN grid spacings), interpolated beyond

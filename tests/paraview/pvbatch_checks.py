@@ -10,7 +10,6 @@ import math
 import sys
 import time
 import traceback
-from dataclasses import fields
 from pathlib import Path
 
 import bitemesh
@@ -109,7 +108,7 @@ def properties(proxies: dict) -> None:
     help."""
     problems = []
     for class_name, proxy in proxies.items():
-        for item in (f for dataclass in getattr(algorithms, class_name).parameter_classes for f in fields(dataclass)):
+        for item in getattr(algorithms, class_name).parameter_fields:
             name = "".join(part.capitalize() for part in item.name.split("_"))
             prop = proxy.GetProperty(name)
             if prop is None:

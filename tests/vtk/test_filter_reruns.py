@@ -7,7 +7,6 @@ Every test here also fails if VTK printed an error or a warning (tests/vtk/conft
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import fields
 
 import pytest
 from bitemesh.algorithms import (BitingSampler, DelaunayTetra, MeshFromPoints, PointsToImplicit, QualityFilter,
@@ -77,7 +76,7 @@ def other_value(item, value):
 @pytest.mark.parametrize("algorithm", FILTERS, ids=lambda cls: cls.__name__)
 def test_setters_call_modified_only_on_a_change(algorithm):
     instance = algorithm()
-    names = [item for dataclass in algorithm.parameter_classes for item in fields(dataclass)]
+    names = list(algorithm.parameter_fields)
     assert names or algorithm is DelaunayTetra
     for item in names:
         name = "".join(part.capitalize() for part in item.name.split("_"))

@@ -18,7 +18,6 @@ from bitemesh.core.domain import carve_domain
 from bitemesh.core.mesh import Mesh
 from bitemesh.core.implicit import points_to_implicit
 from bitemesh.core.parameters import SpuriousParameters
-from bitemesh.core.pipeline import radius_for_cells
 from bitemesh.core.quality import cell_quality, quality_histogram, quality_summary
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import VTK_TETRA
@@ -37,7 +36,7 @@ def test_points_to_implicit_gives_the_core_grid_and_announces_it(sphere_chain, s
     points, normals = sphere_samples
     image = output(sphere_chain.implicit)
     grid = image_to_grid(image)
-    expected = points_to_implicit(points, normals)
+    expected = points_to_implicit(points, normals, cells=8000)
     np.testing.assert_array_equal(grid.values, expected.values)
     np.testing.assert_array_equal(grid.origin, expected.origin)
     np.testing.assert_array_equal(grid.spacing, expected.spacing)
@@ -53,7 +52,7 @@ def test_biting_sampler_gives_the_core_nodes(sphere_chain):
     grid = image_to_grid(output(sphere_chain.implicit))
     nodes = output(sphere_chain.biting)
     radius = field_value(nodes, "Radius")
-    assert radius == radius_for_cells(grid.inside_volume(), 8000, 3)
+    assert radius == field_value(output(sphere_chain.implicit), "Radius")   # the R the grid was laid out for
     expected = bite(grid, radius, order="boundary", seed=0)
     np.testing.assert_array_equal(point_coordinates(nodes), expected)
     assert nodes.GetNumberOfVerts() == len(expected)  # one vertex cell per node, so that they render

@@ -17,6 +17,7 @@ from vtkmodules.vtkCommonDataModel import vtkDataObject
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
 from ..core.errors import BitemeshError, BitemeshWarning, Cancelled
+from ..core.parameters import automatic_value, is_optional
 
 
 def camel(name: str) -> str:
@@ -24,23 +25,31 @@ def camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))
 
 
-def with_parameters(*parameter_classes):
+def with_parameters(*specs):
     """Class decorator: a ``Set<Name>``/``Get<Name>`` pair per field of the dataclasses, VTK style.
 
-    A setter calls ``Modified()`` only when the value changes; values are checked (ranges of the dataclass) when
-    the filter runs, so that a bad one surfaces through ``update()`` with the parameter's name.
+    Each spec is a parameter dataclass (all its fields) or ``(dataclass, names)`` (those fields only).  A setter
+    calls ``Modified()`` only when the value changes; values are checked (ranges of the dataclass) when the filter
+    runs, so that a bad one surfaces through ``update()`` with the parameter's name.
     """
     def decorate(cls):
-        cls.parameter_classes = parameter_classes
-        for item in (f for dataclass in parameter_classes for f in fields(dataclass)):
-            setattr(cls, f"Set{camel(item.name)}", _setter(item.name))
+        cls.parameter_classes = tuple(spec[0] if isinstance(spec, tuple) else spec for spec in specs)
+        cls.parameter_fields = tuple(item for spec in specs for item in fields(spec[0] if isinstance(spec, tuple)
+                                                                              else spec)
+                                     if not isinstance(spec, tuple) or item.name in spec[1])
+        for item in cls.parameter_fields:
+            setattr(cls, f"Set{camel(item.name)}", _setter(item.name, automatic_value(item) if is_optional(item)
+                                                           else None))
             setattr(cls, f"Get{camel(item.name)}", _getter(item.name))
         return cls
     return decorate
 
 
-def _setter(name):
+def _setter(name, automatic):
+    """``Set<Name>(value)``; None or ``automatic`` (the number a GUI property gives for None) is automatic."""
     def set_value(self, value):
+        if automatic is not None and value is not None and value == automatic:
+            value = None
         if self._values[name] != value:
             self._values[name] = value
             self.Modified()
@@ -59,10 +68,11 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
     """Base of the bitemesh filters: subclasses implement ``execute(request, inInfo, outInfo)``."""
 
     parameter_classes = ()
+    parameter_fields = ()
 
     def __init__(self, **ports):
         VTKPythonAlgorithmBase.__init__(self, **ports)
-        self._values = {f.name: f.default for dataclass in self.parameter_classes for f in fields(dataclass)}
+        self._values = {item.name: item.default for item in self.parameter_fields}
         self.last_error = None
         self._failed_run = None  # what the last failed run saw: (filter MTime, input data MTimes)
 
@@ -72,8 +82,9 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
         self.SetInputDataObject(port, data)
 
     def parameters(self, dataclass):
-        """The checked parameter dataclass from the current values (raises InvalidInputError naming a bad one)."""
-        return dataclass(**{f.name: self._values[f.name] for f in fields(dataclass)})
+        """The checked parameter dataclass from the current values, its other fields at their defaults (raises
+        InvalidInputError naming a bad one)."""
+        return dataclass(**{f.name: self._values[f.name] for f in fields(dataclass) if f.name in self._values})
 
     def progress(self, fraction: float, message: str = "") -> None:
         """The core's progress callback: VTK progress, and an abort request becomes Cancelled."""
@@ -189,7 +200,7 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
     def upstream_error(self):
         """The first error of this filter's upstream chain (the root cause), or None.
 
-        The chain is walked through every algorithm, not only bitemesh's: ParaView puts a ``vtkPVPostFilter`` after
+        The chain is walked through every algorithm, not only bitemesh's: a GUI application puts a post filter after
         each output port, and a VTK script may put any filter between two of ours; without this, every filter below
         one that failed would report an empty input too.
         """

@@ -15,21 +15,18 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandD
 from ..core.biting import bite
 from ..core.delaunay import delaunay
 from ..core.domain import carve_domain
-from ..core.errors import InvalidInputError, check_points
+from ..core.errors import InvalidInputError
 from ..core.fidelity import check_fidelity, measure_fidelity, on_plane
-from ..core.grid import grid_shape
-from ..core.implicit import grid_layout
 from ..core.mesh import Mesh
 from ..core.cell_measures import mean_edge_length
 from ..core.optimize import optimize_mesh
 from ..core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, LabelledParameters,
                                LabelMapParameters, OptimizeParameters, OptimizeSwitch, QualityParameters,
                                SpuriousParameters)
-from ..core.pipeline import points_source, run, sample_source
+from ..core.pipeline import points_source, run
 from ..core.spine import radius_on_grid
 from ..core.progress import sub_progress
 from ..core.quality import cell_quality, quality_histogram, quality_summary
-from ..labelmap import STAIRCASE_NOISE
 from .base import BitemeshAlgorithm, with_parameters
 from ..convert import (add_field_values, attach_samples, attached_samples, field_array, grid_to_image, image_to_grid,
                        mesh_to_unstructured, nodes_to_polydata, point_array, point_coordinates, point_labels,
@@ -66,7 +63,11 @@ def labelled_options(parameters: LabelledParameters) -> dict:
             "rv_wall": parameters.rv_wall}
 
 
-@with_parameters(ImplicitParameters, LabelMapParameters, LabelledParameters)
+#: the parameters of BitingParameters that lay out the grid I (R); the others are the BitingSampler's alone.
+GRID_BITING = (BitingParameters, ("radius", "cells"))
+
+
+@with_parameters(ImplicitParameters, GRID_BITING, LabelMapParameters, LabelledParameters)
 class PointsToImplicit(BitemeshAlgorithm):
     """Scattered points (with optional ``Normals``), labelled contours or a label map -> f on the grid I
     (vtkImageData ``Implicit``).
@@ -74,110 +75,109 @@ class PointsToImplicit(BitemeshAlgorithm):
     f > 0 inside, about the signed distance near the surface.  Points use MPU (or RBF).  Points with a ``Label``
     point array (and optionally ``Slice``) are contours of several surfaces: one implicit per surface, combined by
     ``Domain`` (a CSG expression) and cut by the base plane.  A vtkImageData input is a label map, turned into a
-    signed distance by SimpleITK (``Label`` chooses the domain's label).
+    signed distance by SimpleITK (``Label`` chooses the domain's label).  The grid I is laid out as MeshFromPoints
+    lays it out (:func:`bitemesh.core.spine.grid_for_source`): for R (``Radius``, or chosen for ``Cells``), spacing
+    ``GridSpacing`` or R / 4; the field data ``Radius`` holds R, which BitingSampler takes.
     """
 
     def __init__(self):
         super().__init__(nInputPorts=1, inputType="vtkDataSet", nOutputPorts=1, outputType="vtkImageData")
-        self._fitted = None  # ((input MTime, fit options), (function, lower, upper)) of the last labelled fit
+        self._source = None  # ((input MTime, source options), Source) of the last fit
+        self._grid = None    # ((source key, grid options), (grid I in user coordinates, R)) of the last sampling
 
-    def labelled_fit(self, source):
-        """(LabelledImplicit, lower, upper) of labelled contour input, fitted once per input, domain and base plane;
-        None for other input.  RequestInformation needs the domain's box, RequestData the function: one fit serves
-        both, and changes of the grid or of the thinnest wall only sample it again."""
-        from ..core.labelled import labelled_implicit
-        contours = labelled_contours(source)
-        if contours is None:
-            return None
-        options = labelled_options(self.parameters(LabelledParameters))
-        key = (source.GetMTime(), tuple(options.items()))
-        if self._fitted is None or self._fitted[0] != key:
-            points, labels, slices = contours
-            self._fitted = (key, labelled_implicit(points, labels, slices=slices, min_wall=0.0,
-                                                   progress=self.progress, **options))
-        return self._fitted[1]
+    def source_of(self, data):
+        """The :class:`~bitemesh.core.source.Source` of the input, fitted once per input and fit options."""
+        contours = None if isinstance(data, vtkImageData) else labelled_contours(data)
+        if isinstance(data, vtkImageData):
+            options = (("label", self.parameters(LabelMapParameters).label),)
+        elif contours is not None:
+            options = (("labelled", *labelled_options(self.parameters(LabelledParameters)).items()),)
+        else:
+            implicit = self.parameters(ImplicitParameters)
+            options = (("points", implicit.method, implicit.error_bound, implicit.outliers),)
+        key = (data.GetMTime(), options)
+        if self._source is None or self._source[0] != key:
+            if isinstance(data, vtkImageData):
+                source = self.label_source(data)
+            elif contours is not None:
+                from ..core.labelled import labelled_source
+                points, labels, slices = contours
+                source = labelled_source(points, labels, slices=slices, progress=sub_progress(self.progress, 0, 0.4),
+                                         **labelled_options(self.parameters(LabelledParameters)))
+            else:
+                points, normals = scattered_points(data)
+                source = points_source(points, normals, self.parameters(ImplicitParameters),
+                                       sub_progress(self.progress, 0.0, 0.4))
+            self._source = (key, source)
+        source = self._source[1]
+        min_wall = None if contours is None else self.parameters(LabelledParameters).min_wall
+        if min_wall is not None:   # a given thinnest wall instead of one that follows R: no new fit
+            source = replace(source, function=source.function.with_min_wall(min_wall), at_radius=None)
+        return source
 
-    def RequestInformation(self, request, inInfo, outInfo):
-        # The grid's extent depends on the input's bounds: bring the input up to date before announcing it.
-        self.GetInputAlgorithm(0, 0).Update(self.GetInputConnection(0, 0).GetIndex())
-        source = vtkDataSet.GetData(inInfo[0])
-        try:
-            origin, spacing, shape = self.grid_geometry(source)
-        except Exception:  # noqa: BLE001 - bad input: RequestData reports it with its message
-            return 1
-        info = outInfo.GetInformationObject(0)
-        dims = list(shape) + [1] * (3 - len(shape))
-        info.Set(vtkStreamingDemandDrivenPipeline.WHOLE_EXTENT(), [0, dims[0] - 1, 0, dims[1] - 1, 0, dims[2] - 1], 6)
-        info.Set(vtkDataObject.ORIGIN(), list(origin) + [0.0] * (3 - len(origin)), 3)
-        info.Set(vtkDataObject.SPACING(), list(spacing) + [1.0] * (3 - len(spacing)), 3)
-        return 1
-
-    def grid_geometry(self, source):
-        """(origin, spacing, shape) of the grid this input will give."""
-        if isinstance(source, vtkImageData):
-            return self.label_grid_geometry(source)
-        parameters = self.parameters(ImplicitParameters)
-        fit = self.labelled_fit(source)
-        points = check_points(scattered_points(source)[0]) if fit is None else np.array(fit[1:])
-        lower, upper, spacing, margin = grid_layout(points, parameters.grid_spacing, parameters.margin)
-        shape = grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=parameters.max_memory_mb)
-        return lower - margin, np.full(len(lower), spacing), shape
-
-    def label_grid_geometry(self, image: vtkImageData):
-        """(origin, spacing, shape) of the grid a label map gives: its voxels, padded."""
-        from ..labelmap import PAD_VOXELS
+    def label_source(self, image: vtkImageData):
+        """The label map's Source: its signed distance on its voxels, the voxel faces as samples."""
+        from ..labelmap import label_grid_source
         dims = image.GetDimensions()
         dim = 2 if dims[2] == 1 else 3
-        origin, spacing = np.array(image.GetOrigin()[:dim]), np.array(image.GetSpacing()[:dim])
-        return origin - PAD_VOXELS * spacing, spacing, tuple(n + 2 * PAD_VOXELS for n in dims[:dim])
-
-    def label_grid(self, image: vtkImageData):
-        """The label map's signed distance on its grid and its voxel faces (the samples)."""
-        from ..labelmap import label_map_to_grid, label_mask, mask_faces
-        dims = image.GetDimensions()
-        dim = 2 if dims[2] == 1 else 3
-        origin, spacing = np.array(image.GetOrigin()[:dim]), np.array(image.GetSpacing()[:dim])
         scalars = image.GetPointData().GetScalars()
         if scalars is None:
             raise InvalidInputError("the label map has no point scalars (the labels)")
         labels = numpy_support.vtk_to_numpy(scalars).reshape(dims, order="F").reshape(dims[:dim])
-        label = self.parameters(LabelMapParameters).label
-        return label_map_to_grid(labels, origin, spacing, label), mask_faces(label_mask(labels, label)[0], origin,
-                                                                              spacing)
+        matrix = np.eye(dim + 1)
+        matrix[:dim, :dim] = np.diag(image.GetSpacing()[:dim])
+        matrix[:dim, dim] = image.GetOrigin()[:dim]
+        return label_grid_source(labels, matrix, labels=self.parameters(LabelMapParameters).label,
+                                 implicit=self.parameters(ImplicitParameters))
+
+    def grid_of(self, data):
+        """(f on the grid I in user coordinates, R in user units, the Source), sampled once per source and grid
+        options."""
+        from ..core.spine import grid_for_source
+        source = self.source_of(data)
+        implicit, biting = self.parameters(ImplicitParameters), self.parameters(BitingParameters)
+        key = (id(self._source[1]), self.parameters(LabelledParameters).min_wall, implicit, biting.radius,
+               biting.cells)
+        if self._grid is None or self._grid[0] != key:
+            grid, radius, _, _ = grid_for_source(source, implicit, biting, sub_progress(self.progress, 0.4, 1.0))
+            self._grid = (key, (source.frame.grid_to_user(grid), radius * source.frame.scale, source))
+        return self._grid[1]
+
+    def RequestInformation(self, request, inInfo, outInfo):
+        # The grid's extent depends on the input: bring the input up to date and lay the grid out before announcing
+        # it (the sampled grid is kept for RequestData).
+        self.GetInputAlgorithm(0, 0).Update(self.GetInputConnection(0, 0).GetIndex())
+        try:
+            grid = self.grid_of(vtkDataSet.GetData(inInfo[0]))[0]
+        except Exception:  # noqa: BLE001 - bad input: RequestData reports it with its message
+            return 1
+        info = outInfo.GetInformationObject(0)
+        dims = list(grid.shape) + [1] * (3 - grid.dim)
+        info.Set(vtkStreamingDemandDrivenPipeline.WHOLE_EXTENT(), [0, dims[0] - 1, 0, dims[1] - 1, 0, dims[2] - 1], 6)
+        info.Set(vtkDataObject.ORIGIN(), list(grid.origin) + [0.0] * (3 - grid.dim), 3)
+        info.Set(vtkDataObject.SPACING(), list(grid.spacing) + [1.0] * (3 - grid.dim), 3)
+        return 1
 
     def execute(self, request, inInfo, outInfo):
-        source = vtkDataSet.GetData(inInfo[0])
-        fit = None if isinstance(source, vtkImageData) else self.labelled_fit(source)
+        grid, radius, source = self.grid_of(vtkDataSet.GetData(inInfo[0]))
         output = vtkImageData.GetData(outInfo)
-        if isinstance(source, vtkImageData):
-            grid, samples = self.label_grid(source)
-            grid_to_image(grid, output)
-            attach_samples(output, samples, STAIRCASE_NOISE * float(np.max(grid.spacing)),
-                           float(np.linalg.norm(grid.spacing)))
-        elif fit is not None:
-            from ..core.labelled import is_myocardium, sample_labelled
-            function = fit[0]
-            grid_to_image(sample_labelled(*fit, self.parameters(ImplicitParameters),
-                                          self.parameters(LabelledParameters).min_wall, progress=self.progress), output)
-            attach_samples(output, function.surface_samples(), function.tracing_noise(), function.contour_gap(),
-                           function.base)
-            if is_myocardium(function):   # SpuriousCellFilter's Handles "auto" then removes handles
-                output.GetFieldData().AddArray(field_array("Myocardium", [1.0]))
-        else:
-            parameters = self.parameters(ImplicitParameters)
-            points, normals = scattered_points(source)
-            fitted = points_source(points, normals, parameters, sub_progress(self.progress, 0.0, 0.4))
-            frame = fitted.frame
-            grid_to_image(sample_source(fitted, parameters, sub_progress(self.progress, 0.4, 1.0)), output)
-            attach_samples(output, frame.to_user(fitted.samples), fitted.noise * frame.scale,
-                           fitted.gap * frame.scale)
+        grid_to_image(grid, output)
+        output.GetFieldData().AddArray(field_array("Radius", [radius]))
+        frame, function = source.frame, source.function
+        base = getattr(function, "base", None)
+        attach_samples(output, frame.to_user(source.samples), source.noise * frame.scale, source.gap * frame.scale,
+                       None if base is None else (frame.to_user(base[0][None])[0], base[1]))
+        if source.handles == "remove":   # SpuriousCellFilter's Handles "auto" then removes handles
+            output.GetFieldData().AddArray(field_array("Myocardium", [1.0]))
 
 
 @with_parameters(BitingParameters)
 class BitingSampler(BitemeshAlgorithm):
     """f on the grid I -> mesh nodes about R apart (vtkPolyData with a vertex per node), the paper's Algorithm 1.
 
-    R is ``Radius``, or chosen for about ``Cells`` cells; the field data ``Radius`` holds the R used.
+    R is ``Radius``, else the R that PointsToImplicit laid the grid out for (its field data ``Radius``) unless
+    ``Cells`` is set here, else chosen for about ``Cells`` cells; the output's field data ``Radius`` holds the R
+    used.
     """
 
     def __init__(self):
@@ -185,8 +185,15 @@ class BitingSampler(BitemeshAlgorithm):
 
     def execute(self, request, inInfo, outInfo):
         parameters = self.parameters(BitingParameters)
-        grid = image_to_grid(vtkImageData.GetData(inInfo[0]))
-        radius = parameters.radius or radius_on_grid(grid, parameters.cells)
+        image = vtkImageData.GetData(inInfo[0])
+        grid = image_to_grid(image)
+        laid_out = image.GetFieldData().GetArray("Radius")   # the R PointsToImplicit laid the grid out for
+        if parameters.radius is not None:
+            radius = parameters.radius
+        elif laid_out is not None and parameters.cells == BitingParameters().cells:
+            radius = laid_out.GetValue(0)
+        else:
+            radius = radius_on_grid(grid, parameters.cells)
         nodes = bite(grid, radius, order=parameters.order, seed=parameters.seed, progress=self.progress)
         output = vtkPolyData.GetData(outInfo)
         output.ShallowCopy(nodes_to_polydata(nodes))

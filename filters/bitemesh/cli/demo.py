@@ -6,6 +6,7 @@ two-cavity myocardium at about 136,000 cells like the paper's heart.
 """
 from __future__ import annotations
 
+from dataclasses import fields
 from importlib import resources
 
 from ..core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
@@ -13,7 +14,7 @@ from ..core.pipeline import run as run_pipeline
 from ..core.shapes import die, sample_surface
 from ..io import read_labelled_points
 from .mesh import add_optimize_options, optimize_parameters
-from .options import ProgressBar, check_output, write_and_report
+from .options import ProgressBar, check_output, describe, write_and_report
 
 #: cells asked for the heart: the cells-per-volume estimate undershoots by about 12 % on thin walls.
 HEART_CELLS = 155000
@@ -25,12 +26,16 @@ def add_parser(subcommands) -> None:
     parser.add_argument("dataset", nargs="?", choices=("die", "heart"), default="die",
                         help="die (default) or heart")
     parser.add_argument("-o", "--output", help="the mesh to write; default die.vtu or heart.vtu")
-    parser.add_argument("--cells", type=int, help="cells to aim for; default 10000 (die), 136000 (heart)")
+    cells = {item.name: item for item in fields(BitingParameters)}["cells"]
+    parser.add_argument("--cells", type=int, help=describe(cells.metadata, None) + "; default 10000 (die), 136000 "
+                                                                                  "(heart)")
     add_optimize_options(parser)
     parser.set_defaults(run=run)
 
 
 def run(args) -> None:
+    if args.cells is not None:
+        BitingParameters(cells=args.cells)   # its range, refused naming cells before the heart's scaling
     args.output = args.output or f"{args.dataset}.vtu"
     check_output(args.output)
     bar = ProgressBar()

@@ -4,11 +4,13 @@ from __future__ import annotations
 from dataclasses import fields
 
 from ..core.errors import InvalidInputError
-from ..core.parameters import LabelledParameters, OptimizeParameters, TableParameters
+from ..core.parameters import (LabelledParameters, LabelMapParameters, OptimizeParameters, OptimizeSwitch,
+                               TableParameters)
 from ..core.pipeline import run as run_pipeline
 from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points
 from ..labelmap import LABEL_MAP_EXTENSIONS
-from .options import ProgressBar, add_parameter_options, check_output, parameters_from_args, write_and_report
+from .options import (ProgressBar, add_parameter_options, check_output, describe, parameters_from_args,
+                      write_and_report)
 
 
 def add_parser(subcommands) -> None:
@@ -29,23 +31,22 @@ def add_parser(subcommands) -> None:
     parser.add_argument("--config", metavar="FILE", help="labelled contours: a JSON or TOML file with the domain and "
                                                          "its options (flags given on the command line win)")
     labels = parser.add_argument_group("label maps")
+    label = {item.name: item for item in fields(LabelMapParameters)}["label"]
     labels.add_argument("--label", type=int, action="append", metavar="N",
-                        help="a label of the domain (repeat for a union); default every nonzero label")
+                        help=describe(label.metadata, None) + " (repeat for a union)")
     labels.add_argument("--ras", action="store_true", help="write the mesh in RAS (3D Slicer) instead of LPS (ITK)")
     parser.set_defaults(run=run)
 
 
 def add_optimize_options(parser) -> None:
-    """``--optimize`` and the MeshOptimizer's parameters."""
-    parser.add_argument("--optimize", action="store_true",
-                        help="also run the MeshOptimizer: relax the nodes and remove the slivers, boundary kept on "
-                             "the surface")
-    add_parameter_options(parser, (OptimizeParameters,))
+    """``--optimize`` (the switch every interface has, OptimizeSwitch) and the MeshOptimizer's parameters."""
+    add_parameter_options(parser, (OptimizeSwitch, OptimizeParameters))
 
 
 def optimize_parameters(args):
     """The MeshOptimizer's parameters, or None without ``--optimize``."""
-    return parameters_from_args(args, (OptimizeParameters,))[0] if args.optimize else None
+    switch, parameters = parameters_from_args(args, (OptimizeSwitch, OptimizeParameters))
+    return parameters if switch.optimize else None
 
 
 def run(args) -> None:
@@ -83,7 +84,8 @@ def mesh_label_map(args, steps: dict, progress):
     from ..labelmap import mesh_label_grid, read_label_map
     label_map = read_label_map(args.input)
     return mesh_label_grid(label_map.labels, label_map.index_to_physical(ras=args.ras),
-                           labels=set(args.label) if args.label else None, progress=progress, **steps)
+                           labels={LabelMapParameters(label=label).label for label in args.label} if args.label
+                           else None, progress=progress, **steps)
 
 
 def labelled_flags(args) -> dict:

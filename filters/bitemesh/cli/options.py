@@ -34,8 +34,9 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
         for item in fields(cls):
             flag = f"--{item.name.replace('_', '-')}"
             if is_switch(item):   # a 0/1 parameter whose default is 0: a flag that sets it to 1
+                what = item.metadata["help"].removeprefix("1 ").split(";")[0].strip()
                 group.add_argument(flag, dest=item.name, action="store_const", const=1, default=0,
-                                   help=item.metadata["help"].removeprefix("1 ").strip().replace("%", "%%"))
+                                   help=what.replace("%", "%%"))
                 continue
             text = "choices" in item.metadata or "text" in item.metadata
             kind = str if text else int if item.metadata["integer"] else float

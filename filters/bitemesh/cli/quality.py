@@ -4,8 +4,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..core.errors import InvalidInputError, MeshingError
+from ..core.parameters import QualityParameters
 from ..core.quality import check_valid_domain, quality_histogram, quality_summary, radius_ratio
 from ..io import atomic_output, read_mesh
+from .options import add_parameter_options, parameters_from_args
 
 
 def add_parser(subcommands) -> None:
@@ -17,7 +19,7 @@ def add_parser(subcommands) -> None:
                                                 "exit code 1 when it has any.")
     parser.add_argument("mesh", help="the mesh to measure")
     parser.add_argument("--histogram", metavar="OUT.png", help="also draw the radius-ratio histogram (matplotlib)")
-    parser.add_argument("--bins", type=int, default=20, help="histogram bins; default 20")
+    add_parameter_options(parser, (QualityParameters,))
     parser.set_defaults(run=run)
 
 
@@ -25,7 +27,8 @@ def run(args) -> None:
     mesh = read_mesh(args.mesh, orient=False)   # as the file has it: inverted cells are defects to report
     print(quality_summary(mesh))
     if args.histogram:
-        save_histogram(radius_ratio(mesh.points, mesh.cells), args.histogram, args.bins, title=args.mesh)
+        bins = parameters_from_args(args, (QualityParameters,))[0].bins
+        save_histogram(radius_ratio(mesh.points, mesh.cells), args.histogram, bins, title=args.mesh)
         print(f"wrote {args.histogram}")
     problems = check_valid_domain(mesh)
     if problems:

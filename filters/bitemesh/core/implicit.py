@@ -137,22 +137,6 @@ def fit_implicit(points, normals=None, *, method: str = "mpu", error_bound=None,
     return _fit(points, normals, method, error_bound, progress)
 
 
-def grid_layout(points, grid_spacing=None, margin=None):
-    """The box and spacing of the grid I that points_to_implicit samples for these points.
-
-    Returns
-    -------
-    lower, upper : (k,) corners of the points' bounding box; the grid spans [lower - margin, upper + margin]
-    spacing : float, grid_spacing or the bounding-box diagonal / 100
-    margin : float, margin or 3 x spacing
-    """
-    lower, upper, diagonal = bounding_box(points)
-    spacing = diagonal / 100 if grid_spacing is None else check_number(grid_spacing, "grid_spacing", low=0,
-                                                                         low_open=True)
-    margin = 3 * spacing if margin is None else check_number(margin, "margin", low=0)
-    return lower, upper, spacing, margin
-
-
 def __getattr__(name):
     """``points_to_implicit`` lives in :mod:`bitemesh.core.pipeline` (it drops outliers and centres the points
     first); imported from here as before."""

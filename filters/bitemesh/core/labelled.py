@@ -50,8 +50,7 @@ from .cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTL
 from .contour_rbf import KERNELS, ContourRBF, fit_contour_rbf, off_surface_offsets  # noqa: F401
 from .csg import domain_names, parse_domain
 from .errors import InvalidInputError, check_number, check_points
-from .grid import EXACT_WITHIN, ImplicitGrid, sample_function
-from .implicit import grid_layout
+from .grid import ImplicitGrid, sample_function
 from .labelled_function import BASE, LabelledImplicit, boundary_surfaces  # noqa: F401 (re-exported)
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
@@ -59,7 +58,7 @@ from .parameters import (BitingParameters, FidelityParameters, ImplicitParameter
 from .samples import slice_spacing
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .source import Frame, Source
-from .spine import GRID_PER_RADIUS, MeshingResult, mesh_source, timed
+from .spine import MeshingResult, mesh_source, timed
 from .progress import ProgressCallback, report, sub_progress
 
 logger = logging.getLogger("bitemesh")
@@ -328,21 +327,6 @@ MIN_WALL = 2.5
 def thinnest_wall(radius: float) -> float:
     """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS` x R."""
     return max(MIN_WALL, WALL_PER_RADIUS * radius)
-
-
-def sample_labelled(function: LabelledImplicit, lower, upper, implicit: ImplicitParameters, min_wall=None,
-                    progress: ProgressCallback = None) -> ImplicitGrid:
-    """The domain's f on the grid I of PointsToImplicit (as :func:`bitemesh.core.implicit.points_to_implicit`
-    lays it out for the box [lower, upper] of :func:`labelled_implicit`: spacing grid_spacing, default the box's
-    diagonal / 100).
-
-    ``min_wall`` (input units) defaults to :func:`thinnest_wall` of R = GRID_PER_RADIUS x the spacing, the R that
-    the grid suits.
-    """
-    lower, upper, spacing, margin = grid_layout(np.array([lower, upper]), implicit.grid_spacing, implicit.margin)
-    function = function.with_min_wall(thinnest_wall(GRID_PER_RADIUS * spacing) if min_wall is None else min_wall)
-    return sample_function(function, lower, upper, spacing, margin=margin, max_memory_mb=implicit.max_memory_mb,
-                           exact_within=EXACT_WITHIN * spacing, progress=progress)
 
 
 #: the result of :func:`run_labelled`; its ``function`` is the LabelledImplicit (for :func:`boundary_surfaces`).

@@ -26,6 +26,19 @@ def parameter(default, help: str, *, unit: str = "", low=None, high=None, low_op
     return field(default=default, metadata=metadata)
 
 
+def is_optional(item) -> bool:
+    """True for a numeric field that is None by default: chosen automatically."""
+    return item.default is None and "range" in item.metadata
+
+
+def automatic_value(item):
+    """The number that stands for None ("automatic") where a number must be given (ParaView properties, the
+    Slicer parameter node; VTK setters take it too): 0 when 0 is outside the field's range, else -1."""
+    low, _, low_open, _ = item.metadata["range"]
+    zero_allowed = low is None or low < 0 or (low == 0 and not low_open)
+    return -1 if zero_allowed else 0
+
+
 class Parameters:
     """Checks every field against its metadata when the dataclass is made."""
 
@@ -176,7 +189,8 @@ class FidelityParameters(Parameters):
 class OptimizeSwitch(Parameters):
     """MeshFromPoints: whether the MeshOptimizer runs after the valid domain."""
 
-    optimize: int = parameter(0, "1 also runs the MeshOptimizer (relaxation, sliver removal), 0 skips it", low=0,
+    optimize: int = parameter(0, "1 also runs the MeshOptimizer (relaxation, sliver removal) on the valid domain; "
+                              "0 skips it", low=0,
                               high=1, integer=True)
 
 

@@ -10,15 +10,16 @@ import logging
 import numpy as np
 
 from .errors import InvalidInputError, check_points
-from .grid import EXACT_WITHIN, ImplicitGrid, grid_shape, sample_function
-from .implicit import MIN_POINTS, fit_implicit, grid_layout
+from .grid import ImplicitGrid
+from .implicit import MIN_POINTS, fit_implicit
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          SpuriousParameters, optimize_parameters)
 from .samples import PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
-                    MeshingResult, check_grid, check_memory, check_spacing, mesh_from_grid, mesh_source,
+                    MeshingResult, check_grid, check_memory, check_spacing, grid_for_source, mesh_from_grid,
+                    mesh_source,
                     radius_for_cells, timed)
 from .source import Frame, Source  # noqa: F401 (re-exported)
 
@@ -90,41 +91,31 @@ def _enough_points(points) -> np.ndarray:
     return points
 
 
-def sample_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
-                  progress: ProgressCallback = None) -> ImplicitGrid:
-    """A source's f on the grid I of PointsToImplicit, in user coordinates and units: over the data's box
-    enlarged by ``margin`` (default 3 spacings), spacing ``grid_spacing`` (default the box's diagonal / 100)."""
-    frame = source.frame
-    lower, upper, spacing, margin = grid_layout(frame.to_user(np.array([source.lower, source.upper])),
-                                                implicit.grid_spacing, implicit.margin)
-    return sample_function(lambda x: source.function(frame.to_local(x)) * frame.scale, lower, upper, spacing,
-                           margin=margin, max_memory_mb=implicit.max_memory_mb, exact_within=EXACT_WITHIN * spacing,
-                           progress=progress)
-
-
 def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound=None, grid_spacing=None,
-                       margin=None, max_memory_mb: float = 4096, outliers: str = "drop",
-                       progress: ProgressCallback = None) -> ImplicitGrid:
-    """Reconstruct f from scattered points (:func:`points_source`) and sample it on the grid I of the paper.
+                       margin=None, max_memory_mb: float = 4096, outliers: str = "drop", radius=None,
+                       cells: int = BitingParameters().cells, progress: ProgressCallback = None) -> ImplicitGrid:
+    """Reconstruct f from scattered points (:func:`points_source`) and sample it on the grid I, laid out as
+    :func:`run` lays it out (:func:`~bitemesh.core.spine.grid_for_source`).
 
     Parameters
     ----------
     points, normals : as for :func:`points_source`; method, error_bound, outliers : of :class:`ImplicitParameters`
-    grid_spacing : float, input units; default bounding-box diagonal / 100
+    grid_spacing : float, input units; default R / 4 (at least 1/40 of the data's longest side)
     margin : float, input units, grid extent beyond the bounding box; default 3 x grid_spacing
     max_memory_mb : float, MiB the grid may take; a larger grid is refused before fitting
+    radius, cells : R the grid is laid out for (input units), or chosen for about ``cells`` cells
     progress : callable(fraction, message), optional
 
     Returns
     -------
-    ImplicitGrid over [lower - margin, upper + margin] of the points, f > 0 inside, input units
+    ImplicitGrid over the points' box and a margin, f > 0 inside, input units
     """
     implicit = ImplicitParameters(method=method, error_bound=error_bound, grid_spacing=grid_spacing, margin=margin,
                                   max_memory_mb=max_memory_mb, outliers=outliers)
-    lower, upper, spacing, margin = grid_layout(_enough_points(points), grid_spacing, margin)
-    grid_shape(lower - margin, upper + margin, spacing, max_memory_mb=implicit.max_memory_mb)
-    source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.4))
-    return sample_source(source, implicit, sub_progress(progress, 0.4, 1.0))
+    biting = BitingParameters(radius=radius, cells=cells)
+    source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.4), biting)
+    grid = grid_for_source(source, implicit, biting, sub_progress(progress, 0.4, 1.0))[0]
+    return source.frame.grid_to_user(grid)
 
 
 def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),

@@ -76,6 +76,14 @@ class Frame:
         """(n, k) user points in local coordinates."""
         return points if self.is_identity() else np.linalg.solve(self.linear, (points - self.shift).T).T
 
+    def grid_to_user(self, grid: ImplicitGrid) -> ImplicitGrid:
+        """A grid of f in the local frame as the same grid in user coordinates and units (f scaled too); the frame
+        must be a uniform scaling and a shift, as the frames of scattered points, contours and images are."""
+        if not np.allclose(self.linear, self.scale * np.eye(self.dim), rtol=0, atol=1e-12 * self.scale):
+            raise ValueError("grid_to_user needs a frame that is a uniform scaling and a shift, not a rotation")
+        return ImplicitGrid(origin=self.to_user(grid.origin[None])[0], spacing=grid.spacing * self.scale,
+                            values=grid.values * self.scale)
+
     def mesh_to_user(self, mesh: Mesh) -> Mesh:
         """``mesh`` (local frame, positively oriented, quality arrays) in user coordinates: a reflection swaps two
         vertices of every cell back to positive, and the quality arrays are recomputed when angles change."""

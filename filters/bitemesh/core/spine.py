@@ -264,36 +264,52 @@ def _local(value, source: Source):
     return None if value is None else value / source.frame.scale
 
 
-def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
-                biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
-                optimize: OptimizeParameters | None = None, progress: ProgressCallback = None,
-                seconds: dict | None = None, fidelity: FidelityParameters = FidelityParameters()) -> MeshingResult:
-    """Mesh a source: choose R, sample the grid I, bite, Delaunay, carve the valid domain, optimize (unless
-    ``optimize`` is None), quality, measure the fidelity to the source's samples (refused beyond the bounds of
-    ``fidelity``, see :func:`~bitemesh.core.fidelity.check_fidelity`), and map the mesh to user coordinates.
+def grid_for_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
+                    biting: BitingParameters = BitingParameters(), progress: ProgressCallback = None):
+    """The grid I of a source and the R it is laid out for (the first steps of :func:`mesh_source`; the VTK chain's
+    PointsToImplicit takes them too, so that the chain and MeshFromPoints mesh the same grid).
 
-    Lengths in the parameters (radius, grid_spacing, margin) are in user units.  R is ``biting.radius``, else the
-    source's own :attr:`~bitemesh.core.source.Source.radius` when ``biting.cells`` is left at its default, else
-    chosen for ``biting.cells`` cells (:func:`choose_radius`).  ``spurious.handles`` "auto" takes the source's
-    meaning.
+    R is ``biting.radius``, else the source's own :attr:`~bitemesh.core.source.Source.radius` when
+    ``biting.cells`` is left at its default, else chosen for ``biting.cells`` cells (:func:`choose_radius`).
+
+    Returns
+    -------
+    grid : f on the grid I (local frame); radius : R (local units); function : the f that was sampled;
+    notes : the source's notes, and the sentence that says R was the source's own
     """
-    seconds = {} if seconds is None else seconds
     notes = source.notes
     if biting.radius is None and source.radius is not None and biting.cells == BitingParameters().cells:
         biting = replace(biting, radius=source.radius * source.frame.scale)
         notes += (source.radius_note,) if source.radius_note else ()
         logger.info(source.radius_note)
+    check_spacing(source, implicit)
+    radius = _local(biting.radius, source)
+    if radius is None:
+        radius = choose_radius(source, biting.cells, implicit)
+    check_grid(source, radius, implicit, biting)
+    function = source.function if source.at_radius is None else source.at_radius(radius)
+    grid = sample_grid(source, function, radius, implicit, progress)
+    check_inside(grid, radius, source.frame.scale, biting)
+    return grid, radius, function, notes
+
+
+def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
+                biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
+                optimize: OptimizeParameters | None = None, progress: ProgressCallback = None,
+                seconds: dict | None = None, fidelity: FidelityParameters = FidelityParameters()) -> MeshingResult:
+    """Mesh a source: choose R and sample the grid I (:func:`grid_for_source`), bite, Delaunay, carve the valid
+    domain, optimize (unless ``optimize`` is None), quality, measure the fidelity to the source's samples (refused
+    beyond the bounds of ``fidelity``, see :func:`~bitemesh.core.fidelity.check_fidelity`), and map the mesh to
+    user coordinates.
+
+    Lengths in the parameters (radius, grid_spacing, margin) are in user units.  ``spurious.handles`` "auto" takes
+    the source's meaning.
+    """
+    seconds = {} if seconds is None else seconds
     if spurious.handles == "auto":
         spurious = replace(spurious, handles=source.handles)
     with timed(seconds, "implicit sampling"):
-        check_spacing(source, implicit)
-        radius = _local(biting.radius, source)
-        if radius is None:
-            radius = choose_radius(source, biting.cells, implicit)
-        check_grid(source, radius, implicit, biting)
-        function = source.function if source.at_radius is None else source.at_radius(radius)
-        grid = sample_grid(source, function, radius, implicit, sub_progress(progress, 0.0, 0.3))
-        check_inside(grid, radius, source.frame.scale, biting)
+        grid, radius, function, notes = grid_for_source(source, implicit, biting, sub_progress(progress, 0.0, 0.3))
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
     result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 0.97), seconds, optimize)
     frame = source.frame

@@ -25,8 +25,7 @@ PARAMETERS = {
     "outliers": ("ImplicitParameters", "outliers"),
     "allowUnfaithful": ("FidelityParameters", "allow_unfaithful"),
 }
-#: keywords of :meth:`BiteMeshLogic.process` beyond the panel's (no "automatic" sentinel fits them: their ranges
-#: include their low bound).
+#: keywords of :meth:`BiteMeshLogic.process` that the panel has no widget for (scripts can give them).
 EXTRA_KEYWORDS = {"margin": ("ImplicitParameters", "margin"), "min_wall": ("LabelledParameters", "min_wall"),
                   "rv_wall": ("LabelledParameters", "rv_wall"),
                   "allow_implausible": ("LabelledParameters", "allow_implausible")}
@@ -43,7 +42,7 @@ class ParameterSpec:
     low, high : valid range (None: unbounded); lowOpen : the low bound itself is invalid
     choices : the valid values of a str parameter, else None (a str parameter without choices is free text)
     automatic : the parameter-node value that stands for "chosen automatically" (the core's None), or None when the
-        parameter is not optional; it is ``low`` of an open range, never a valid value
+        parameter is not optional: bitemesh.core.parameters.automatic_value, 0 or -1, never a valid value
     help, unit : from the field's metadata
     """
 
@@ -78,10 +77,8 @@ def parameterSpecs() -> tuple:
         high = None if high is None or high == float("inf") else kind(high)
         automatic = None
         default = item.default
-        if default is None:  # optional: the open low bound stands for "automatic" in the parameter node
-            if low is None or not lowOpen:
-                raise ValueError(f"{fieldName}: an optional parameter needs an open low bound to stand for automatic")
-            automatic = default = kind(low)
+        if core.is_optional(item):  # the number that stands for "automatic" (None) in the parameter node
+            automatic = default = kind(core.automatic_value(item))
         specs.append(ParameterSpec(name, fieldName, kind, kind(default), None if low is None else kind(low), high,
                                    bool(lowOpen), None, automatic, metadata["help"], metadata["unit"]))
     return tuple(specs)

@@ -1,0 +1,90 @@
+"""Every parameter reaches every interface from its dataclass: the ``bitemesh`` flags and the VTK setters (the
+ParaView properties are checked under pvbatch in tests/paraview, the Slicer parameters in tests/slicer).
+
+The tables below say which dataclasses each interface carries; a field added to a dataclass must then show up in
+each of them with the dataclass's default, and its automatic value must mean None everywhere.
+"""
+from __future__ import annotations
+
+from dataclasses import fields
+
+import pytest
+
+import bitemesh
+from bitemesh import algorithms
+from bitemesh.cli import build_parser
+from bitemesh.core import parameters as core
+from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.parameters import automatic_value, is_optional
+
+#: command -> the dataclasses whose every field is a flag of it
+COMMANDS = {
+    "mesh": (core.TableParameters, core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
+             core.FidelityParameters, core.OptimizeSwitch, core.OptimizeParameters, core.LabelledParameters),
+    "demo": (core.OptimizeSwitch, core.OptimizeParameters),
+    "quality": (core.QualityParameters,),
+}
+#: VTK filter -> the dataclasses whose fields it has setters for, in order ((dataclass, names): those fields only)
+FILTERS = {
+    "PointsToImplicit": (core.ImplicitParameters, (core.BitingParameters, ("radius", "cells")),
+                         core.LabelMapParameters, core.LabelledParameters),
+    "BitingSampler": (core.BitingParameters,),
+    "DelaunayTetra": (),
+    "SpuriousCellFilter": (core.SpuriousParameters, core.FidelityParameters),
+    "MeshOptimizer": (core.OptimizeParameters,),
+    "QualityFilter": (core.QualityParameters,),
+    "MeshFromPoints": (core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
+                       core.OptimizeSwitch, core.OptimizeParameters, core.LabelledParameters,
+                       core.FidelityParameters),
+}
+DATACLASSES = [value for value in vars(core).values()
+               if isinstance(value, type) and issubclass(value, core.Parameters) and value is not core.Parameters]
+
+
+def expected_fields(specs) -> list:
+    return [item for spec in specs for item in fields(spec[0] if isinstance(spec, tuple) else spec)
+            if not isinstance(spec, tuple) or item.name in spec[1]]
+
+
+def camel(name: str) -> str:
+    return "".join(part.capitalize() for part in name.split("_"))
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_field_is_a_flag_with_the_dataclass_default(command):
+    parser = build_parser()._subparsers._group_actions[0].choices[command]
+    actions = {action.dest: action for action in parser._actions}
+    for item in expected_fields(COMMANDS[command]):
+        assert item.name in actions, f"bitemesh {command}: no flag for {item.name}"
+        action = actions[item.name]
+        assert action.option_strings == [f"--{item.name.replace('_', '-')}"]
+        assert action.default == item.default, f"bitemesh {command} --{item.name}: default {action.default!r}"
+        assert item.metadata["help"].removeprefix("1 ")[:30] in action.help.replace("%%", "%")
+
+
+def test_every_filter_has_setters_for_exactly_its_fields():
+    assert set(FILTERS) == set(bitemesh.FILTERS)
+    every = {item.name for specs in FILTERS.values() for item in expected_fields(specs)}
+    for name, specs in FILTERS.items():
+        algorithm = getattr(algorithms, name)()
+        expected = expected_fields(specs)
+        assert [item.name for item in type(algorithm).parameter_fields] == [item.name for item in expected], name
+        for item in expected:
+            assert getattr(algorithm, f"Get{camel(item.name)}")() == item.default, f"{name}.Get{camel(item.name)}"
+        for other in every - {item.name for item in expected}:
+            assert not hasattr(algorithm, f"Set{camel(other)}"), f"{name} has Set{camel(other)}, which it ignores"
+
+
+def test_the_automatic_value_means_none_in_every_vtk_setter_and_nothing_else():
+    optional = [(name, item) for name, specs in FILTERS.items() for item in expected_fields(specs)
+                if is_optional(item)]
+    assert {item.name for _, item in optional} >= {"radius", "grid_spacing", "error_bound", "margin", "min_wall"}
+    for name, item in optional:
+        algorithm = getattr(algorithms, name)()
+        automatic = automatic_value(item)
+        getattr(algorithm, f"Set{camel(item.name)}")(automatic + 3)
+        getattr(algorithm, f"Set{camel(item.name)}")(automatic)
+        assert getattr(algorithm, f"Get{camel(item.name)}")() is None, f"{name}.Set{camel(item.name)}({automatic})"
+        owner = next(cls for cls in DATACLASSES if item in fields(cls))
+        with pytest.raises(InvalidInputError, match=item.name):   # it can never stand for a real value
+            owner(**{item.name: automatic})
