@@ -67,9 +67,9 @@ def mesh_pipeline(source: vtkPolyData, cells: int) -> QualityFilter:
     """The five filters, connected; nothing runs until ``update()``."""
     implicit = PointsToImplicit()
     implicit.SetInputData(source)
+    implicit.SetCells(cells)   # the grid I is laid out for R; BitingSampler takes that R from the image
     biting = BitingSampler()
     biting.SetInputConnection(implicit.GetOutputPort())
-    biting.SetCells(cells)
     delaunay = DelaunayTetra()
     delaunay.SetInputConnection(biting.GetOutputPort())
     spurious = SpuriousCellFilter()

@@ -66,6 +66,9 @@ BAD_INPUTS = {
     # case: (break the pipeline, repair it, the filter that fails, what its message must name)
     "negative radius": (lambda p: p.biting.SetRadius(-1.0), lambda p: p.biting.SetRadius(None),
                         BitingSampler, r"radius must be in \(0, inf\], got -1"),
+    "biting R finer than the grid": (lambda p: p.biting.SetCells(400000), lambda p: p.biting.SetCells(10000),
+                                     BitingSampler, r"Radius \(chosen for Cells = 400000\) = .* too small for the "
+                                     r"grid I .*set Radius or Cells on PointsToImplicit"),
     "threshold 2": (lambda p: p.spurious.SetThreshold(2), lambda p: p.spurious.SetThreshold(0.4),
                     SpuriousCellFilter, r"threshold must be in \[0, 1\], got 2"),
     "method bogus": (lambda p: p.implicit.SetMethod("bogus"), lambda p: p.implicit.SetMethod("mpu"),

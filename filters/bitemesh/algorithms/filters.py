@@ -194,6 +194,13 @@ class BitingSampler(BitemeshAlgorithm):
             radius = laid_out.GetValue(0)
         else:
             radius = radius_on_grid(grid, parameters.cells)
+        spacing = float(np.max(grid.spacing))
+        if spacing > radius / 2:   # a grid laid out for a larger R cannot resolve this one
+            named = "Radius" if parameters.radius is not None else f"Radius (chosen for Cells = {parameters.cells})"
+            raise InvalidInputError(
+                f"BitingSampler: {named} = {radius:.4g} is too small for the grid I (spacing {spacing:.4g}): the "
+                f"grid must resolve R, R >= 2 x spacing = {2 * spacing:.4g}; set Radius or Cells on "
+                "PointsToImplicit instead, which lays the grid out for them")
         nodes = bite(grid, radius, order=parameters.order, seed=parameters.seed, progress=self.progress)
         output = vtkPolyData.GetData(outInfo)
         output.ShallowCopy(nodes_to_polydata(nodes))
