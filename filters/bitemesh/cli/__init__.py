@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
 import warnings
 
@@ -57,6 +58,23 @@ def main(argv=None) -> int:
         logger.removeHandler(handler)
         logger.setLevel(previous_level)
         warnings.showwarning = shown
+
+
+def command() -> None:
+    """The ``bitemesh`` console command: :func:`main`, then exit with its code.
+
+    Once main has returned, the output is written or refused; from then on Ctrl-C is ignored, so that it cannot
+    kill the exiting interpreter (whose finalisation restores the default handler).  After a cancel the process
+    ends at once with 130: an interrupt that fell inside an import's C-level code evaluation leaves CPython set to
+    kill itself with SIGINT at exit, whatever code main returned.
+    """
+    code = main()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if code == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 def _run(argv) -> int:
