@@ -6,7 +6,6 @@ Importing this module skips the importing test module where slicer-core is absen
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import bitemesh
@@ -21,9 +20,7 @@ slicer = pytest.importorskip("slicer")
 if not hasattr(slicer, "vtkMRMLScene"):   # PyPI also has an unrelated package named "slicer"
     pytest.skip("the 'slicer' module found is not slicer-core (no vtkMRMLScene)", allow_module_level=True)
 
-MODULE = Path(__file__).resolve().parents[2] / "slicer_module" / "BiteMesh"
-if str(MODULE) not in sys.path:
-    sys.path.insert(0, str(MODULE))
+from tests.slicer.module import MODULE  # noqa: E402 - puts the module's folder on sys.path
 from BiteMeshLib.logic import BiteMeshLogic  # noqa: E402
 
 CENTRE = np.array([30.0, -40.0, 55.0])   # RAS, mm: off the origin, so that a wrong frame shows

@@ -28,7 +28,7 @@ import numpy as np
 
 from .contours import labelledPoints, loadLabelledPoints, modelLabels
 from .outputs import BiteMeshResult, writeOutputs
-from .parameters import coreParameters, parameterSpecs, splitParameters
+from .parameters import coreParameters, coreSettings, parameterSpecs
 from .points import scatteredPoints
 from .requirements import installRequirements, missingRequirements, requireBitemesh
 from .segments import meshSegment
@@ -82,19 +82,21 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         outputModelNode : vtkMRMLModelNode in a scene; receives the mesh (world/RAS coordinates, mm)
         segmentId : the segment to mesh (segmentation input); default the first segment
         progress : callable(fraction, message) or None; it may raise bitemesh.Cancelled to stop
-        **parameters : keywords of bitemesh's parameter dataclasses, None for "automatic": radius, cells,
-            grid_spacing, error_bound, method, threshold, min_component, order, seed, max_memory_mb, margin,
-            bins, optimize (0 or 1), domain, base_plane, min_wall.  ``method`` defaults to "rbf" for closed curves
-            (sparse contours), else "mpu".  For a segmentation the grid is the segment's voxel grid, resampled to
-            grid_spacing when given or when the voxels are coarser than radius / 4 or finer than radius / 8;
-            method and error_bound do not apply.
+        **parameters : the fields of bitemesh's parameter dataclasses that the panel has (the keys of
+            :data:`.parameters.KEYWORDS`), None for "automatic"; others are refused.  ``optimize`` (0 or 1) runs
+            the MeshOptimizer with ``iterations``, ``min_dihedral`` and ``min_quality`` (checked even when it is
+            off).  ``method`` defaults to "rbf" for closed curves (sparse contours), else "mpu".  For a
+            segmentation the grid is the segment's voxel grid, resampled to grid_spacing when given or when the
+            voxels are coarser than radius / 4 or finer than radius / 8; method and error_bound do not apply.
 
         Labelled contours: the input is labelled when a model has a point array ``Label`` or ``domain`` is given
         (not empty); then every input node is labelled (:func:`.contours.labelledPoints`) and the points go to
         bitemesh's ``run_labelled``: one surface per label (biv-me's surfaces for biv-me labels), combined by the
         CSG expression ``domain`` (default: biv-me's two-cavity myocardium, or the only label), closed by
         ``base_plane`` (auto, valves or none), no wall thinner than ``min_wall`` (mm; default max(2.5, 1.25 R));
-        method and error_bound do not apply.  domain, base_plane and min_wall do not apply to other inputs.
+        method and error_bound do not apply.  domain, base_plane, min_wall, rv_wall (biv-me: the derived RV free
+        wall, mm) and allow_implausible (1: keep a heart that fails the plausibility checks) do not apply to
+        other inputs.
 
         Returns
         -------
@@ -106,7 +108,6 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         Nothing is written to the scene unless meshing succeeds.
         """
         bitemesh = requireBitemesh()
-        from bitemesh.core import parameters as core
         from bitemesh.core.errors import Cancelled, InvalidInputError
         from bitemesh.core.labelled import run_labelled
         from bitemesh.core.progress import report, sub_progress
@@ -115,15 +116,12 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         nodes = self._inputNodes(inputNode)
         self._checkOutput(outputModelNode, nodes)
         contours = all(node.IsA("vtkMRMLMarkupsClosedCurveNode") for node in nodes)
-        settings = splitParameters(parameters, method="rbf" if contours else "mpu")
-        implicit = core.ImplicitParameters(**settings["ImplicitParameters"])
-        biting = core.BitingParameters(**settings["BitingParameters"])
-        spurious = core.SpuriousParameters(**settings["SpuriousParameters"])
-        quality = core.QualityParameters(**settings["QualityParameters"])
-        fidelity = core.FidelityParameters(**settings["FidelityParameters"])
-        labelled = core.LabelledParameters(**settings["LabelledParameters"])
+        settings = coreSettings(parameters, method="rbf" if contours else "mpu")
+        implicit, biting = settings["ImplicitParameters"], settings["BitingParameters"]
+        spurious, quality = settings["SpuriousParameters"], settings["QualityParameters"]
+        fidelity, labelled = settings["FidelityParameters"], settings["LabelledParameters"]
+        optimize = settings["optimize"]   # OptimizeParameters, or None: the optimizer is off
         domain = (labelled.domain or "").strip()   # "" (or None) stands for the default domain
-        optimize = core.OptimizeParameters() if core.OptimizeSwitch(**settings["OptimizeSwitch"]).optimize else None
 
         report(progress, 0.0, "reading the input")
         if any(node.IsA("vtkMRMLSegmentationNode") for node in nodes):

@@ -1,34 +1,55 @@
 """The panel's parameters, read from bitemesh.core.parameters (the single source of names, defaults, ranges and
-help), and the keywords of BiteMeshLogic.process split by dataclass."""
+help), and the keywords of BiteMeshLogic.process turned into the core's parameter objects.
+
+Nothing here imports slicer (only bitemesh), so that the panel can be checked against the dataclasses anywhere.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-from .requirements import requireBitemesh
-
-#: the module's parameters: parameter-node name -> (core dataclass, field), in panel order.
-PARAMETERS = {
-    "radius": ("BitingParameters", "radius"),
-    "cells": ("BitingParameters", "cells"),
-    "gridSpacing": ("ImplicitParameters", "grid_spacing"),
-    "errorBound": ("ImplicitParameters", "error_bound"),
-    "method": ("ImplicitParameters", "method"),
-    "threshold": ("SpuriousParameters", "threshold"),
-    "minComponent": ("SpuriousParameters", "min_component"),
-    "order": ("BitingParameters", "order"),
-    "seed": ("BitingParameters", "seed"),
-    "maxMemoryMb": ("ImplicitParameters", "max_memory_mb"),
-    "bins": ("QualityParameters", "bins"),
-    "optimize": ("OptimizeSwitch", "optimize"),
-    "domain": ("LabelledParameters", "domain"),
-    "basePlane": ("LabelledParameters", "base_plane"),
-    "outliers": ("ImplicitParameters", "outliers"),
-    "allowUnfaithful": ("FidelityParameters", "allow_unfaithful"),
+#: the panel's sections (the object names of the .ui's collapsible buttons), each with its parameters in panel
+#: order: parameter-node name -> (core dataclass, field).  The field name is the keyword of ``process``.
+SECTIONS = {
+    "parametersCollapsibleButton": {   # "Parameters", open
+        "radius": ("BitingParameters", "radius"),
+        "cells": ("BitingParameters", "cells"),
+        "gridSpacing": ("ImplicitParameters", "grid_spacing"),
+        "errorBound": ("ImplicitParameters", "error_bound"),
+        "method": ("ImplicitParameters", "method"),
+        "threshold": ("SpuriousParameters", "threshold"),
+        "optimize": ("OptimizeSwitch", "optimize"),
+    },
+    "contoursCollapsibleButton": {   # "Labelled contours", open
+        "domain": ("LabelledParameters", "domain"),
+        "basePlane": ("LabelledParameters", "base_plane"),
+        "minWall": ("LabelledParameters", "min_wall"),
+        "rvWall": ("LabelledParameters", "rv_wall"),
+        "allowImplausible": ("LabelledParameters", "allow_implausible"),
+    },
+    "optimizerCollapsibleButton": {   # "Optimizer", collapsed
+        "iterations": ("OptimizeParameters", "iterations"),
+        "minDihedral": ("OptimizeParameters", "min_dihedral"),
+        "minQuality": ("OptimizeParameters", "min_quality"),
+    },
+    "advancedCollapsibleButton": {   # "Advanced", collapsed
+        "minComponent": ("SpuriousParameters", "min_component"),
+        "handles": ("SpuriousParameters", "handles"),
+        "order": ("BitingParameters", "order"),
+        "seed": ("BitingParameters", "seed"),
+        "maxMemoryMb": ("ImplicitParameters", "max_memory_mb"),
+        "margin": ("ImplicitParameters", "margin"),
+        "outliers": ("ImplicitParameters", "outliers"),
+        "bins": ("QualityParameters", "bins"),
+        "farSamples": ("FidelityParameters", "far_samples"),
+        "unsupportedArea": ("FidelityParameters", "unsupported_area"),
+        "allowUnfaithful": ("FidelityParameters", "allow_unfaithful"),
+    },
 }
-#: keywords of :meth:`BiteMeshLogic.process` that the panel has no widget for (scripts can give them).
-EXTRA_KEYWORDS = {"margin": ("ImplicitParameters", "margin"), "min_wall": ("LabelledParameters", "min_wall"),
-                  "rv_wall": ("LabelledParameters", "rv_wall"),
-                  "allow_implausible": ("LabelledParameters", "allow_implausible")}
+#: the module's parameters: parameter-node name -> (core dataclass, field), in panel order.
+PARAMETERS = {name: where for section in SECTIONS.values() for name, where in section.items()}
+#: the keywords of :meth:`BiteMeshLogic.process` (the core's field names) -> their core dataclass.
+KEYWORDS = {fieldName: dataclassName for dataclassName, fieldName in PARAMETERS.values()}
+assert len(KEYWORDS) == len(PARAMETERS), "two panel parameters share a core keyword"
 
 
 @dataclass(frozen=True)
@@ -59,10 +80,17 @@ class ParameterSpec:
     unit: str
 
 
-def parameterSpecs() -> tuple:
-    """The :class:`ParameterSpec` of every panel parameter, in panel order, from bitemesh.core.parameters."""
+def _core():
+    """bitemesh.core.parameters, with a useful message when a requirement of bitemesh is missing."""
+    from .requirements import requireBitemesh
     requireBitemesh()
     from bitemesh.core import parameters as core
+    return core
+
+
+def parameterSpecs() -> tuple:
+    """The :class:`ParameterSpec` of every panel parameter, in panel order, from bitemesh.core.parameters."""
+    core = _core()
     specs = []
     for name, (dataclassName, fieldName) in PARAMETERS.items():
         item = {f.name: f for f in fields(getattr(core, dataclassName))}[fieldName]
@@ -84,31 +112,57 @@ def parameterSpecs() -> tuple:
     return tuple(specs)
 
 
+def _refuseUnknown(names, known, what: str) -> None:
+    from bitemesh.core.errors import InvalidInputError
+    unknown = sorted(set(names) - set(known))
+    if unknown:
+        raise InvalidInputError(f"unknown {what}(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+
+
 def coreParameters(values: dict) -> dict:
-    """Parameter-node values (by name) -> keywords of :meth:`BiteMeshLogic.process` ("automatic" becomes None)."""
+    """Parameter-node values (by name) -> keywords of :meth:`BiteMeshLogic.process` ("automatic" becomes None);
+    unknown names are refused."""
+    specs = {spec.name: spec for spec in parameterSpecs()}
+    _refuseUnknown(values, specs, "panel parameter")
     keywords = {}
-    for spec in parameterSpecs():
-        if spec.name in values:
-            value = values[spec.name]
-            keywords[spec.core] = None if spec.automatic is not None and value == spec.automatic else value
+    for name, value in values.items():
+        spec = specs[name]
+        keywords[spec.core] = None if spec.automatic is not None and value == spec.automatic else value
     return keywords
 
 
 def splitParameters(parameters: dict, method: str) -> dict:
-    """Split keyword parameters by core dataclass; unknown names are refused with the list of known ones."""
-    from bitemesh.core.errors import InvalidInputError
-    known = {fieldName: dataclassName for dataclassName, fieldName in
-             list(PARAMETERS.values()) + list(EXTRA_KEYWORDS.values())}
-    unknown = sorted(set(parameters) - set(known))
-    if unknown:
-        raise InvalidInputError(f"unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
-    split = {name: {} for name in ("ImplicitParameters", "BitingParameters", "SpuriousParameters",
-                                   "QualityParameters", "OptimizeSwitch", "LabelledParameters",
-                                   "FidelityParameters")}
-    split["ImplicitParameters"]["method"] = method
+    """Split keyword parameters by core dataclass (every dataclass of the panel has an entry, perhaps empty);
+    unknown names are refused with the list of known ones.  ``method`` is the default of ImplicitParameters.method
+    (also when the keyword is None)."""
+    _refuseUnknown(parameters, KEYWORDS, "parameter")
+    split = {dataclassName: {} for dataclassName in KEYWORDS.values()}
     for name, value in parameters.items():
-        split[known[name]][name] = value
-    if split["ImplicitParameters"]["method"] is None:
+        split[KEYWORDS[name]][name] = value
+    if split["ImplicitParameters"].get("method") is None:
         split["ImplicitParameters"]["method"] = method
     return split
 
+
+#: the dataclasses :func:`optimizerParameters` reads (the optimizer's parameters and its switch).
+OPTIMIZER_DATACLASSES = ("OptimizeParameters", "OptimizeSwitch")
+
+
+def optimizerParameters(split: dict):
+    """The MeshOptimizer's parameters for split keywords (checked even when the optimizer is off), or None when
+    the optimizer is off.  The one place that reads the on/off switch (today OptimizeSwitch.optimize)."""
+    core = _core()
+    parameters = core.OptimizeParameters(**split["OptimizeParameters"])
+    return parameters if core.OptimizeSwitch(**split["OptimizeSwitch"]).optimize else None
+
+
+def coreSettings(parameters: dict, method: str) -> dict:
+    """Keyword parameters of :meth:`BiteMeshLogic.process` -> the core's parameter objects, each checked by its
+    dataclass: dataclass name -> instance for every dataclass of the panel except the optimizer's, and
+    ``"optimize"``: the OptimizeParameters the MeshOptimizer runs with, or None when it is off."""
+    core = _core()
+    split = splitParameters(parameters, method)
+    settings = {name: getattr(core, name)(**values) for name, values in split.items()
+                if name not in OPTIMIZER_DATACLASSES}
+    settings["optimize"] = optimizerParameters(split)
+    return settings

@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import slicer
 
 
 def bitemeshSourceRoot() -> Path | None:
@@ -69,6 +68,7 @@ def installRequirements(pipInstall=None, confirm=None) -> list:
     if confirm is not None and not confirm(missing):
         raise MissingRequirementError(f"BiteMesh needs {', '.join(missing)}; it was not installed")
     if pipInstall is None:
+        import slicer   # only here: the rest of BiteMeshLib.requirements and .parameters runs without Slicer
         pipInstall = slicer.util.pip_install
     pipInstall(missing + [f"numpy=={np.__version__}"])
     importlib.invalidate_caches()

@@ -1,0 +1,242 @@
+"""The panel against the core dataclasses: every field of each dataclass the panel uses has a parameter, a widget
+in the .ui (its section, type, label, unit suffix; no tooltip or range of its own) and a parameter-node field with
+the dataclass's range and default; keywords split by dataclass, the optimizer's switch and bounds, unknown names
+refused.
+
+Run: cd /work/main && PYTHONPATH=filters .slicer-venv/bin/python -m pytest tests/slicer -q -p no:cacheprovider
+Everything but the parameter-node test runs in the main environment too (it needs no Slicer).
+"""
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from dataclasses import fields
+from xml.etree import ElementTree
+
+import pytest
+from bitemesh import InvalidInputError
+from bitemesh.core import parameters as core
+
+from tests.slicer.module import MODULE
+from BiteMeshLib import parameters as lib_parameters  # on sys.path from tests.slicer.module
+
+INT_MAX = 2**31 - 1   # QSpinBox's largest value (BiteMesh._INT_MAX)
+#: the suffix a spin box shows for each unit of the dataclasses (Slicer's input units are mm).
+UNIT_SUFFIX = {"": None, "input units": " mm", "mm": " mm", "MiB": " MiB", "degrees": "°", "%": " %"}
+WIDGET_CLASSES = {"choices": "QComboBox", str: "QLineEdit", int: "QSpinBox", float: "QDoubleSpinBox"}
+
+
+def core_field(name):
+    """The dataclass field behind a panel parameter."""
+    dataclass_name, field_name = lib_parameters.PARAMETERS[name]
+    return {item.name: item for item in fields(getattr(core, dataclass_name))}[field_name]
+
+
+def ui_sections():
+    """The .ui's collapsible sections, in order: object name -> (collapsed, [(label widget or None, widget)])."""
+    root = ElementTree.parse(MODULE / "Resources" / "UI" / "BiteMesh.ui").getroot()
+    sections = {}
+    for button in root.iter("widget"):
+        if button.get("class") != "ctkCollapsibleButton":
+            continue
+        collapsed = any(p.get("name") == "collapsed" and p.find("bool").text == "true"
+                        for p in button.findall("property"))
+        rows = {}
+        for item in button.find("layout").findall("item"):
+            widget = item.find("widget")
+            if widget is not None:
+                rows.setdefault(int(item.get("row")), {})[int(item.get("column"))] = widget
+        sections[button.get("name")] = (collapsed, [(row.get(0), row[1]) for _, row in sorted(rows.items())
+                                                    if 1 in row])
+    return sections
+
+
+def properties(widget) -> dict:
+    """A widget's own properties: name -> text."""
+    return {p.get("name"): (p[0].text if len(p) else None) for p in widget.findall("property")}
+
+
+# --- the parameters and their specs ---------------------------------------------------------------------------------
+
+def test_the_panel_has_every_field_of_its_dataclasses():
+    """The labelled contours' and the optimizer's parameters included: nothing left only to scripts."""
+    used = set(lib_parameters.KEYWORDS.values())
+    assert {"LabelledParameters", "OptimizeParameters", "OptimizeSwitch", "ImplicitParameters"} <= used
+    claimed = set(lib_parameters.PARAMETERS.values())
+    for dataclass_name in used:
+        for item in fields(getattr(core, dataclass_name)):
+            assert (dataclass_name, item.name) in claimed, f"{dataclass_name}.{item.name} has no panel parameter"
+    assert {lib_parameters.PARAMETERS[name] for name in ("iterations", "minDihedral", "minQuality")} == \
+        {("OptimizeParameters", "iterations"), ("OptimizeParameters", "min_dihedral"),
+         ("OptimizeParameters", "min_quality")}
+    assert len(lib_parameters.KEYWORDS) == len(lib_parameters.PARAMETERS)   # one keyword per parameter
+    assert list(lib_parameters.PARAMETERS) == [name for section in lib_parameters.SECTIONS.values()
+                                               for name in section]
+
+
+def test_parameter_specs_follow_the_core_dataclasses():
+    specs = {spec.name: spec for spec in lib_parameters.parameterSpecs()}
+    assert list(specs) == list(lib_parameters.PARAMETERS)
+    for name, spec in specs.items():
+        item = core_field(name)
+        assert spec.core == item.name and spec.help == item.metadata["help"] and spec.unit == item.metadata["unit"]
+        if "choices" in item.metadata:
+            assert spec.choices == item.metadata["choices"] and spec.default == item.default
+        elif item.metadata.get("text"):
+            assert spec.kind is str and spec.choices is None and spec.default == item.default
+        else:
+            low, high, low_open, _ = item.metadata["range"]
+            assert spec.kind is (int if item.metadata["integer"] else float)
+            assert spec.low == low and spec.lowOpen == low_open
+            assert spec.high == (None if high is None or high == float("inf") else high)
+            assert (spec.automatic is not None) == (item.default is None)
+            assert spec.default == (core.automatic_value(item) if item.default is None else item.default)
+    assert specs["radius"].automatic == 0.0 and specs["radius"].kind is float
+    assert specs["minWall"].automatic == -1.0 and specs["margin"].automatic == -1.0   # 0 is a valid wall, margin
+    assert (specs["iterations"].kind, specs["iterations"].default, specs["iterations"].high) == (int, 30, 1000)
+    assert (specs["minDihedral"].default, specs["minDihedral"].high, specs["minDihedral"].unit) == \
+        (20.0, 60.0, "degrees")
+    assert (specs["rvWall"].default, specs["rvWall"].lowOpen) == (3.0, True)
+    assert specs["basePlane"].choices == ("auto", "valves", "none") and specs["basePlane"].default == "auto"
+    # "automatic" is never a valid value of the core, so it cannot be confused with one
+    for spec in specs.values():
+        if spec.automatic is not None:
+            with pytest.raises(InvalidInputError):
+                getattr(core, lib_parameters.PARAMETERS[spec.name][0])(**{spec.core: spec.automatic})
+
+
+# --- the .ui file ---------------------------------------------------------------------------------------------------
+
+def test_ui_file_has_a_widget_for_every_parameter_in_its_section():
+    sections = ui_sections()
+    expected = {"inputsCollapsibleButton": None, **lib_parameters.SECTIONS}
+    assert list(sections) == list(expected)   # the sections, in panel order
+    assert not sections["parametersCollapsibleButton"][0], "the main parameters must be visible"
+    specs = {spec.name: spec for spec in lib_parameters.parameterSpecs()}
+    for section, (_, rows) in sections.items():
+        bound = [properties(widget).get("SlicerParameterName") for _, widget in rows]
+        if section == "inputsCollapsibleButton":
+            assert [name for name in bound if name] == ["inputNode", "outputModel"]
+            continue
+        assert bound == list(expected[section]), section   # every parameter of the section, in order, no other
+        for label, widget in rows:
+            name = properties(widget)["SlicerParameterName"]
+            spec, own = specs[name], properties(widget)
+            assert label is not None and label.get("class") == "QLabel", f"{name} has no label"
+            assert properties(label)["text"].endswith(":"), name
+            assert widget.get("class") == WIDGET_CLASSES["choices" if spec.choices else spec.kind], name
+            # the tooltip (help and unit), the range and the value come from the dataclass, never from the .ui
+            assert not {"toolTip", "minimum", "maximum", "value", "text", "currentIndex"} & set(own), name
+            if spec.kind in (int, float):
+                assert own.get("suffix") == UNIT_SUFFIX[spec.unit], f"{name}: unit {spec.unit!r}"
+            if spec.automatic is not None:   # the spin box shows "automatic" at its minimum, the automatic value
+                assert own.get("specialValueText", "").startswith("automatic"), name
+            if spec.kind is float:   # the default shows as it is
+                decimals = int(own.get("decimals", 2))
+                assert round(spec.default, decimals) == spec.default, f"{name}: {decimals} decimals"
+
+
+# --- keywords to the core's parameter objects -----------------------------------------------------------------------
+
+def test_keywords_split_by_dataclass_and_unknown_names_are_refused():
+    split = lib_parameters.splitParameters({"min_dihedral": 25.0, "iterations": 3, "margin": 2.0, "rv_wall": 4.0,
+                                            "allow_implausible": 1, "handles": "keep", "method": None}, "rbf")
+    assert split["OptimizeParameters"] == {"min_dihedral": 25.0, "iterations": 3}
+    assert split["ImplicitParameters"] == {"margin": 2.0, "method": "rbf"}
+    assert split["LabelledParameters"] == {"rv_wall": 4.0, "allow_implausible": 1}
+    assert split["SpuriousParameters"] == {"handles": "keep"} and split["OptimizeSwitch"] == {}
+    with pytest.raises(InvalidInputError, match=r"unknown parameter\(s\) min_dihedrals; known: .*min_dihedral"):
+        lib_parameters.splitParameters({"min_dihedrals": 25.0}, "mpu")
+    with pytest.raises(InvalidInputError, match="unknown parameter.* minDihedral"):   # a panel name, not a keyword
+        lib_parameters.splitParameters({"minDihedral": 25.0}, "mpu")
+    assert lib_parameters.coreParameters({"radius": 0.0, "gridSpacing": 0.5, "method": "rbf", "cells": 500}) == \
+        {"radius": None, "grid_spacing": 0.5, "method": "rbf", "cells": 500}
+    assert lib_parameters.coreParameters({"minWall": -1.0, "margin": 0.0, "minDihedral": 25.0, "iterations": 0}) == \
+        {"min_wall": None, "margin": 0.0, "min_dihedral": 25.0, "iterations": 0}
+    with pytest.raises(InvalidInputError, match="unknown panel parameter.* min_dihedral"):
+        lib_parameters.coreParameters({"min_dihedral": 25.0})
+
+
+def test_settings_hold_the_values_and_the_optimizer_follows_its_switch():
+    bounds = {"iterations": 3, "min_dihedral": 25.0, "min_quality": 0.35}
+    on = lib_parameters.coreSettings({"optimize": 1, "rv_wall": 4.0, "margin": 2.0, **bounds}, "mpu")
+    assert on["optimize"] == core.OptimizeParameters(**bounds)
+    assert on["LabelledParameters"] == core.LabelledParameters(rv_wall=4.0)
+    assert on["ImplicitParameters"] == core.ImplicitParameters(method="mpu", margin=2.0)
+    assert not {"OptimizeParameters", "OptimizeSwitch"} & set(on)   # the optimizer is read in one place only
+    assert lib_parameters.coreSettings({"optimize": 1}, "mpu")["optimize"] == core.OptimizeParameters()
+    assert lib_parameters.coreSettings(bounds, "mpu")["optimize"] is None   # switch off (its default)
+    # the bounds are checked even when the optimizer is off
+    with pytest.raises(InvalidInputError, match=r"min_dihedral must be in \[0, 60\)"):
+        lib_parameters.coreSettings({"optimize": 0, "min_dihedral": 60.0}, "mpu")
+    with pytest.raises(InvalidInputError, match="iterations"):
+        lib_parameters.coreSettings({"optimize": 1, "iterations": -1}, "mpu")
+
+
+# --- the parameter node (BiteMesh.py, with stand-ins for what only the Slicer application has) ------------------------
+
+LOAD_MODULE_FILE = """
+import sys, types, typing
+sys.modules["qt"] = types.ModuleType("qt")
+scripted = types.ModuleType("slicer.ScriptedLoadableModule")
+for name in ("ScriptedLoadableModule", "ScriptedLoadableModuleWidget", "ScriptedLoadableModuleTest",
+             "ScriptedLoadableModuleLogic"):
+    setattr(scripted, name, type(name, (), {"__init__": lambda self, parent=None: setattr(self, "parent", parent)}))
+sys.modules["slicer.ScriptedLoadableModule"] = scripted
+wrapper = types.ModuleType("slicer.parameterNodeWrapper")
+def validator(name):
+    return type(name, (), {"__init__": lambda self, *arguments: setattr(self, "arguments", arguments)})
+wrapper.Choice, wrapper.Minimum, wrapper.WithinRange = map(validator, ("Choice", "Minimum", "WithinRange"))
+wrapper.parameterNodeWrapper = lambda cls: cls
+sys.modules["slicer.parameterNodeWrapper"] = wrapper
+import slicer
+slicer.parameterNodeWrapper = wrapper
+sys.path.insert(0, sys.argv[1])
+import BiteMesh
+
+module = BiteMesh.BiteMesh(types.SimpleNamespace())
+assert module.parent.title == "BiteMesh" and module.parent.categories
+cls = BiteMesh.parameterNodeClass()
+hints = typing.get_type_hints(cls, include_extras=True)
+assert type(None) in typing.get_args(hints["inputNode"]), "inputNode must allow None"
+assert typing.get_args(hints["contours"])[0] is slicer.vtkMRMLMarkupsClosedCurveNode
+fields = {}
+for name, hint in hints.items():
+    kind, *validators = typing.get_args(hint) or (hint,)   # free text: plain str
+    if isinstance(kind, type) and kind in (int, float, str):
+        fields[name] = (kind.__name__, [(type(v).__name__, v.arguments) for v in validators], getattr(cls, name))
+print(repr({"names": sorted(hints), "fields": fields}))
+"""
+
+
+def test_parameter_node_has_each_dataclass_range_and_default():
+    """BiteMesh.py builds its parameterNodeWrapper class (the widgets' ranges and values) from the dataclasses."""
+    pytest.importorskip("slicer", reason="BiteMesh.py needs slicer-core's slicer and vtk")
+    completed = subprocess.run([sys.executable, "-c", LOAD_MODULE_FILE, str(MODULE)], capture_output=True,
+                               text=True, timeout=300, check=False)
+    assert completed.returncode == 0, completed.stderr
+    node = ast.literal_eval(completed.stdout.strip().splitlines()[-1])
+    assert set(node["names"]) == set(lib_parameters.PARAMETERS) | {"inputNode", "contours", "segmentId",
+                                                                   "outputModel"}
+    for name in lib_parameters.PARAMETERS:
+        item, (kind, validators, default) = core_field(name), node["fields"][name]
+        if "choices" in item.metadata:
+            assert (kind, validators, default) == ("str", [("Choice", (list(item.metadata["choices"]),))],
+                                                   item.default), name
+            continue
+        if item.metadata.get("text"):
+            assert (kind, validators, default) == ("str", [], item.default), name
+            continue
+        low, high, _, _ = item.metadata["range"]
+        integer = item.metadata["integer"]
+        assert kind == ("int" if integer else "float"), name
+        if item.default is None:   # automatic: a number below the valid range, at the widget's minimum
+            assert default == core.automatic_value(item) and default <= low, name
+            low = default
+        else:
+            assert default == item.default, name
+        if integer:
+            high = INT_MAX if high is None else min(high, INT_MAX)
+        expected = ("Minimum", (low,)) if high is None or high == float("inf") else ("WithinRange", (low, high))
+        assert validators == [expected], name
