@@ -8,6 +8,7 @@ cells 0.805 / 0.8 deg -> 0.902 / 32.5 deg; die 10,000 0.795 / 1.3 -> 0.895 / 25.
 """
 from __future__ import annotations
 
+import warnings
 from math import comb
 
 import numpy as np
@@ -15,7 +16,7 @@ import pytest
 
 from bitemesh.core import optimize as optimizer
 from bitemesh.core.delaunay import delaunay
-from bitemesh.core.errors import Cancelled, InvalidInputError, MeshingError
+from bitemesh.core.errors import BitemeshWarning, Cancelled, InvalidInputError, MeshingError
 from bitemesh.core.mesh import Mesh, signed_measures
 from bitemesh.core.cell_measures import inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms, signed_radius_ratio
 from bitemesh.core.flips import flip, polygon_triangulations
@@ -121,6 +122,23 @@ def test_progress_reports_the_convergence_and_what_remains(optimized):
     assert messages[-1][1].startswith("optimised: mean radius ratio 0.9")
     assert "remain 0 cells with an angle below 20 degrees or a radius ratio below 0.3, 0 boundary nodes" in \
         messages[-1][1]
+
+
+def test_bounds_it_cannot_meet_are_a_warning_with_the_figures():
+    """No tetrahedron of a uniform mesh has every dihedral angle at 59 degrees (the regular one has 70.5 and then
+    others are smaller): the optimiser returns its best mesh and says by how much it missed."""
+    grid, mesh, _ = meshed(sphere(), 2000)
+    with pytest.warns(BitemeshWarning, match=r"could not meet its bounds: \d+ of \d+ cells remain below "
+                      r"min_dihedral = 59 degrees .*smallest angle \d+\.\d degrees.*lower radius"):
+        result = optimize_mesh(grid, mesh, OptimizeParameters(min_dihedral=59.0))
+    assert_valid_domain(result, euler=2, components=1)
+
+
+def test_bounds_it_meets_give_no_warning(optimized):
+    grid, mesh = optimized["sphere"][1], optimized["sphere"][2]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BitemeshWarning)
+        optimize_mesh(grid, mesh, OptimizeParameters(iterations=5))
 
 
 def test_a_2d_mesh_gets_angles_of_at_least_25_degrees():

@@ -28,6 +28,8 @@ points.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from .biting import project_to_surface
@@ -36,7 +38,7 @@ from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean
                             smallest_angles, tangential)
 from .delaunay import delaunay
 from .domain import carve_domain, compact
-from .errors import InvalidInputError, MeshingError
+from .errors import BitemeshWarning, InvalidInputError, MeshingError
 from .flips import flip
 from .grid import ImplicitGrid
 from .mesh import Mesh, circumspheres, signed_measures
@@ -357,6 +359,20 @@ def optimize_mesh(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters
             report(progress, 1.0, f"{outcome}: mean radius ratio {mean:.4f}; remain {poor} cells with an angle "
                                   f"below {parameters.min_dihedral:g} degrees or a radius ratio below "
                                   f"{parameters.min_quality:g}, {off} boundary nodes off f = 0")
+            if poor:
+                warn_missed_bounds(states[index], parameters, poor)
             return states[index]
     raise MeshingError("the mesh is not a valid domain, and optimising did not make it one: "
                        + "; ".join(check_valid_domain(start)))
+
+
+def warn_missed_bounds(mesh: Mesh, parameters: OptimizeParameters, poor: int) -> None:
+    """A :class:`BitemeshWarning` with the figures: the optimised mesh still has ``poor`` cells below its bounds."""
+    angle = float(smallest_angles(mesh.points, mesh.cells).min())
+    quality = float(signed_radius_ratio(mesh.points, mesh.cells).min())
+    warnings.warn(
+        f"the optimiser could not meet its bounds: {poor} of {len(mesh.cells)} cells remain below min_dihedral = "
+        f"{parameters.min_dihedral:g} degrees or min_quality = {parameters.min_quality:g} (smallest angle "
+        f"{angle:.1f} degrees, smallest radius ratio {quality:.3f}); walls only a few cells thick leave no room to "
+        "repair them: lower radius (or raise cells) to put more cells across the thinnest wall", BitemeshWarning,
+        stacklevel=2)
