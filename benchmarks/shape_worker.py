@@ -23,7 +23,8 @@ if str(SOURCE_ROOT) not in sys.path:
 from golden import fingerprint  # noqa: E402
 
 #: command-line name -> factory name in bitemesh.core.shapes
-SHAPES = {"sphere": "sphere", "die": "die", "torus": "torus", "two-cavity": "two_cavity_shell"}
+SHAPES = {"sphere": "sphere", "die": "die", "torus": "torus", "two-cavity": "two_cavity_shell",
+          "two-cavity-heart": "two_cavity_heart"}
 #: point spacing of the input = this x the expected node spacing R
 POINT_SPACING_PER_R = 0.5
 #: noise standard deviation = this x the shape's size (largest side of its bounding box)
