@@ -96,10 +96,27 @@ CASES = {
 }
 
 
+def processor() -> str:
+    """The processor's model name (numpy and OpenBLAS pick their SIMD kernels by it: an AMD EPYC and an Intel Xeon
+    round the same pipeline differently)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "?"
+
+
 def environment() -> dict:
     """What floating point results depend on here."""
     return dict(python=platform.python_version(), numpy=np.__version__, scipy=scipy.__version__,
-                machine=platform.machine(), system=platform.system())
+                machine=platform.machine(), system=platform.system(), processor=processor())
+
+
+def recorded_here(records: list):
+    """The record (environment, meshes) of golden.json made in this :func:`environment`, or None."""
+    return next((record for record in records if record["environment"] == environment()), None)
 
 
 def main(argv=None) -> int:
@@ -114,16 +131,20 @@ def main(argv=None) -> int:
     for name in names:
         found[name] = fingerprint(CASES[name][0]())
         print(f"{name:20s} {found[name]}", flush=True)
+    records = json.loads(RECORD.read_text()) if RECORD.exists() else []
+    mine = recorded_here(records)
     if args.record:
-        meshes = json.loads(RECORD.read_text())["meshes"] if RECORD.exists() and args.cases else {}
-        meshes = {name: found.get(name, meshes.get(name)) for name in CASES if name in found or name in meshes}
-        RECORD.write_text(json.dumps(dict(environment=environment(), meshes=meshes), indent=1) + "\n")
-        print(f"recorded {len(found)} meshes in {RECORD}")
+        kept = mine["meshes"] if mine is not None and (args.cases or args.quick) else {}
+        meshes = {name: found.get(name, kept.get(name)) for name in CASES if name in found or name in kept}
+        records = [record for record in records if record is not mine] + [dict(environment=environment(),
+                                                                              meshes=meshes)]
+        RECORD.write_text(json.dumps(records, indent=1) + "\n")
+        print(f"recorded {len(found)} meshes for {environment()} in {RECORD}")
         return 0
-    recorded = json.loads(RECORD.read_text())
-    if recorded["environment"] != environment():
-        print(f"note: recorded with {recorded['environment']}, running with {environment()}")
-    differ = [name for name in names if recorded["meshes"].get(name) != found[name]]
+    if mine is None:
+        print(f"no fingerprints recorded for {environment()}: record them with --record")
+        return 1
+    differ = [name for name in names if mine["meshes"].get(name) != found[name]]
     print("all the same" if not differ else f"different: {', '.join(differ)}")
     return 1 if differ else 0
 

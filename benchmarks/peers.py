@@ -43,6 +43,7 @@ for p in (str(SOURCE_ROOT), str(HERE)):
 from bitemesh.core import shapes  # noqa: E402
 from bitemesh.core.mesh import Mesh  # noqa: E402
 from bitemesh.core.quality import check_valid_domain, quality_summary  # noqa: E402
+from golden import processor  # noqa: E402
 from shape_worker import make_input  # noqa: E402
 
 CALIBRATION_TOLERANCE = 0.05  # stop calibrating once the tet count is within 5 % of the target
@@ -232,15 +233,8 @@ def versions() -> dict:
 
 
 def machine() -> str:
-    cpu = platform.processor() or "?"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{platform.system()} {platform.release()} {platform.machine()}, {cpu}, {os.cpu_count()} logical CPUs"
+    return (f"{platform.system()} {platform.release()} {platform.machine()}, {processor()}, "
+            f"{os.cpu_count()} logical CPUs")
 
 
 COLUMNS = [("mesher", "{}"), ("tets", "{:,}"), ("nodes", "{:,}"), ("mean Q", "{:.3f}"), ("min Q", "{:.3f}"),
