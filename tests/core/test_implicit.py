@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from bitemesh.core.errors import Cancelled, InvalidInputError
-from bitemesh.core.implicit import (MPUImplicit, RBFImplicit, check_normals, estimate_normals, fit_implicit, fit_mpu,
-                                    fit_rbf, points_to_implicit)
+from bitemesh.core.implicit import (MAX_RBF_POINTS, MPUImplicit, RBFImplicit, check_normals, estimate_normals,
+                                    fit_implicit, fit_mpu, fit_rbf, points_to_implicit)
 
 
 def sphere_sample(count, *, radius=1.0, noise=0.0, seed=0):
@@ -214,8 +214,42 @@ def test_rbf_annulus_signs_with_and_without_normals():
     assert f(np.array([[0.0, 30.0]]))[0] == pytest.approx(-29.0)   # clamped: minus the distance to the box
 
 
+def test_rbf_on_patches_interpolates_and_follows_the_distance_in_2d_and_3d():
+    """Beyond PATCH_CENTRES constraints (400 points) the RBF is fitted on patches, a quadtree's in 2D and an octree's
+    in 3D, blended by the partition of unity.  Each patch interpolates the constraints in its ball, so the blend
+    does: f = 0 at the points (to the solve's residual); near the surface f is about the signed distance (its
+    values at the off-surface points are +/- their distance), and the gradient is f's."""
+    from bitemesh.core.shapes import annulus, sample_surface
+    points, normals, _ = sphere_sample(3000)
+    calls = []
+    f = fit_rbf(points, normals, progress=lambda fraction, message: calls.append(fraction))
+    assert len(f.patches) > 8 and np.abs(f(points)).max() < 1e-6
+    assert calls[-1] == 1.0 and calls == sorted(calls)
+    directions = sphere_sample(500, seed=1)[1]
+    for radius in (0.9, 0.98, 1.02, 1.1):
+        np.testing.assert_allclose(f(radius * directions), 1 - radius, rtol=0, atol=0.005)
+    shape = annulus()
+    flat_points, flat_normals = sample_surface(shape, 0.005, seed=1)
+    flat = fit_rbf(flat_points, flat_normals)
+    assert len(flat.patches) > 1 and np.abs(flat(flat_points)).max() < 1e-6
+    probes = np.random.default_rng(2).uniform(-1, 1, (4000, 2))
+    distance = shape.function(probes)
+    near = np.abs(distance) < 0.05   # ten point spacings, twenty off-surface offsets (0.0025)
+    assert np.all(np.abs(flat(probes[near]) - distance[near]) <= 0.15 * np.abs(distance[near]) + 2e-4)
+    for function, x in ((f, 0.7 * directions[:40]), (f, 1.5 * directions[:40]), (flat, probes[:40])):
+        step = np.eye(x.shape[1]) * 1e-6
+        central = np.stack([(function(x + e) - function(x - e)) / 2e-6 for e in step], axis=1)
+        np.testing.assert_allclose(function.gradient(x), central, rtol=0, atol=1e-4)
+
+    def cancel(fraction, message):
+        if fraction > 0.5:
+            raise Cancelled("stop")
+    with pytest.raises(Cancelled):
+        fit_rbf(points, normals, progress=cancel)
+
+
 def test_rbf_refuses_too_many_points():
-    points, normals, _ = sphere_sample(5001)
+    points, normals, _ = sphere_sample(MAX_RBF_POINTS + 1)
     with pytest.raises(InvalidInputError, match="method.*mpu"):
         fit_rbf(points, normals)
 

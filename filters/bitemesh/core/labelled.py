@@ -17,7 +17,7 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    spurious bubbles where short- and long-axis contours disagree.  A cavity also gets a point inside it at the
    centre of each of its valves (:data:`BIVME_OUTLETS`), so that it opens through the base instead of closing in
    a dome just above the last short-axis slice.  The points are thinned to 1.6 mm apart and, beyond 1,200
-   constraints, the RBF is a partition of unity of RBFs on overlapping patches (:mod:`bitemesh.core.contour_rbf`),
+   constraints, the RBF is a partition of unity of RBFs on overlapping patches (:mod:`bitemesh.core.rbf`),
    so that denser contours cost about linearly.  Each RBF is sampled once on a fine grid, exactly near its zero
    level (:func:`bitemesh.core.grid.sample_function` with levels), so the domain is cheap to evaluate on the grid I.
 5. The domain: a CSG expression (:mod:`bitemesh.core.csg`) of the surfaces, ``-`` difference, ``+`` union, ``&``
@@ -47,7 +47,7 @@ from .cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTL
                       bivme_domain, check_heart,
                       canonical_labels, default_surfaces, grown, is_bivme, needs_derived_epicardium,
                       unused_labels_note)
-from .contour_rbf import KERNELS, ContourRBF, fit_contour_rbf, off_surface_offsets  # noqa: F401
+from .contour_rbf import KERNELS, fit_contour_rbf, off_surface_offsets  # noqa: F401
 from .csg import domain_names, parse_domain
 from .errors import InvalidInputError, check_number, check_points
 from .grid import ImplicitGrid, sample_function
