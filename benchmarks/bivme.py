@@ -42,7 +42,10 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
 from bitemesh.core import labelled
-from bitemesh.core.csg import domain_names, parse_domain
+from bitemesh.core.contours.cardiac import default_surfaces
+from bitemesh.core.contours.csg import domain_names, parse_domain
+from bitemesh.core.contours.fit import SURFACE_BAND, SURFACE_LEVELS
+from bitemesh.core.contours.slices import contour_normals, slice_planes
 from bitemesh.core.errors import BitemeshWarning
 from bitemesh.core.grid import sample_function
 from bitemesh.core.implicit import fit_mpu
@@ -56,7 +59,6 @@ from bitemesh.core.quality import (
     count_boundary_components,
     dihedral_angles,
 )
-from bitemesh.core.slices import contour_normals, slice_planes
 from bitemesh.core.topology import boundary_facets
 from bitemesh.io import read_labelled_points
 from scipy.spatial import cKDTree
@@ -196,8 +198,8 @@ def mpu_implicit(points, labels, slices, **options):
         mpu = fit_mpu(surface_points[good], normals[good])
         grid = function.surfaces[name]
         step = grid.spacing[0]
-        surfaces[name] = sample_function(mpu, grid.origin, grid.upper, step, exact_within=labelled.SURFACE_BAND * step,
-                                         levels=labelled.SURFACE_LEVELS)
+        surfaces[name] = sample_function(mpu, grid.origin, grid.upper, step, exact_within=SURFACE_BAND * step,
+                                         levels=SURFACE_LEVELS)
     return dataclasses.replace(function, surfaces=surfaces), lower, upper
 
 
@@ -214,7 +216,7 @@ def zero_level_distance(surface, points, iterations: int = 8):
 
 def leave_one_slice_out(points, labels, slices, options):
     """Per contour point of the used surfaces: distance to the surface refitted without the point's slice."""
-    surfaces = labelled.default_surfaces(labels)
+    surfaces = default_surfaces(labels)
     tree = parse_domain(labelled.BIVME_DEFAULT_DOMAIN, surfaces)
     planes = slice_planes(points, slices)
     fit_options = {key: options[key] for key in ("kernel", "offset", "smoothing") if key in options}

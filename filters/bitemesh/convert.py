@@ -10,7 +10,7 @@ from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray, vtkPoints, vtk
 from vtkmodules.vtkCommonDataModel import (VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkImageData, vtkPolyData,
                                            vtkUnstructuredGrid)
 
-from .core.cardiac import time_frame
+from .core.contours.cardiac import time_frame
 from .core.columns import role
 from .core.errors import InvalidInputError
 from .core.grid import ImplicitGrid

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from bitemesh.core import cardiac, labelled
+from bitemesh.core import labelled
+from bitemesh.core.contours import cardiac
 from bitemesh.core.parameters import FidelityParameters
 from bitemesh.core.errors import BitemeshWarning, InvalidInputError, MeshingError
 from bitemesh.core.quality import count_boundary_components

@@ -1,12 +1,13 @@
-"""Labelled contours (bitemesh.core.labelled, .slices, .csg): slices, in-plane normals, the CSG expression, the base
-plane, and a synthetic two-cavity shell sampled as sparse contours and meshed."""
+"""Labelled contours (bitemesh.core.labelled; bitemesh.core.contours: .slices, .csg): slices, in-plane normals, the
+CSG expression, the base plane, and a synthetic two-cavity shell sampled as sparse contours and meshed."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from bitemesh.core import labelled
+from bitemesh.core.contours.csg import evaluate_domain, parse_domain
+from bitemesh.core.contours.slices import SlicePlane, contour_normals, infer_slices, slice_planes
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.csg import evaluate_domain, parse_domain
 from bitemesh.core.labelled import (
     BIVME_DEFAULT_DOMAIN,
     fit_base_plane,
@@ -17,7 +18,6 @@ from bitemesh.core.labelled import (
 )
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.shapes import two_cavity_shell
-from bitemesh.core.slices import SlicePlane, contour_normals, infer_slices, slice_planes
 
 from tests.builders import ELLIPSOIDS, SCALE, SHELL_DOMAIN, sample_shell
 from tests.meshcheck import assert_valid_domain

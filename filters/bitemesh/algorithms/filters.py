@@ -58,7 +58,7 @@ def labelled_contours(dataset):
 
 
 def labelled_options(parameters: LabelledParameters) -> dict:
-    """Keywords of :func:`~bitemesh.core.labelled.labelled_implicit` from LabelledParameters."""
+    """Keywords of :func:`~bitemesh.core.contours.fit.labelled_implicit` from LabelledParameters."""
     return {"domain": (parameters.domain or "").strip() or None, "base_plane": parameters.base_plane,
             "rv_wall": parameters.rv_wall}
 
@@ -100,7 +100,7 @@ class PointsToImplicit(BitemeshAlgorithm):
             if isinstance(data, vtkImageData):
                 source = self.label_source(data)
             elif contours is not None:
-                from ..core.labelled import labelled_source
+                from ..core.contours.run import labelled_source
                 points, labels, slices = contours
                 source = labelled_source(points, labels, slices=slices, progress=sub_progress(self.progress, 0, 0.4),
                                          **labelled_options(self.parameters(LabelledParameters)))
@@ -335,7 +335,7 @@ class MeshFromPoints(BitemeshAlgorithm):
         if contours is None:
             result = run(*scattered_points(source), **steps)
         else:
-            from ..core.labelled import run_labelled
+            from ..core.contours.run import run_labelled
             labelled = self.parameters(LabelledParameters)
             points, labels, slices = contours
             result = run_labelled(points, labels, slices=slices, min_wall=labelled.min_wall,

@@ -57,7 +57,7 @@ def mesh_die(args, progress):
 
 
 def mesh_heart(args, progress):
-    from ..core.labelled import run_labelled
+    from ..core.contours.run import run_labelled
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
     with resources.as_file(source) as path:
         points, labels, slices = read_labelled_points(path)

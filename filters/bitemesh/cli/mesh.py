@@ -102,7 +102,7 @@ def labelled_flags(args) -> dict:
 def mesh_labelled_points(args, steps: dict, progress, path=None, columns=None, frame=None):
     """Labelled contour points (``path``, default the input; time frame ``frame``) to the mesh of the domain of
     ``--domain``."""
-    from ..core.labelled import run_labelled
+    from ..core.contours.run import run_labelled
     points, labels, slices = read_labelled_points(path or args.input, columns=columns, frame=frame)
     options = read_labelled_config(args.config) if args.config else {}
     options.update(labelled_flags(args))   # a flag given wins over the config file

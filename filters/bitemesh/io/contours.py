@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.cardiac import time_frame
+from ..core.contours.cardiac import time_frame
 from ..core.errors import InvalidInputError, check_points
 from .files import existing_file, vtk_silenced
 from .pointsets import _vtk_reader

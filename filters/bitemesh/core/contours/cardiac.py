@@ -22,9 +22,9 @@ import warnings
 
 import numpy as np
 
-from .errors import BitemeshWarning, InvalidInputError, MeshingError, check_number
+from ..errors import BitemeshWarning, InvalidInputError, MeshingError, check_number
 
-#: biv-me guide-point labels -> the surfaces they sample (see bitemesh.core.labelled for the septum).  biv-me splits
+#: biv-me guide-point labels -> the surfaces they sample (see bitemesh.core.contours.fit for the septum).  biv-me splits
 #: the RV endocardium into free wall and septum (older exports: RV_ENDOCARDIAL; the outflow tract: OUTLET_* and
 #: SAX_RV_OUTLET), and its LV epicardial contours stop at the RV insertions (the septum's RV face is RV_SEPTUM).
 BIVME_SURFACES = {
@@ -238,8 +238,8 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     -------
     list of the problems (empty when plausible)
     """
-    from .quality import count_boundary_components
-    from .topology import boundary_facets, euler_characteristic
+    from ..quality import count_boundary_components
+    from ..topology import boundary_facets, euler_characteristic
 
     points, cells = np.asarray(mesh.points), np.asarray(mesh.cells)
     volumes = np.asarray(mesh.cell_data["Volume"])

@@ -1,7 +1,7 @@
 """Contour points on image slices: which slice each point was drawn on, the slices' planes, and each point's
 normal in its slice (the polylines of a contour, chained into one loop, the normal pointing out of its region).
 
-Used by :mod:`bitemesh.core.labelled` before each surface is fitted.
+Used by :mod:`bitemesh.core.contours.fit` before each surface is fitted.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist
 
-from .errors import InvalidInputError, check_number, check_points
+from ..errors import InvalidInputError, check_number, check_points
 
 #: a polyline breaks where its points are more than this x the median spacing apart.
 GAP_FACTOR = 3.0

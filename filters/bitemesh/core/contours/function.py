@@ -7,10 +7,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..errors import check_number, check_points
+from ..samples import contour_gap
+from ..topology import boundary_facets
 from .csg import evaluate_domain
-from .errors import check_number, check_points
-from .samples import contour_gap
-from .topology import boundary_facets
 
 #: the name the base plane takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
 BASE = "BASE"
@@ -23,9 +23,10 @@ class LabelledImplicit:
     Attributes
     ----------
     surfaces : name -> callable implicit (f > 0 inside), the surfaces the domain uses
-    tree : the parsed domain (see :func:`~bitemesh.core.csg.parse_domain`); expression : its text
+    tree : the parsed domain (see :func:`~bitemesh.core.contours.csg.parse_domain`); expression : its text
     base : (point, normal) of the base plane (normal out of the domain), or None
-    min_wall : float, input units, the thinnest wall a difference keeps (see :func:`~bitemesh.core.csg.evaluate_domain`)
+    min_wall : float, input units, the thinnest wall a difference keeps (see
+        :func:`~bitemesh.core.contours.csg.evaluate_domain`)
     lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
     points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
         where none); slices : name -> (n,) their slice ids

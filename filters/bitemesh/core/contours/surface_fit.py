@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import InvalidInputError, check_choice, check_number, check_points
-from .rbf import KERNELS, RBFImplicit, fit_partition
+from ..errors import InvalidInputError, check_choice, check_number, check_points
+from ..rbf import KERNELS, RBFImplicit, fit_partition
 
 #: the points are fitted thinned to this x the off-surface offset apart (contours traced on 1.4 mm pixels are about
 #: 3 mm apart; a denser resampling adds time, not shape).

@@ -1,12 +1,12 @@
 """The base plane that closes a heart's domain: the plane of the valve points, biv-me's plane through the valves'
-centres (:func:`bitemesh.core.cardiac.base_plane`), or a user's (point, normal)."""
+centres (:func:`bitemesh.core.contours.cardiac.base_plane`), or a user's (point, normal)."""
 from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InvalidInputError, check_choice, check_points
 from .cardiac import BIVME_APEX, BIVME_VALVES, is_bivme
 from .cardiac import base_plane as cardiac_base_plane
-from .errors import InvalidInputError, check_choice, check_points
 
 
 def fit_base_plane(valve_points, inside_point):

@@ -7,8 +7,8 @@ import re
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from .cardiac import BIVME_DEFAULT_DOMAIN
-from .errors import InvalidInputError
 
 _TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-z0-9_.:]+)|(?P<op>[-+&()]))")
 

@@ -1,0 +1,141 @@
+"""Labelled contours on the meshing spine: :func:`labelled_source` (the domain's f as a
+:class:`~bitemesh.core.source.Source`, with what cardiac contours imply: R, the thinnest wall, the handles),
+:func:`run_labelled` (the source, the spine, and for a heart the plausibility check) and
+:func:`mesh_from_labelled_points` (its mesh, with the parameters as keywords).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import check_points
+from ..mesh import Mesh
+from ..parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
+                          SpuriousParameters, optimize_parameters)
+from ..progress import ProgressCallback, sub_progress
+from ..source import Frame, Source
+from ..spine import MeshingResult, mesh_source, timed
+from .cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, LV_DOMAIN, check_heart
+from .fit import labelled_implicit
+from .function import LabelledImplicit
+
+logger = logging.getLogger("bitemesh")
+
+
+#: the thinnest wall is at least this x R (so that a wall is about one cell thick) when min_wall is not given.
+WALL_PER_RADIUS = 1.25
+#: and at least this (input units): the RV free wall of adult hearts is 2 to 5 mm thick.
+MIN_WALL = 2.5
+
+
+def thinnest_wall(radius: float) -> float:
+    """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS` x R."""
+    return max(MIN_WALL, WALL_PER_RADIUS * radius)
+
+
+#: the result of :func:`run_labelled`; its ``function`` is the LabelledImplicit (for :func:`boundary_surfaces`).
+LabelledMeshingResult = MeshingResult
+
+
+def is_myocardium(function: LabelledImplicit) -> bool:
+    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV): a ball, its cavities open
+    through the base plane (handles = "auto" removes the handles of its mesh)."""
+    return (set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
+
+
+def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
+                    progress: ProgressCallback = None, **options) -> Source:
+    """Labelled contour points as a :class:`~bitemesh.core.source.Source`: :func:`labelled_implicit` fitted
+    centred on the points' bounding box (in mm still), the thinnest wall following R unless ``min_wall`` is given
+    (:func:`thinnest_wall`), R = 2 mm by default for biv-me surfaces
+    (:data:`~bitemesh.core.contours.cardiac.CARDIAC_RADIUS`), handles removed from a myocardium, and the surface points
+    below the base plane as the samples (the base plane's cap and derived surfaces left out of the fidelity)."""
+    points = check_points(points, dims=(3,))
+    frame = Frame.around(points, scaled=False)   # millimetres stay millimetres: the defaults are in mm
+    if base_plane is not None and not isinstance(base_plane, str):
+        try:
+            point, normal = base_plane
+            base_plane = (np.asarray(point, dtype=np.float64) - frame.shift, normal)
+        except (TypeError, ValueError):
+            pass   # labelled_implicit refuses it with its message
+    function, lower, upper = labelled_implicit(points - frame.shift, labels, domain, base_plane, slices=slices,
+                                               surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
+                                               else min_wall, progress=progress, **options)
+    for note in function.notes:
+        logger.info(note)
+    cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+    return Source(function, lower, upper, frame, samples=function.surface_samples(),
+                  at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None
+                  else None,
+                  noise=function.tracing_noise(), gap=function.contour_gap(),
+                  open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
+                  notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
+                  radius_note=f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)"
+                  if cardiac else "", handles="remove" if is_myocardium(function) else "keep")
+
+
+def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
+                 implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
+                 spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
+                 fidelity: FidelityParameters | None = None, allow_implausible: bool = False,
+                 progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
+    """Every step on labelled contour points: :func:`labelled_source`, then the spine
+    (:func:`~bitemesh.core.spine.mesh_source`), then, for a two-cavity or LV myocardium, the plausibility check
+    (:func:`~bitemesh.core.contours.cardiac.check_heart`; ``allow_implausible`` turns a refusal into a warning).
+
+    R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain; for biv-me surfaces
+    with neither given (cells at its default), R = 2 mm.  Parameters left None take their defaults; ``min_wall``
+    defaults to :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would
+    open in holes).  ``implicit`` gives the grid I (grid_spacing, margin, max_memory_mb; its method is not used).
+    ``optimize`` (None: skipped) runs the MeshOptimizer on the valid domain.  ``options`` go to
+    :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
+
+    ``result.function`` is the domain's LabelledImplicit in the input's coordinates, like the mesh.  The fidelity
+    check compares the mesh with the surface points below the base plane, the base plane's cap left out
+    (``fidelity``: its bounds, default FidelityParameters()).
+    """
+    seconds = {}
+    with timed(seconds, "implicit fit"):
+        source = labelled_source(points, labels, domain=domain, base_plane=base_plane, slices=slices,
+                                 surfaces=surfaces, min_wall=min_wall, progress=sub_progress(progress, 0.0, 0.3),
+                                 **options)
+    result = mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
+                         spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
+                         fidelity or FidelityParameters())
+    result = replace(result, function=result.function.moved(source.frame.shift))
+    if is_myocardium(source.function):
+        with timed(seconds, "plausibility"):
+            check_heart(result.mesh, result.function, result.radius, result.fidelity,
+                        allow_implausible=allow_implausible)
+    return result
+
+
+def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, radius=None,
+                              cells=10000, min_wall=None, grid_spacing=None, margin=None, max_memory_mb=4096.0,
+                              threshold=0.4, min_component=0.01, order="boundary", seed=0, optimize=False,
+                              progress: ProgressCallback = None, **options) -> Mesh:
+    """A valid tetrahedral mesh of the domain bounded by labelled contour surfaces (a biv-me GPFile's myocardium).
+
+    Parameters
+    ----------
+    points : (n, 3) float64, contour points (mm); labels : (n,) str or int, one per point
+    domain, base_plane, slices : as for :func:`labelled_implicit` (default for biv-me labels: the two-cavity
+        myocardium ``EPI - LV_ENDO - RV_ENDO`` below the valve plane)
+    radius : R, node spacing (input units); default: chosen for about ``cells`` cells
+    min_wall : float, input units, the thinnest wall; default max(2.5, 1.25 R) (see :func:`run_labelled`)
+    The other parameters are those of :func:`bitemesh.core.pipeline.mesh_from_points` (grid, biting, optimize) and of
+    :func:`labelled_implicit` (``options``: kernel, offset, surfaces, outlets, base_offset, resolution, ...).
+
+    Returns
+    -------
+    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
+    """
+    return run_labelled(points, labels, domain=domain, base_plane=base_plane, slices=slices, min_wall=min_wall,
+                        implicit=ImplicitParameters(grid_spacing=grid_spacing, margin=margin,
+                                                    max_memory_mb=max_memory_mb),
+                        biting=BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
+                        spurious=SpuriousParameters(threshold=threshold, min_component=min_component),
+                        optimize=optimize_parameters(optimize), progress=progress, **options).mesh
