@@ -73,7 +73,22 @@ def test_a_full_disk_leaves_the_previous_file(points_file, previous, tmp_path):
 
 
 @POSIX
-@pytest.mark.parametrize("delay", [0.05, 0.3, 1.0, 2.0])
+def test_ctrl_c_while_the_program_loads_cancels_once_main_runs(points_file, previous):
+    """A Ctrl-C that arrives while the bitemesh package is imported (before main's guard) is held back, not lost and
+    not a traceback: main cancels at once.  Deterministic: the signal is sent in the middle of the imports."""
+    path, before = previous
+    script = ("import os, signal, sys; sys.argv = ['bitemesh', *sys.argv[1:]]; import bitemesh.cli as cli; "
+              "os.kill(os.getpid(), signal.SIGINT); import bitemesh.cli.mesh; cli.command()")
+    env = {**os.environ, "PYTHONPATH": str(FILTERS)}
+    done = subprocess.run([sys.executable, "-c", script, "mesh", str(points_file), "-o", str(path)], env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr.strip().splitlines() == ["bitemesh: cancelled"], done.stderr
+    assert path.read_bytes() == before
+
+
+@POSIX
+@pytest.mark.parametrize("delay", [0.3, 1.0, 2.0])   # from 0.3 s: after the interpreter's own start, under load too
 def test_ctrl_c_at_any_moment_exits_130_with_one_line(points_file, previous, tmp_path, delay):
     path, before = previous
     process = bitemesh_process("mesh", points_file, "-o", path, "--cells", "20000")

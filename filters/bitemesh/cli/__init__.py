@@ -1,15 +1,35 @@
 """The ``bitemesh`` command: one module per subcommand (mesh, quality, demo).
 
 Nothing heavy is imported before :func:`main` runs, and everything it imports runs under its Ctrl-C guard: an
-interrupt at any moment ends with one line and exit code 130.
+interrupt at any moment ends with one line and exit code 130.  When this package starts the program (``bitemesh``,
+``python -m bitemesh.cli``), its first statements hold back a Ctrl-C that arrives while it is still being imported;
+main then cancels at once.  (An interrupt inside the interpreter's own start, before these lines run, is Python's:
+the first 20 ms or so after launch on a quiet machine.)
 """
 from __future__ import annotations
 
-import logging
-import os
-import signal
+import _signal
 import sys
-import warnings
+
+
+def _starts_the_program() -> bool:
+    """Whether this import is the start of ``python -m bitemesh.cli`` (argv[0] is "-m" while runpy looks for the
+    module) or of the ``bitemesh`` console script, rather than a library's import."""
+    if sys.argv[:1] == ["-m"]:
+        return "bitemesh.cli" in getattr(sys, "orig_argv", ())
+    script = sys.argv[0].replace("\\", "/").rsplit("/", 1)[-1] if sys.argv else ""
+    return script.split(".")[0] == "bitemesh"
+
+
+#: The Ctrl-C signals held back while the program's modules load (None when imported as a library).
+_held_back = [] if _starts_the_program() else None
+if _held_back is not None:
+    _signal.signal(_signal.SIGINT, lambda number, frame: _held_back.append(number))
+
+import logging  # noqa: E402  (after the Ctrl-C hold-back above)
+import os  # noqa: E402
+import signal  # noqa: E402
+import warnings  # noqa: E402
 
 
 class _Notes(logging.Handler):
@@ -50,6 +70,10 @@ def main(argv=None) -> int:
     shown = warnings.showwarning
     warnings.showwarning = _show_warning
     try:
+        if _held_back is not None:   # the program's start: Ctrl-C cancels from here on
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            if _held_back:
+                raise KeyboardInterrupt
         return _run(argv)
     except KeyboardInterrupt:
         print("\nbitemesh: cancelled", file=sys.stderr)
