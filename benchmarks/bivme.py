@@ -252,7 +252,7 @@ def measure(folder: Path, cells, options: dict, *, method: str = "rbf", loso: bo
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", BitemeshWarning)   # the handles are counted below
             result = labelled.run_labelled(points, labels, slices=slices, biting=biting,
-                                           optimize=OptimizeParameters() if optimize else None, **options)
+                                           optimize=OptimizeParameters(optimize=int(optimize)), **options)
         function, lower, upper = result.function, result.function.lower, result.function.upper
         meshing = sum(value for key, value in result.seconds.items() if not key.startswith("implicit"))
         seconds = {"fit": result.seconds["implicit fit"], "sampling": result.seconds["implicit sampling"],

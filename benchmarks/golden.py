@@ -38,7 +38,7 @@ def die_demo(cells: int = 10000, optimize: bool = False):
     from bitemesh.core.shapes import die, sample_surface
     points, normals = sample_surface(die(), spacing=0.04, noise=0.002, seed=1)
     return run(points, normals, ImplicitParameters(), BitingParameters(cells=cells),
-               optimize=OptimizeParameters() if optimize else None).mesh
+               optimize=OptimizeParameters(optimize=int(optimize))).mesh
 
 
 def heart_demo(cells: int | None = 40000):

@@ -29,7 +29,7 @@ COLUMNS = ("cells", "q_mean", "q_min", "min_dihedral", "percent_q_below_0_3", "v
 def case(name: str, size: int) -> list:
     shape, points, normals, _ = make_input(name, size)
     rows = []
-    for optimize in (None, OptimizeParameters()):
+    for optimize in (OptimizeParameters(), OptimizeParameters(optimize=1)):
         clock = time.perf_counter()
         result = run(points, normals, ImplicitParameters(), BitingParameters(cells=size, seed=SEED),
                      SpuriousParameters(), optimize=optimize)

@@ -4,8 +4,8 @@
 For each shape (unit sphere; torus R = 1, r = 0.4, as in ``bitemesh.core.shapes``) at about 10,000 tetrahedra:
 
 * bitemesh: noisy scattered surface points with normals (``run_benchmarks.make_input``, seed 0), then
-  ``pipeline.run`` with default parameters and ``BitingParameters(cells=N)``, once with ``optimize=None`` and once
-  with ``OptimizeParameters()``.  The time is the whole ``run`` (implicit fit included).
+  ``pipeline.run`` with default parameters and ``BitingParameters(cells=N)``, once with ``OptimizeParameters()``
+  (off) and once with ``OptimizeParameters(optimize=1)``.  The time is the whole ``run`` (implicit fit included).
 * gmsh (Python API, if importable): the exact shape from OpenCASCADE (``occ.addSphere`` / ``occ.addTorus``),
   default 3D algorithm (Delaunay), ``Mesh.Optimize = 1``, ``Mesh.OptimizeNetgen = 1``.  The mesh size is
   calibrated for about N tets (untimed calibration runs, size scaled by (n / N)^(1/3)); the timed run is the last.
@@ -83,7 +83,7 @@ def run_bitemesh(name: str, target: int, optimize: bool):
     shape, points, normals, _ = make_input(name, target)
     start = time.perf_counter()
     result = run(points, normals, ImplicitParameters(), BitingParameters(cells=target), SpuriousParameters(),
-                 optimize=OptimizeParameters() if optimize else None)
+                 optimize=OptimizeParameters(optimize=int(optimize)))
     seconds = time.perf_counter() - start
     return result.mesh.points, result.mesh.cells, seconds, f"{len(points)} noisy input points"
 

@@ -34,7 +34,8 @@ import numpy as np
 from .core.errors import InvalidInputError, check_number
 from .core.grid import ImplicitGrid
 from .core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
-                              SpuriousParameters, optimize_parameters)
+                              STEP_PARAMETERS, SpuriousParameters,
+                              parameters_from_keywords)
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.source import Frame, Source
 from .core.spine import MeshingResult, mesh_source, timed
@@ -379,7 +380,7 @@ def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
 def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                     implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
                     spurious: SpuriousParameters | None = None,
-                    optimize: OptimizeParameters | None = None, fidelity: FidelityParameters | None = None,
+                    optimize: OptimizeParameters = OptimizeParameters(), fidelity: FidelityParameters | None = None,
                     smoothing: float = SMOOTHING_VOXELS, progress: ProgressCallback = None,
                     seconds: dict | None = None) -> LabelMapMeshingResult:
     """Mesh the chosen labels of a voxel array and place the mesh with a homogeneous index-to-physical matrix.
@@ -396,7 +397,7 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
         when their largest size is between R / 8 and R / 4) and max_memory_mb are used; method, error_bound and
         margin do not apply to label maps
     biting, spurious, optimize : BitingParameters, SpuriousParameters and OptimizeParameters, as for
-        :func:`~bitemesh.core.pipeline.mesh_from_grid`; None: the defaults (``optimize`` None: no MeshOptimizer)
+        :func:`~bitemesh.core.pipeline.mesh_from_grid`; None: the defaults
     fidelity : FidelityParameters, the bounds of the fidelity check against the voxel faces (default: its defaults)
     smoothing : see :func:`label_map_to_grid`
 
@@ -418,25 +419,21 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                        sub_progress(progress, 0.1, 1.0), seconds, fidelity or FidelityParameters())
 
 
-def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spacing=None, ras=False,
-                   order="boundary", seed=0, threshold=0.4, min_component=0.01, max_memory_mb=4096.0,
-                   optimize=False, smoothing=SMOOTHING_VOXELS, progress: ProgressCallback = None
-                   ) -> LabelMapMeshingResult:
+def label_map_mesh(label_map, *, labels=None, ras=False, smoothing=SMOOTHING_VOXELS,
+                   progress: ProgressCallback = None, **parameters) -> LabelMapMeshingResult:
     """A valid tetrahedral (triangular for a 2D image) mesh of labels of a label map, in its physical space.
 
     Parameters
     ----------
     label_map : LabelMap, or the path of a file that :func:`read_label_map` reads
     labels : None (every nonzero voxel), one int, or a set of ints (the union of those labels)
-    radius : R, node spacing (mm); default: chosen for about ``cells`` cells
-    cells : the number of cells to aim for when radius is not given
-    grid_spacing : spacing of the grid I (mm); default R / 4 (the voxels themselves when between R / 8 and R / 4)
     ras : False: points in ITK's LPS (the file's physical space); True: in RAS (x and y negated), as in Slicer
-    order, seed : BitingParameters; threshold, min_component : SpuriousParameters; max_memory_mb : the memory the
-        distance and the grid may take
-    optimize : False, True (the MeshOptimizer with its defaults) or OptimizeParameters
     smoothing : standard deviation (voxels) of the staircase filter (see :func:`label_map_to_grid`); 0 is off
     progress : callable(fraction, message), optional
+    parameters : any field of ImplicitParameters (``grid_spacing``: the grid I, mm, default R / 4 or the voxels
+        when between R / 8 and R / 4; ``max_memory_mb``), BitingParameters (``radius``: R, mm, default chosen for
+        about ``cells`` cells; ``order``, ``seed``), SpuriousParameters, OptimizeParameters (``optimize=1``) and
+        FidelityParameters, by name
 
     Returns
     -------
@@ -446,9 +443,7 @@ def label_map_mesh(label_map, *, labels=None, radius=None, cells=10000, grid_spa
         label_map = read_label_map(label_map)
     elif not isinstance(label_map, LabelMap):
         raise InvalidInputError(f"label_map must be a LabelMap or a file path, got {type(label_map).__name__}")
-    implicit = ImplicitParameters(grid_spacing=grid_spacing, max_memory_mb=max_memory_mb)
-    biting = BitingParameters(radius=radius, cells=cells, order=order, seed=seed)
-    spurious = SpuriousParameters(threshold=threshold, min_component=min_component)
+    implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(parameters, STEP_PARAMETERS)
     return mesh_label_grid(label_map.labels, label_map.index_to_physical(ras=ras), labels=labels,
-                           implicit=implicit, biting=biting, spurious=spurious,
-                           optimize=optimize_parameters(optimize), smoothing=smoothing, progress=progress)
+                           implicit=implicit, biting=biting, spurious=spurious, optimize=optimize,
+                           fidelity=fidelity, smoothing=smoothing, progress=progress)

@@ -20,8 +20,8 @@ from bitemesh.core.parameters import automatic_value, is_optional
 #: command -> the dataclasses whose every field is a flag of it
 COMMANDS = {
     "mesh": (core.TableParameters, core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
-             core.FidelityParameters, core.OptimizeSwitch, core.OptimizeParameters, core.LabelledParameters),
-    "demo": (core.OptimizeSwitch, core.OptimizeParameters),
+             core.FidelityParameters, core.OptimizeParameters, core.LabelledParameters),
+    "demo": (core.OptimizeParameters,),
     "quality": (core.QualityParameters,),
 }
 #: VTK filter -> the dataclasses whose fields it has setters for, in order ((dataclass, names): those fields only)
@@ -31,12 +31,14 @@ FILTERS = {
     "BitingSampler": (core.BitingParameters,),
     "DelaunayTetra": (),
     "SpuriousCellFilter": (core.SpuriousParameters, core.FidelityParameters),
-    "MeshOptimizer": (core.OptimizeParameters,),
+    "MeshOptimizer": ((core.OptimizeParameters, ("iterations", "min_dihedral", "min_quality")),),   # runs always
     "QualityFilter": (core.QualityParameters,),
     "MeshFromPoints": (core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
-                       core.OptimizeSwitch, core.OptimizeParameters, core.LabelledParameters,
+                       core.OptimizeParameters, core.LabelledParameters,
                        core.FidelityParameters),
 }
+#: the arguments a command needs before its flags parse.
+REQUIRED = {"mesh": ("in.csv", "-o", "out.vtu"), "quality": ("m.vtu",)}
 DATACLASSES = [value for value in vars(core).values()
                if isinstance(value, type) and issubclass(value, core.Parameters) and value is not core.Parameters]
 
@@ -53,13 +55,18 @@ def camel(name: str) -> str:
 @pytest.mark.parametrize("command", COMMANDS)
 def test_every_field_is_a_flag_with_the_dataclass_default(command):
     parser = build_parser()._subparsers._group_actions[0].choices[command]
-    actions = {action.dest: action for action in parser._actions}
+    actions = {option: action for action in parser._actions for option in action.option_strings}
     for item in expected_fields(COMMANDS[command]):
-        assert item.name in actions, f"bitemesh {command}: no flag for {item.name}"
-        action = actions[item.name]
-        assert action.option_strings == [f"--{item.name.replace('_', '-')}"]
-        assert action.default == item.default, f"bitemesh {command} --{item.name}: default {action.default!r}"
+        flag = f"--{item.name.replace('_', '-')}"
+        assert flag in actions, f"bitemesh {command}: no flag for {item.name}"
+        action = actions[flag]
+        assert action.dest == item.name and action.option_strings == [flag]
+        assert action.default == item.default, f"bitemesh {command} {flag}: default {action.default!r}"
         assert item.metadata["help"].removeprefix("1 ")[:30] in action.help.replace("%%", "%")
+        if item.metadata.get("range", ())[:2] == (0, 1) and item.metadata["integer"]:   # a switch: both ways
+            off = parser.parse_args([*REQUIRED.get(command, ()), f"--no-{flag[2:]}"])
+            on = parser.parse_args([*REQUIRED.get(command, ()), flag])
+            assert (getattr(on, item.name), getattr(off, item.name)) == (1, 0), flag
 
 
 def test_every_filter_has_setters_for_exactly_its_fields():

@@ -112,3 +112,29 @@ def test_normals_of_the_wrong_shape_are_refused(samples):
     _, points, normals = samples["sphere"]
     with pytest.raises(InvalidInputError, match="normals"):
         mesh_from_points(points, normals[:-1])
+
+
+def test_the_optimizer_switch_is_a_field_and_its_old_forms_still_mean_what_they_meant(samples):
+    """``optimize`` is OptimizeParameters' first field (mesh_from_points takes it by name); ``optimize=None`` (the
+    form from before) still skips the optimizer with a DeprecationWarning; bounds given with the switch off do
+    nothing and say so; a misspelt keyword is refused with the closest name."""
+    from dataclasses import fields
+
+    from bitemesh.core.errors import BitemeshWarning
+    from bitemesh.core.parameters import OptimizeParameters
+    _, points, normals = samples["sphere"]
+    assert fields(OptimizeParameters)[0].name == "optimize" and OptimizeParameters().optimize == 0
+    plain = run(points, normals).mesh
+    optimized = mesh_from_points(points, normals, optimize=1)
+    assert optimized.cell_data["MinDihedralAngle"].min() > plain.cell_data["MinDihedralAngle"].min() + 5
+    with pytest.warns(DeprecationWarning, match=r"OptimizeParameters\(optimize=0\)"):
+        old = run(points, normals, optimize=None).mesh
+    with pytest.warns(BitemeshWarning, match="optimize=0: the MeshOptimizer does not run"):
+        bounds = run(points, normals, optimize=OptimizeParameters(min_dihedral=25.0)).mesh
+    for mesh in (old, bounds):
+        assert np.array_equal(mesh.points, plain.points) and np.array_equal(mesh.cells, plain.cells)
+    with pytest.raises(InvalidInputError, match="optimise is not a parameter of this function; did you mean "
+                                                "optimize"):
+        mesh_from_points(points, normals, optimise=1)
+    with pytest.raises(InvalidInputError, match="optimize must be in"):
+        mesh_from_points(points, normals, optimize=2)

@@ -62,7 +62,7 @@ def properties(widget) -> dict:
 def test_the_panel_has_every_field_of_its_dataclasses():
     """The labelled contours' and the optimizer's parameters included: nothing left only to scripts."""
     used = set(lib_parameters.KEYWORDS.values())
-    assert {"LabelledParameters", "OptimizeParameters", "OptimizeSwitch", "ImplicitParameters"} <= used
+    assert {"LabelledParameters", "OptimizeParameters", "ImplicitParameters"} <= used
     claimed = set(lib_parameters.PARAMETERS.values())
     for dataclass_name in used:
         for item in fields(getattr(core, dataclass_name)):
@@ -145,7 +145,7 @@ def test_keywords_split_by_dataclass_and_unknown_names_are_refused():
     assert split["OptimizeParameters"] == {"min_dihedral": 25.0, "iterations": 3}
     assert split["ImplicitParameters"] == {"margin": 2.0, "method": "rbf"}
     assert split["LabelledParameters"] == {"rv_wall": 4.0, "allow_implausible": 1}
-    assert split["SpuriousParameters"] == {"handles": "keep"} and split["OptimizeSwitch"] == {}
+    assert split["SpuriousParameters"] == {"handles": "keep"}
     with pytest.raises(InvalidInputError, match=r"unknown parameter\(s\) min_dihedrals; known: .*min_dihedral"):
         lib_parameters.splitParameters({"min_dihedrals": 25.0}, "mpu")
     with pytest.raises(InvalidInputError, match="unknown parameter.* minDihedral"):   # a panel name, not a keyword
@@ -161,12 +161,12 @@ def test_keywords_split_by_dataclass_and_unknown_names_are_refused():
 def test_settings_hold_the_values_and_the_optimizer_follows_its_switch():
     bounds = {"iterations": 3, "min_dihedral": 25.0, "min_quality": 0.35}
     on = lib_parameters.coreSettings({"optimize": 1, "rv_wall": 4.0, "margin": 2.0, **bounds}, "mpu")
-    assert on["optimize"] == core.OptimizeParameters(**bounds)
+    assert on["OptimizeParameters"] == core.OptimizeParameters(optimize=1, **bounds)
     assert on["LabelledParameters"] == core.LabelledParameters(rv_wall=4.0)
     assert on["ImplicitParameters"] == core.ImplicitParameters(method="mpu", margin=2.0)
-    assert not {"OptimizeParameters", "OptimizeSwitch"} & set(on)   # the optimizer is read in one place only
-    assert lib_parameters.coreSettings({"optimize": 1}, "mpu")["optimize"] == core.OptimizeParameters()
-    assert lib_parameters.coreSettings(bounds, "mpu")["optimize"] is None   # switch off (its default)
+    assert lib_parameters.coreSettings({"optimize": 1}, "mpu")["OptimizeParameters"] == \
+        core.OptimizeParameters(optimize=1)
+    assert lib_parameters.coreSettings(bounds, "mpu")["OptimizeParameters"].optimize == 0   # off (its default)
     # the bounds are checked even when the optimizer is off
     with pytest.raises(InvalidInputError, match=r"min_dihedral must be in \[0, 60\)"):
         lib_parameters.coreSettings({"optimize": 0, "min_dihedral": 60.0}, "mpu")

@@ -64,12 +64,12 @@ def reached(logic, node, scene, **parameters):
 def test_panel_parameters_reach_the_core(scene, logic, monkeypatch, make_input):
     node = make_input(scene, monkeypatch, logic)
     core = reached(logic, node, scene, optimize=1, **BOUNDS, **COMMON, **LABELLED)
-    assert core["optimize"] == OptimizeParameters(**BOUNDS)
+    assert core["optimize"] == OptimizeParameters(optimize=1, **BOUNDS)
     assert core["implicit"].margin == 2.0 and core["spurious"].handles == "keep"
     assert core["fidelity"] == FidelityParameters(far_samples=1.0, unsupported_area=3.0, allow_unfaithful=1)
     if make_input is labelled_input:
         assert (core["min_wall"], core["rv_wall"], core["allow_implausible"]) == (3.0, 4.0, True)
-    assert reached(logic, node, scene, optimize=0, **BOUNDS)["optimize"] is None   # the bounds alone do not run it
+    assert reached(logic, node, scene, optimize=0, **BOUNDS)["optimize"].optimize == 0   # the bounds alone: off
 
 
 def test_the_panel_values_reach_the_core(scene, logic, monkeypatch):
@@ -78,7 +78,7 @@ def test_the_panel_values_reach_the_core(scene, logic, monkeypatch):
     values = {spec.name: spec.default for spec in logic.parameterSpecs()}
     values.update(optimize=1, iterations=3, minDihedral=25.0, minQuality=0.35, rvWall=4.0, minWall=3.0, margin=2.0)
     core = reached(logic, node, scene, **logic.coreParameters(values))
-    assert core["optimize"] == OptimizeParameters(**BOUNDS)
+    assert core["optimize"] == OptimizeParameters(optimize=1, **BOUNDS)
     assert (core["min_wall"], core["rv_wall"], core["allow_implausible"]) == (3.0, 4.0, False)
     assert core["implicit"].margin == 2.0
     values.update(minWall=-1.0, margin=-1.0)   # the automatic values
@@ -93,7 +93,7 @@ def test_a_tighter_optimizer_bound_changes_the_mesh_as_in_bitemesh_run(scene, lo
     logic.process(point_list(scene, points), tight, radius=5.0, optimize=1, min_dihedral=40.0)
     logic.process(point_list(scene, points), default, radius=5.0, optimize=1)
     expected = bitemesh.run(points, None, ImplicitParameters(), BitingParameters(radius=5.0), SpuriousParameters(),
-                            optimize=OptimizeParameters(min_dihedral=40.0)).mesh
+                            optimize=OptimizeParameters(optimize=1, min_dihedral=40.0)).mesh
     mesh = mesh_of(tight)
     np.testing.assert_array_equal(mesh.cells, expected.cells)
     np.testing.assert_array_equal(mesh.points, expected.points)

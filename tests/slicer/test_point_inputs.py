@@ -90,7 +90,7 @@ def test_optimize_runs_the_mesh_optimizer_like_bitemesh_run(scene, logic):
     mesh = mesh_of(model)
     assert_valid_domain(mesh, euler=2, components=1, mean_quality=0.85)
     expected = run(points, None, ImplicitParameters(), BitingParameters(cells=2000), SpuriousParameters(),
-                   optimize=OptimizeParameters()).mesh
+                   optimize=OptimizeParameters(optimize=1)).mesh
     assert mesh.points.shape == expected.points.shape and mesh.cells.shape == expected.cells.shape
     np.testing.assert_array_equal(mesh.cells, expected.cells)
     np.testing.assert_array_equal(mesh.points, expected.points)

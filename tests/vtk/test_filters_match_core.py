@@ -138,5 +138,5 @@ def test_the_mesh_optimizer_filter_equals_the_core_and_one_shot_optimize_equals_
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters
     from bitemesh.core.pipeline import run
     result = run(points, normals, ImplicitParameters(), BitingParameters(cells=1000), SpuriousParameters(),
-                 optimize=OptimizeParameters())
+                 optimize=OptimizeParameters(optimize=1))
     assert np.array_equal(unstructured_to_mesh(one_shot.update()).cells, result.mesh.cells)

@@ -4,7 +4,7 @@ Each filter is thin: convert its inputs to numpy, call the core, convert back.  
 """
 from __future__ import annotations
 
-from dataclasses import asdict, replace
+from dataclasses import asdict, fields, replace
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -21,7 +21,7 @@ from ..core.mesh import Mesh
 from ..core.cell_measures import mean_edge_length
 from ..core.optimize import optimize_mesh
 from ..core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, LabelledParameters,
-                               LabelMapParameters, OptimizeParameters, OptimizeSwitch, QualityParameters,
+                               LabelMapParameters, OptimizeParameters, QualityParameters,
                                SpuriousParameters)
 from ..core.pipeline import points_source, run
 from ..core.spine import radius_on_grid
@@ -65,6 +65,8 @@ def labelled_options(parameters: LabelledParameters) -> dict:
 
 #: the parameters of BitingParameters that lay out the grid I (R); the others are the BitingSampler's alone.
 GRID_BITING = (BitingParameters, ("radius", "cells"))
+#: the MeshOptimizer filter's fields: OptimizeParameters but its switch (the filter always runs).
+OPTIMIZER_BOUNDS = tuple(item.name for item in fields(OptimizeParameters) if item.name != "optimize")
 
 
 @with_parameters(ImplicitParameters, GRID_BITING, LabelMapParameters, LabelledParameters)
@@ -302,7 +304,7 @@ class QualityFilter(BitemeshAlgorithm):
         table.AddColumn(field_array("Count", counts, integer=True))
 
 
-@with_parameters(OptimizeParameters)
+@with_parameters((OptimizeParameters, OPTIMIZER_BOUNDS))
 class MeshOptimizer(MeshWithImplicitFilter):
     """A valid mesh (port 0) and f on the grid (port 1) -> the mesh relaxed, without slivers, boundary on f = 0."""
 
@@ -312,7 +314,7 @@ class MeshOptimizer(MeshWithImplicitFilter):
         mesh_to_unstructured(optimized, vtkUnstructuredGrid.GetData(outInfo))
 
 
-@with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeSwitch, OptimizeParameters,
+@with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeParameters,
                  LabelledParameters, FidelityParameters)
 class MeshFromPoints(BitemeshAlgorithm):
     """The whole method in one filter: scattered points -> a valid mesh with its quality arrays.
@@ -327,10 +329,9 @@ class MeshFromPoints(BitemeshAlgorithm):
 
     def execute(self, request, inInfo, outInfo):
         source = vtkPointSet.GetData(inInfo[0])
-        optimize = self.parameters(OptimizeParameters) if self.parameters(OptimizeSwitch).optimize else None
         steps = {"implicit": self.parameters(ImplicitParameters), "biting": self.parameters(BitingParameters),
-                 "spurious": self.parameters(SpuriousParameters), "optimize": optimize, "progress": self.progress,
-                 "fidelity": self.parameters(FidelityParameters)}
+                 "spurious": self.parameters(SpuriousParameters), "optimize": self.parameters(OptimizeParameters),
+                 "fidelity": self.parameters(FidelityParameters), "progress": self.progress}
         contours = labelled_contours(source)
         if contours is None:
             result = run(*scattered_points(source), **steps)

@@ -9,12 +9,12 @@ from __future__ import annotations
 from dataclasses import fields
 from importlib import resources
 
-from ..core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from ..core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
 from ..core.pipeline import run as run_pipeline
 from ..core.shapes import die, sample_surface
 from ..io import read_labelled_points
-from .mesh import add_optimize_options, optimize_parameters
-from .options import ProgressBar, check_output, describe, write_and_report
+from .options import (ProgressBar, add_parameter_options, check_output, describe, parameters_from_args,
+                      write_and_report)
 
 #: cells asked for the heart: the cells-per-volume estimate undershoots by about 12 % on thin walls.
 HEART_CELLS = 155000
@@ -29,7 +29,7 @@ def add_parser(subcommands) -> None:
     cells = {item.name: item for item in fields(BitingParameters)}["cells"]
     parser.add_argument("--cells", type=int, help=describe(cells.metadata, None) + "; default 10000 (die), 136000 "
                                                                                   "(heart)")
-    add_optimize_options(parser)
+    add_parameter_options(parser, (OptimizeParameters,))
     parser.set_defaults(run=run)
 
 
@@ -51,7 +51,7 @@ def mesh_die(args, progress):
     points, normals = sample_surface(shape, spacing=0.04, noise=0.002, seed=1)
     print(f"die: {len(points)} scattered points with normals, noise sd 0.002 (die size 2)")
     result = run_pipeline(points, normals, ImplicitParameters(), BitingParameters(cells=args.cells or 10000),
-                          progress=progress, optimize=optimize_parameters(args))
+                          progress=progress, optimize=parameters_from_args(args, (OptimizeParameters,))[0])
     volume_error = result.mesh.cell_data["Volume"].sum() / shape.measure - 1
     return result, f", volume {volume_error:+.2%} of the exact die"
 
@@ -66,5 +66,5 @@ def mesh_heart(args, progress):
     cells = round(args.cells * HEART_CELLS / 136000) if args.cells else HEART_CELLS
     result = run_labelled(points, labels, slices=slices, implicit=ImplicitParameters(),
                           biting=BitingParameters(cells=cells), spurious=SpuriousParameters(),
-                          optimize=optimize_parameters(args), progress=progress)
+                          optimize=parameters_from_args(args, (OptimizeParameters,))[0], progress=progress)
     return result, f", myocardium {result.mesh.cell_data['Volume'].sum() / 1000:.1f} ml"

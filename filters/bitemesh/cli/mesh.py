@@ -4,8 +4,7 @@ from __future__ import annotations
 from dataclasses import fields
 
 from ..core.errors import InvalidInputError
-from ..core.parameters import (LabelledParameters, LabelMapParameters, OptimizeParameters, OptimizeSwitch,
-                               TableParameters)
+from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
 from ..core.pipeline import run as run_pipeline
 from ..io import looks_labelled, read_labelled_config, read_labelled_points, read_points
 from ..labelmap import LABEL_MAP_EXTENSIONS
@@ -26,7 +25,6 @@ def add_parser(subcommands) -> None:
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_parameter_options(parser, (TableParameters,))
     add_parameter_options(parser)
-    add_optimize_options(parser)
     add_parameter_options(parser, (LabelledParameters,))
     parser.add_argument("--config", metavar="FILE", help="labelled contours: a JSON or TOML file with the domain and "
                                                          "its options (flags given on the command line win)")
@@ -36,17 +34,6 @@ def add_parser(subcommands) -> None:
                         help=describe(label.metadata, None) + " (repeat for a union)")
     labels.add_argument("--ras", action="store_true", help="write the mesh in RAS (3D Slicer) instead of LPS (ITK)")
     parser.set_defaults(run=run)
-
-
-def add_optimize_options(parser) -> None:
-    """``--optimize`` (the switch every interface has, OptimizeSwitch) and the MeshOptimizer's parameters."""
-    add_parameter_options(parser, (OptimizeSwitch, OptimizeParameters))
-
-
-def optimize_parameters(args):
-    """The MeshOptimizer's parameters, or None without ``--optimize``."""
-    switch, parameters = parameters_from_args(args, (OptimizeSwitch, OptimizeParameters))
-    return parameters if switch.optimize else None
 
 
 def run(args) -> None:
@@ -64,9 +51,9 @@ def run(args) -> None:
             f"{given[0]} out to mesh the points as one surface")
     if columns and label_map:
         raise InvalidInputError(f"--columns applies to text tables, not to the label map '{args.input}'")
-    implicit, biting, spurious, fidelity = parameters_from_args(args)
-    steps = {"implicit": implicit, "biting": biting, "spurious": spurious, "fidelity": fidelity,
-             "optimize": optimize_parameters(args)}
+    implicit, biting, spurious, optimize, fidelity = parameters_from_args(args)
+    steps = {"implicit": implicit, "biting": biting, "spurious": spurious, "optimize": optimize,
+             "fidelity": fidelity}
     bar = ProgressBar()
     try:
         if label_map:

@@ -7,11 +7,9 @@ from dataclasses import fields
 from pathlib import Path
 
 from ..core.errors import InvalidInputError
-from ..core.parameters import BitingParameters, FidelityParameters, ImplicitParameters, SpuriousParameters
+from ..core.parameters import STEP_PARAMETERS
 from ..core.quality import quality_summary
 from ..io import MESH_EXTENSIONS, write_mesh
-
-STEP_PARAMETERS = (ImplicitParameters, BitingParameters, SpuriousParameters, FidelityParameters)
 
 
 def describe(metadata: dict, default) -> str:
@@ -33,10 +31,14 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
         group = parser.add_argument_group(cls.__doc__.split(":")[0])
         for item in fields(cls):
             flag = f"--{item.name.replace('_', '-')}"
-            if is_switch(item):   # a 0/1 parameter whose default is 0: a flag that sets it to 1
-                what = item.metadata["help"].removeprefix("1 ").split(";")[0].strip()
-                group.add_argument(flag, dest=item.name, action="store_const", const=1, default=0,
-                                   help=what.replace("%", "%%"))
+            if is_switch(item):   # a 0/1 parameter: --name sets it to 1, --no-name to 0
+                on, _, off = item.metadata["help"].removeprefix("1 ").partition("; 0 ")
+                off = off or f"the opposite of {flag}"
+                marks = ("", " (the default)") if item.default else (" (the default)", "")
+                group.add_argument(flag, dest=item.name, action="store_const", const=1, default=item.default,
+                                   help=(on + marks[1]).replace("%", "%%"))
+                group.add_argument(f"--no-{flag[2:]}", dest=item.name, action="store_const", const=0,
+                                   help=(off + marks[0]).replace("%", "%%"))
                 continue
             text = "choices" in item.metadata or "text" in item.metadata
             kind = str if text else int if item.metadata["integer"] else float
@@ -45,8 +47,8 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
 
 
 def is_switch(item) -> bool:
-    """True for a parameter that is an integer 0 or 1, 0 by default."""
-    return item.metadata.get("integer") and item.metadata.get("range", ())[:2] == (0, 1) and item.default == 0
+    """True for a parameter that is an integer 0 or 1."""
+    return item.metadata.get("integer") and item.metadata.get("range", ())[:2] == (0, 1)
 
 
 def parameters_from_args(args, parameter_classes=STEP_PARAMETERS) -> list:

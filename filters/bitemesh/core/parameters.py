@@ -6,6 +6,7 @@ The CLI flags, the VTK setters, the ParaView domains and the Slicer parameter no
 """
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field, fields
 from typing import Optional
 
@@ -150,8 +151,14 @@ class QualityParameters(Parameters):
 
 @dataclass(frozen=True)
 class OptimizeParameters(Parameters):
-    """MeshOptimizer: relax the nodes, remove the slivers, keep the boundary on f = 0."""
+    """MeshOptimizer: relax the nodes, remove the slivers, keep the boundary on f = 0.
 
+    ``optimize`` is the one switch of every interface (``--optimize``, ``SetOptimize``, the ParaView and Slicer
+    checkbox); the MeshOptimizer filter itself always runs and has only the other fields.
+    """
+
+    optimize: int = parameter(0, "1 also runs the MeshOptimizer (relaxation, sliver removal) on the valid domain; "
+                              "0 skips it: the paper's plain method", low=0, high=1, integer=True)
     iterations: int = parameter(30, "the most relaxation (ODT smoothing and Delaunay) iterations; the relaxation stops "
                                 "earlier once the mean radius ratio stops rising; 0 skips it", low=0, high=1000,
                                 integer=True)
@@ -186,22 +193,17 @@ class FidelityParameters(Parameters):
                                       "refusing it", low=0, high=1, integer=True)
 
 
-@dataclass(frozen=True)
-class OptimizeSwitch(Parameters):
-    """MeshFromPoints: whether the MeshOptimizer runs after the valid domain."""
-
-    optimize: int = parameter(0, "1 also runs the MeshOptimizer (relaxation, sliver removal) on the valid domain; "
-                              "0 skips it", low=0,
-                              high=1, integer=True)
+#: the parameters of the meshing spine's steps, in the order of ``run``'s arguments.
+STEP_PARAMETERS = (ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeParameters, FidelityParameters)
 
 
-def optimize_parameters(optimize) -> OptimizeParameters | None:
-    """The MeshOptimizer's parameters for an ``optimize`` argument: False or None (skip it), True (its defaults)
-    or OptimizeParameters."""
-    if optimize is None or optimize is False:
-        return None
-    if optimize is True:
-        return OptimizeParameters()
-    if isinstance(optimize, OptimizeParameters):
-        return optimize
-    raise InvalidInputError(f"optimize must be True, False or OptimizeParameters, got {optimize!r}")
+def parameters_from_keywords(keywords: dict, classes) -> list:
+    """One instance of each parameter dataclass, filled from the keywords named like its fields (each checks its
+    ranges); a keyword that names no field is refused with the closest name."""
+    owner = {item.name: cls for cls in classes for item in fields(cls)}
+    for name in keywords:
+        if name not in owner:
+            close = difflib.get_close_matches(name, owner, n=1)
+            hint = f"did you mean {close[0]}?" if close else "the parameters are " + ", ".join(sorted(owner))
+            raise InvalidInputError(f"{name} is not a parameter of this function; {hint}")
+    return [cls(**{name: value for name, value in keywords.items() if owner[name] is cls}) for cls in classes]

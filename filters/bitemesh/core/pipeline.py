@@ -14,7 +14,8 @@ from .grid import ImplicitGrid
 from .implicit import MIN_POINTS, fit_implicit
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
-                         SpuriousParameters, optimize_parameters)
+                         STEP_PARAMETERS, SpuriousParameters,
+                         parameters_from_keywords)
 from .samples import PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
@@ -120,10 +121,10 @@ def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound
 
 def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(),
         biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
-        progress: ProgressCallback = None, optimize: OptimizeParameters | None = None,
+        progress: ProgressCallback = None, optimize: OptimizeParameters = OptimizeParameters(),
         fidelity: FidelityParameters = FidelityParameters(), slices=None) -> MeshingResult:
-    """Every step of the method on scattered points, with the parameters of each step (``optimize``: None skips
-    the MeshOptimizer): :func:`points_source`, then the spine (:func:`~bitemesh.core.spine.mesh_source`).
+    """Every step of the method on scattered points, with the parameters of each step (the MeshOptimizer runs when
+    ``optimize.optimize`` is 1): :func:`points_source`, then the spine (:func:`~bitemesh.core.spine.mesh_source`).
     ``slices`` (optional): the contour each point was traced on, see :func:`points_source`."""
     seconds = {}
     with timed(seconds, "implicit fit"):
@@ -132,31 +133,21 @@ def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(
                        fidelity)
 
 
-def mesh_from_points(points, normals=None, *, radius=None, cells=10000, method="mpu", error_bound=None,
-                     grid_spacing=None, margin=None, max_memory_mb=4096.0, outliers="drop", threshold=0.4,
-                     min_component=0.01, order="boundary", seed=0, optimize=False, far_samples=0.5,
-                     unsupported_area=2.0, allow_unfaithful=0, progress: ProgressCallback = None) -> Mesh:
+def mesh_from_points(points, normals=None, *, progress: ProgressCallback = None, **parameters) -> Mesh:
     """A valid tetrahedral (triangular in 2D) mesh of the shape sampled by scattered points.
 
     Parameters
     ----------
     points : (n, 3) or (n, 2) float64, samples of the surface (input units)
     normals : (n, k) float64 outward normals, or None to estimate them
-    radius : R, node spacing (input units); default: chosen for about ``cells`` cells
-    optimize : True also runs the MeshOptimizer (relaxation, sliver removal) with its defaults, or give its
-        OptimizeParameters
-    The other parameters are those of :class:`ImplicitParameters`, :class:`BitingParameters`,
-    :class:`SpuriousParameters` and :class:`FidelityParameters`, with the same names.
+    parameters : any field of :class:`ImplicitParameters`, :class:`BitingParameters`, :class:`SpuriousParameters`,
+        :class:`OptimizeParameters` and :class:`FidelityParameters`, by name, e.g. ``radius=0.05`` (R, input
+        units; default chosen for about ``cells`` cells), ``cells=20000``, ``optimize=1``
+    progress : callable(fraction, message), optional
 
     Returns
     -------
     Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
     """
-    return run(points, normals,
-               ImplicitParameters(method=method, error_bound=error_bound, grid_spacing=grid_spacing, margin=margin,
-                                  max_memory_mb=max_memory_mb, outliers=outliers),
-               BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
-               SpuriousParameters(threshold=threshold, min_component=min_component), progress,
-               optimize_parameters(optimize),
-               FidelityParameters(far_samples=far_samples, unsupported_area=unsupported_area,
-                                  allow_unfaithful=allow_unfaithful)).mesh
+    implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(parameters, STEP_PARAMETERS)
+    return run(points, normals, implicit, biting, spurious, progress, optimize, fidelity).mesh

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Callable, Optional
@@ -21,7 +22,7 @@ import numpy as np
 from .biting import bite
 from .delaunay import delaunay
 from .domain import carve_domain
-from .errors import InvalidInputError, check_number
+from .errors import BitemeshWarning, InvalidInputError, check_number
 from .fidelity import Fidelity, check_fidelity, measure_fidelity
 from .grid import (BYTES_PER_NODE, EXACT_WITHIN, ImplicitGrid, available_memory_mb, grid_shape_unchecked,
                    sample_function)
@@ -99,13 +100,14 @@ def timed(seconds: dict, name: str):
 
 def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: SpuriousParameters = SpuriousParameters(),
                    progress: ProgressCallback = None, seconds: dict | None = None,
-                   optimize: OptimizeParameters | None = None) -> MeshingResult:
+                   optimize: OptimizeParameters = OptimizeParameters()) -> MeshingResult:
     """Mesh {f > 0} of a sampled implicit function; R is ``biting.radius`` or chosen for ``biting.cells`` cells.
 
-    With ``optimize``, the MeshOptimizer step (relaxation, sliver removal) runs on the valid domain.
+    With ``optimize.optimize`` 1, the MeshOptimizer step (relaxation, sliver removal) runs on the valid domain.
     """
     seconds = {} if seconds is None else seconds
     radius = biting.radius or radius_on_grid(grid, biting.cells)
+    optimize = switched_optimizer(optimize)
     carved = 0.9 if optimize is None else 0.6
     with timed(seconds, "biting"):
         nodes = bite(grid, radius, order=biting.order, seed=biting.seed, progress=sub_progress(progress, 0, 0.3))
@@ -121,6 +123,25 @@ def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: Spuri
         mesh = mesh.with_cell_data(**cell_quality(mesh))
     report(progress, 1.0, "quality")
     return MeshingResult(mesh=mesh, implicit=grid, nodes=nodes, radius=radius, seconds=seconds)
+
+
+def switched_optimizer(optimize: OptimizeParameters) -> OptimizeParameters | None:
+    """The MeshOptimizer's parameters when its switch is on, else None.  ``optimize=None``, the form from before
+    the switch was a field, still skips it, with a DeprecationWarning; bounds given with the switch off are
+    pointed out, since they do nothing."""
+    if optimize is None:
+        warnings.warn("optimize=None is deprecated: give OptimizeParameters(optimize=0) to skip the MeshOptimizer, "
+                      "OptimizeParameters(optimize=1, ...) to run it", DeprecationWarning, stacklevel=3)
+        return None
+    if not isinstance(optimize, OptimizeParameters):
+        raise InvalidInputError(f"optimize must be OptimizeParameters, got {optimize!r}; e.g. "
+                                "OptimizeParameters(optimize=1)")
+    if optimize.optimize:
+        return optimize
+    if optimize != OptimizeParameters():
+        warnings.warn(BitemeshWarning(f"{optimize} has optimize=0: the MeshOptimizer does not run and its bounds "
+                                      "do nothing; give optimize=1 to run it"), stacklevel=3)
+    return None
 
 
 def radius_on_grid(grid: ImplicitGrid, cells: int) -> float:
@@ -295,10 +316,10 @@ def grid_for_source(source: Source, implicit: ImplicitParameters = ImplicitParam
 
 def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
                 biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
-                optimize: OptimizeParameters | None = None, progress: ProgressCallback = None,
+                optimize: OptimizeParameters = OptimizeParameters(), progress: ProgressCallback = None,
                 seconds: dict | None = None, fidelity: FidelityParameters = FidelityParameters()) -> MeshingResult:
     """Mesh a source: choose R and sample the grid I (:func:`grid_for_source`), bite, Delaunay, carve the valid
-    domain, optimize (unless ``optimize`` is None), quality, measure the fidelity to the source's samples (refused
+    domain, optimize (when ``optimize.optimize`` is 1), quality, measure the fidelity to the source's samples (refused
     beyond the bounds of ``fidelity``, see :func:`~bitemesh.core.fidelity.check_fidelity`), and map the mesh to
     user coordinates.
 

@@ -120,7 +120,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         implicit, biting = settings["ImplicitParameters"], settings["BitingParameters"]
         spurious, quality = settings["SpuriousParameters"], settings["QualityParameters"]
         fidelity, labelled = settings["FidelityParameters"], settings["LabelledParameters"]
-        optimize = settings["optimize"]   # OptimizeParameters, or None: the optimizer is off
+        optimize = settings["OptimizeParameters"]   # the core runs the MeshOptimizer when optimize.optimize is 1
         domain = (labelled.domain or "").strip()   # "" (or None) stands for the default domain
 
         report(progress, 0.0, "reading the input")

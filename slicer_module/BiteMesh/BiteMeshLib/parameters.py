@@ -17,7 +17,7 @@ SECTIONS = {
         "errorBound": ("ImplicitParameters", "error_bound"),
         "method": ("ImplicitParameters", "method"),
         "threshold": ("SpuriousParameters", "threshold"),
-        "optimize": ("OptimizeSwitch", "optimize"),
+        "optimize": ("OptimizeParameters", "optimize"),
     },
     "contoursCollapsibleButton": {   # "Labelled contours", open
         "domain": ("LabelledParameters", "domain"),
@@ -144,25 +144,9 @@ def splitParameters(parameters: dict, method: str) -> dict:
     return split
 
 
-#: the dataclasses :func:`optimizerParameters` reads (the optimizer's parameters and its switch).
-OPTIMIZER_DATACLASSES = ("OptimizeParameters", "OptimizeSwitch")
-
-
-def optimizerParameters(split: dict):
-    """The MeshOptimizer's parameters for split keywords (checked even when the optimizer is off), or None when
-    the optimizer is off.  The one place that reads the on/off switch (today OptimizeSwitch.optimize)."""
-    core = _core()
-    parameters = core.OptimizeParameters(**split["OptimizeParameters"])
-    return parameters if core.OptimizeSwitch(**split["OptimizeSwitch"]).optimize else None
-
-
 def coreSettings(parameters: dict, method: str) -> dict:
     """Keyword parameters of :meth:`BiteMeshLogic.process` -> the core's parameter objects, each checked by its
-    dataclass: dataclass name -> instance for every dataclass of the panel except the optimizer's, and
-    ``"optimize"``: the OptimizeParameters the MeshOptimizer runs with, or None when it is off."""
+    dataclass: dataclass name -> instance for every dataclass of the panel (OptimizeParameters with its switch,
+    ``optimize``, which the core reads)."""
     core = _core()
-    split = splitParameters(parameters, method)
-    settings = {name: getattr(core, name)(**values) for name, values in split.items()
-                if name not in OPTIMIZER_DATACLASSES}
-    settings["optimize"] = optimizerParameters(split)
-    return settings
+    return {name: getattr(core, name)(**values) for name, values in splitParameters(parameters, method).items()}

@@ -6,14 +6,15 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
 from ..errors import check_points
 from ..mesh import Mesh
 from ..parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
-                          SpuriousParameters, optimize_parameters)
+                          STEP_PARAMETERS, SpuriousParameters,
+                          parameters_from_keywords)
 from ..progress import ProgressCallback, sub_progress
 from ..source import Frame, Source
 from ..spine import MeshingResult, mesh_source, timed
@@ -79,7 +80,7 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
                  implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
-                 spurious: SpuriousParameters | None = None, optimize: OptimizeParameters | None = None,
+                 spurious: SpuriousParameters | None = None, optimize: OptimizeParameters = OptimizeParameters(),
                  fidelity: FidelityParameters | None = None, allow_implausible: bool = False,
                  progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
     """Every step on labelled contour points: :func:`labelled_source`, then the spine
@@ -90,7 +91,7 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     with neither given (cells at its default), R = 2 mm.  Parameters left None take their defaults; ``min_wall``
     defaults to :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would
     open in holes).  ``implicit`` gives the grid I (grid_spacing, margin, max_memory_mb; its method is not used).
-    ``optimize`` (None: skipped) runs the MeshOptimizer on the valid domain.  ``options`` go to
+    ``optimize`` runs the MeshOptimizer on the valid domain when its switch is 1.  ``options`` go to
     :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
 
     ``result.function`` is the domain's LabelledImplicit in the input's coordinates, like the mesh.  The fidelity
@@ -113,9 +114,7 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     return result
 
 
-def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, radius=None,
-                              cells=10000, min_wall=None, grid_spacing=None, margin=None, max_memory_mb=4096.0,
-                              threshold=0.4, min_component=0.01, order="boundary", seed=0, optimize=False,
+def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, min_wall=None,
                               progress: ProgressCallback = None, **options) -> Mesh:
     """A valid tetrahedral mesh of the domain bounded by labelled contour surfaces (a biv-me GPFile's myocardium).
 
@@ -124,18 +123,19 @@ def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto",
     points : (n, 3) float64, contour points (mm); labels : (n,) str or int, one per point
     domain, base_plane, slices : as for :func:`labelled_implicit` (default for biv-me labels: the two-cavity
         myocardium ``EPI - LV_ENDO - RV_ENDO`` below the valve plane)
-    radius : R, node spacing (input units); default: chosen for about ``cells`` cells
     min_wall : float, input units, the thinnest wall; default max(2.5, 1.25 R) (see :func:`run_labelled`)
-    The other parameters are those of :func:`bitemesh.core.pipeline.mesh_from_points` (grid, biting, optimize) and of
-    :func:`labelled_implicit` (``options``: kernel, offset, surfaces, outlets, base_offset, resolution, ...).
+    options : any field of ImplicitParameters, BitingParameters (``radius``: R, input units, default chosen for
+        about ``cells`` cells), SpuriousParameters, OptimizeParameters and FidelityParameters by name, e.g.
+        ``cells=20000, optimize=1``; the others go to :func:`labelled_implicit` (kernel, offset, surfaces,
+        outlets, base_offset, resolution, ...).
 
     Returns
     -------
     Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
     """
+    names = {item.name for cls in STEP_PARAMETERS for item in fields(cls)}
+    steps = {name: options.pop(name) for name in list(options) if name in names}
+    implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(steps, STEP_PARAMETERS)
     return run_labelled(points, labels, domain=domain, base_plane=base_plane, slices=slices, min_wall=min_wall,
-                        implicit=ImplicitParameters(grid_spacing=grid_spacing, margin=margin,
-                                                    max_memory_mb=max_memory_mb),
-                        biting=BitingParameters(radius=radius, cells=cells, order=order, seed=seed),
-                        spurious=SpuriousParameters(threshold=threshold, min_component=min_component),
-                        optimize=optimize_parameters(optimize), progress=progress, **options).mesh
+                        implicit=implicit, biting=biting, spurious=spurious, optimize=optimize, fidelity=fidelity,
+                        progress=progress, **options).mesh
