@@ -11,7 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from bitemesh.core.errors import Cancelled, InvalidInputError
 from bitemesh.core.implicit import (MAX_RBF_POINTS, MPUImplicit, RBFImplicit, check_normals, estimate_normals,
-                                    fit_implicit, fit_mpu, fit_rbf, points_to_implicit)
+                                    fit_implicit, fit_mpu, fit_rbf)
+from bitemesh.core.pipeline import points_to_implicit
 
 
 def sphere_sample(count, *, radius=1.0, noise=0.0, seed=0):

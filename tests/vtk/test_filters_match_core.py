@@ -16,8 +16,8 @@ from bitemesh.core.biting import bite
 from bitemesh.core.delaunay import delaunay
 from bitemesh.core.domain import carve_domain
 from bitemesh.core.mesh import Mesh
-from bitemesh.core.implicit import points_to_implicit
 from bitemesh.core.parameters import SpuriousParameters
+from bitemesh.core.pipeline import points_to_implicit
 from bitemesh.core.quality import cell_quality, quality_histogram, quality_summary
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import VTK_TETRA

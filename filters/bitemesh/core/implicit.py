@@ -71,9 +71,14 @@ def fit_implicit(points, normals=None, *, method: str = "mpu", error_bound=None,
 
 
 def __getattr__(name):
-    """``points_to_implicit`` lives in :mod:`bitemesh.core.pipeline` (it drops outliers and centres the points
-    first); imported from here as before."""
+    """Deprecated: ``points_to_implicit`` lives in :mod:`bitemesh.core.pipeline` (it drops outliers and centres the
+    points first).  Imported from here it still works, with a DeprecationWarning; the import is lazy because
+    pipeline imports this module."""
     if name == "points_to_implicit":
+        import warnings
+
+        warnings.warn("bitemesh.core.implicit.points_to_implicit is deprecated; import it from "
+                      "bitemesh.core.pipeline", DeprecationWarning, stacklevel=2)
         from .pipeline import points_to_implicit
         return points_to_implicit
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
