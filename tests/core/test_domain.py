@@ -94,7 +94,7 @@ def test_carving_an_empty_inside_is_a_clear_error():
 def test_a_pinch_is_mended_by_the_smaller_change_and_filling_can_be_turned_off():
     """Two cubes of a 2 x 2 block meeting only along an edge: per pinch, fill the gap or drop the smaller fans,
     whichever changes less volume; without filling, cells only go."""
-    from bitemesh.core.domain import unpinch
+    from bitemesh.core.domain import DelaunayCells, unpinch
     from bitemesh.core.topology import non_manifold_faces
     corners = np.array([[i, j, k] for i in range(3) for j in range(3) for k in range(2)], float)
     corners += np.random.default_rng(0).normal(0, 1e-3, corners.shape)
@@ -104,8 +104,8 @@ def test_a_pinch_is_mended_by_the_smaller_change_and_filling_can_be_turned_off()
     keep = (centroid[:, 0] < 1) == (centroid[:, 1] < 1)   # the two cubes on one diagonal
     pinched = non_manifold_faces(cells[keep], len(corners))
     assert pinched
-    filled = unpinch(corners, cells, keep, pinched, fill=True)
-    removed = unpinch(corners, cells, keep, pinched, fill=False)
+    filled = unpinch(DelaunayCells.of(corners, cells), keep, pinched, fill=True)
+    removed = unpinch(DelaunayCells.of(corners, cells), keep, pinched, fill=False)
     assert (removed <= keep).all() and removed.sum() < keep.sum()
     change_with_fill = volume[filled != keep].sum()
     assert 0 < change_with_fill <= volume[removed != keep].sum() + 1e-12

@@ -17,8 +17,7 @@ import numpy as np
 
 from .grid import ImplicitGrid
 from .mesh import signed_measures
-from .topology import (boundary_facets, connected_components, euler_change, euler_characteristic, facet_table,
-                       neighbour_pairs, unique_rows, vertex_incidence)
+from .topology import CellComplex, boundary_facets, connected_components, euler_change, euler_characteristic
 
 #: the six edges of a tetrahedron, as pairs of its vertex positions.
 TETRAHEDRON_EDGES = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
@@ -51,15 +50,14 @@ class _Complex:
     edge_ids: np.ndarray
 
     @classmethod
-    def of(cls, cells: np.ndarray) -> _Complex:
-        _, facet_ids, facet_counts = facet_table(cells)
-        _, edge_ids, _ = unique_rows(cells[:, np.array(TETRAHEDRON_EDGES)])
-        first, second = neighbour_pairs(facet_ids)
+    def of(cls, complex_: CellComplex) -> _Complex:
+        """From the tables of all the cells (its ridges are the edges, in the order of ``TETRAHEDRON_EDGES``)."""
+        cells, facet_ids, edge_ids = complex_.cells, complex_.facet_ids.ravel(), complex_.cell_ridges
+        first, second = complex_.neighbour_rows
         neighbours = np.full(cells.size, -1, dtype=np.int64)
         neighbours[first], neighbours[second] = second // 4, first // 4
-        edge_ids = edge_ids.reshape(-1, 6)
-        return cls(cells.tolist(), edge_ids.tolist(), facet_ids.reshape(-1, 4).tolist(),
-                   neighbours.reshape(-1, 4).tolist(), facet_ids, facet_counts, edge_ids)
+        return cls(cells.tolist(), edge_ids.tolist(), complex_.facet_ids.tolist(),
+                   neighbours.reshape(-1, 4).tolist(), facet_ids, complex_.hull_counts, edge_ids)
 
 
 class _Growth:
@@ -124,7 +122,7 @@ class _Growth:
         return np.frombuffer(bytes(self.grown), dtype=np.uint8).astype(bool)
 
 
-def break_handles(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, keep: np.ndarray):
+def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex, keep: np.ndarray):
     """``keep`` with the handles of the kept cells thinner than about two cells cut or filled.
 
     A cluster reaches into the domain (a cut) or out of it (a fill) as far as the largest |f| at its cells'
@@ -135,33 +133,33 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, kee
 
     Parameters
     ----------
-    grid : f on the grid I; points : (n, 3) float64 nodes; cells : (m, 4) int64, every Delaunay cell
+    grid : f on the grid I; points : (n, 3) float64 nodes; complex_ : the tables of every Delaunay cell (m, 4)
     keep : (m,) bool, the cells of a valid domain (a manifold boundary)
 
     Returns
     -------
     keep : (m,) bool; removed : int, the clusters kept (one handle each)
     """
+    cells = complex_.cells
     kept_cells = cells[keep]
     handles = handle_count(kept_cells)
     if handles == 0:
         return keep, 0
-    complex_ = _Complex.of(cells)
+    growth_complex = _Complex.of(complex_)
     value = grid.evaluate(points[cells].mean(axis=1))
-    parts = connected_components(kept_cells)
-    cut = keep & ~_grown_inside(complex_, len(points), keep, value, parts)
-    fill = ~keep & ~_grown_outside(complex_, cells, len(points), keep, value)
+    parts = complex_.components(keep)
+    cut = keep & ~_grown_inside(growth_complex, len(points), keep, value, parts)
+    fill = ~keep & ~_grown_outside(growth_complex, cells, len(points), keep, value)
     cell_size = float(np.cbrt(6 * np.sqrt(2) * np.median(signed_measures(points, kept_cells))))
     candidates = [candidate for candidate in _clusters(points, cells, cut, value, fill=False)
                   + _clusters(points, cells, fill, value, fill=True) if candidate[0] <= MAX_DEPTH * cell_size]
-    incidence = vertex_incidence(len(points), cells)
     removed, parts_before, pieces_before = 0, parts.max() + 1, _surface_pieces(kept_cells)
     for _, _, members, is_fill in sorted(candidates, key=lambda candidate: candidate[:2])[:TRIES_PER_HANDLE * handles]:
-        if euler_change(incidence, cells, keep, members, is_fill) != 1:
+        if euler_change(complex_.incidence, cells, keep, members, is_fill) != 1:
             continue
         trial = keep.copy()
         trial[members] = is_fill
-        if connected_components(cells[trial]).max() + 1 == parts_before \
+        if complex_.components(trial).max() + 1 == parts_before \
                 and _surface_pieces(cells[trial]) == pieces_before:
             keep, removed = trial, removed + 1
             if removed == handles:
