@@ -1,0 +1,202 @@
+"""Moving the nodes of a valid mesh (the cells of the MeshOptimizer, :mod:`bitemesh.core.optimize`): the
+relaxation and the smoothing.  Boundary nodes stay on f = 0 (Newton steps along grad f,
+:func:`bitemesh.core.biting.project_to_surface`).
+
+- Relaxation (:func:`relax`): optimal Delaunay triangulation (ODT) smoothing, Alliez et al. 2005.  Each interior
+  node moves to the volume-weighted mean of the circumcentres of its cells, each boundary node towards the
+  area-weighted mean of the centroids of its boundary facets, along the surface and back onto f = 0; then the
+  nodes are triangulated again (Delaunay and the circumcentre test), until the mean radius ratio stops rising.
+  The last state is carved into a valid domain (:func:`bitemesh.core.domain.carve_domain`).
+- Smoothing (:func:`smooth`, a step of the sliver removal, :mod:`bitemesh.core.slivers`): the nodes move down sum
+  over the cells of (1 / mean ratio)^2 (Knupp's inverse mean ratio, infinite for a flat cell) with the boundary
+  nodes sliding on f = 0; the cells stay as they are and every cell stays positive.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .biting import project_to_surface
+from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
+                            mean_ratio_terms, off_surface_nodes, scatter_to_points, signed_radius_ratio, tangential)
+from .delaunay import delaunay
+from .domain import carve_domain, compact
+from .errors import MeshingError
+from .grid import ImplicitGrid
+from .mesh import circumspheres, signed_measures
+from .parameters import SpuriousParameters
+from .progress import ProgressCallback, report
+from .spurious import outside_cells
+from .topology import boundary_facets
+
+#: the relaxation, and the rounds of sliver removal once no cell is below the angle bound, stop when the mean
+#: radius ratio has not risen by MEAN_GAIN over their last PATIENCE iterations (rounds: over the last one).
+MEAN_GAIN = 2e-3
+PATIENCE = 2
+#: rounds of carving the relaxed nodes into a domain and moving the boundary nodes it left off f = 0.
+SURFACE_ROUNDS = 3
+#: an interior node may come no closer to f = 0 than this fraction of the mean edge length.
+INTERIOR_MARGIN = 0.3
+#: smoothing: exponent p of the cost (1 / mean ratio)^p, longest move (x mean edge length), the step lengths tried.
+SMOOTH_POWER = 2
+MAX_MOVE = 0.2
+STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.125)
+#: rounds in which moves that made a shared cell worse are taken back (smoothing), or in which peeled cells that
+#: pinched the boundary come back (peel, :mod:`bitemesh.core.slivers`).
+REVERT_ROUNDS = 10
+#: a boundary node is on the surface when |f| there is below this fraction of the mean edge length.
+SURFACE_TOLERANCE = 0.01
+
+
+# --- relaxation ----------------------------------------------------------------------------------------------------
+
+def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margin: float) -> np.ndarray:
+    """(n, k) where the ODT smoothing moves each node (Alliez et al. 2005, section 4).
+
+    Interior nodes: the volume-weighted mean of the circumcentres of their cells, pushed back to f = ``margin``
+    when it lies closer to the surface.  Boundary nodes: the area-weighted mean of the centroids of their boundary
+    facets, the move taken along the surface, then onto f = 0.  A node in no cell with volume stays.
+    """
+    n, k = points.shape
+    centres, _ = circumspheres(points, cells)
+    volume = np.abs(signed_measures(points, cells))
+    usable = np.isfinite(centres).all(axis=1)
+    weight = np.bincount(cells[usable].ravel(), np.repeat(volume[usable], k + 1), n)
+    weighted = np.repeat((volume[usable, None] * centres[usable])[:, None], k + 1, axis=1)
+    targets = points.copy()
+    inner = np.flatnonzero(weight > 0)
+    targets[inner] = scatter_to_points(n, cells[usable], weighted)[inner] / weight[inner, None]
+
+    facets = boundary_facets(cells)
+    corners = points[facets]
+    spans = corners[:, 1:] - corners[:, :1]
+    area = np.linalg.norm(cross(spans[:, 0], spans[:, 1]) if k == 3 else spans[:, 0], axis=1)
+    along = scatter_to_points(n, facets, np.repeat((area[:, None] * corners.mean(axis=1))[:, None], k, axis=1))
+    along_weight = np.bincount(facets.ravel(), np.repeat(area, k), n)
+
+    on_boundary = boundary_nodes(cells, n)
+    inner = np.flatnonzero(~on_boundary)
+    value = grid.evaluate(targets[inner])
+    shallow = inner[value < margin]
+    if len(shallow):
+        gradient = grid.gradient(targets[shallow])
+        squared = np.maximum(dot(gradient, gradient), 1e-12)
+        targets[shallow] += ((margin - value[value < margin]) / squared)[:, None] * gradient
+    outer = np.flatnonzero(on_boundary & (along_weight > 0))
+    goal = along[outer] / along_weight[outer, None]
+    targets[outer] = project_to_surface(grid, points[outer] + tangential(grid, points[outer], goal - points[outer]))
+    return targets
+
+
+def relax(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations: int,
+          spurious: SpuriousParameters = SpuriousParameters(), progress: ProgressCallback = None):
+    """ODT relaxation: move the nodes (:func:`odt_targets`), triangulate them again, keep the cells inside; repeat.
+
+    Between the moves only the circumcentre test of the spurious-cell filter sorts the cells (fast); the last state
+    is carved into a valid domain, and moved and carved again while that left boundary nodes off f = 0 (at most
+    ``SURFACE_ROUNDS`` times).  Stops after ``iterations`` moves, or when the mean radius ratio has not risen by
+    ``MEAN_GAIN`` over ``PATIENCE`` iterations.  Nodes that no cell inside uses are dropped.
+
+    Returns
+    -------
+    points, cells : the relaxed valid mesh
+    history : list of float, the mean radius ratio after each move
+
+    Raises :class:`MeshingError` when the moved nodes leave no cell inside or cannot be carved into a valid domain.
+    """
+    length = mean_edge_length(points, cells)
+    margin = INTERIOR_MARGIN * length
+    history = []
+    for iteration in range(iterations):
+        moved = odt_targets(grid, points, cells, margin)
+        triangulation = delaunay(moved)
+        inside = triangulation[~outside_cells(grid, moved, triangulation, spurious.threshold)]
+        if len(inside) == 0:
+            raise MeshingError("the relaxed nodes leave no cell inside the domain")
+        relaxed = compact(moved, inside)
+        points, cells = relaxed.points, relaxed.cells
+        history.append(float(signed_radius_ratio(points, cells).mean()))
+        report(progress, (iteration + 1) / iterations,
+               f"relaxation {iteration + 1}/{iterations}: mean radius ratio {history[-1]:.4f}")
+        if len(history) > PATIENCE and max(history[-PATIENCE:]) < max(history[:-PATIENCE]) + MEAN_GAIN:
+            break
+    for round_ in range(SURFACE_ROUNDS):
+        if round_:  # the carving laid nodes bare: move them onto f = 0, with the others
+            points = odt_targets(grid, points, cells, margin)
+        mesh = carve_domain(grid, points, delaunay(points), spurious)
+        points, cells = mesh.points, mesh.cells
+        if len(off_surface_nodes(grid, points, cells, SURFACE_TOLERANCE * length)) == 0:
+            break
+    report(progress, 1.0, f"relaxation: {len(history)} iterations, mean radius ratio "
+                          f"{signed_radius_ratio(points, cells).mean():.4f} in the carved domain")
+    return points, cells, history
+
+
+# --- smoothing -----------------------------------------------------------------------------------------------------
+
+def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations: int,
+           progress: ProgressCallback = None) -> np.ndarray:
+    """Move the nodes to lower sum over the cells of (1 / mean ratio)^p; the cells stay as they are.
+
+    Each iteration takes, for every node, a step down the gradient of the cost of its cells (boundary nodes: its
+    tangential part, then back onto f = 0): the best of ``STEP_FRACTIONS`` with the other nodes fixed (exact and
+    cheap: a cell's volume is linear in one vertex).  All nodes move at once; a node whose cells then cost more
+    than before, or one of which is inverted, goes back.  A boundary node off f = 0 goes onto it as soon as its
+    cells stay positive there.
+
+    Returns
+    -------
+    (n, k) float64, the new node positions
+    """
+    n, k = points.shape
+    corner_of = cells.ravel()
+    degree = np.bincount(corner_of, minlength=n)
+    on_boundary = np.flatnonzero(boundary_nodes(cells, n))
+    length = mean_edge_length(points, cells)
+    for iteration in range(iterations):
+        report(progress, iteration / iterations, f"smoothing {iteration + 1}/{iterations}")
+        volume, squares, volume_gradient, centred = mean_ratio_terms(points[cells])
+        cost = mean_ratio_cost(volume, squares, k)
+        with np.errstate(all="ignore"):  # inf on cells with no volume: their nodes do not move
+            gradient = (SMOOTH_POWER * cost ** SMOOTH_POWER)[:, None, None] * (
+                2.0 * (k + 1) * centred / squares[:, None, None] - (2.0 / k) * volume_gradient / volume[:, None, None])
+        current = np.bincount(corner_of, np.repeat(cost ** SMOOTH_POWER, k + 1), n)
+        descent = -scatter_to_points(n, cells, gradient)
+        descent[on_boundary] = tangential(grid, points[on_boundary], descent[on_boundary])
+        # a Newton-like scale: the cost of a node's cells changes by about its own size over an edge length
+        descent *= (0.5 * length ** 2 * degree / np.maximum(current, 1e-300))[:, None]
+        descent[~np.isfinite(descent).all(axis=1)] = 0.0
+        step = np.linalg.norm(descent, axis=1)
+        descent *= np.minimum(1.0, MAX_MOVE * length / np.maximum(step, 1e-300))[:, None]
+
+        off_surface = np.zeros(n, bool)
+        off_surface[on_boundary] = np.abs(grid.evaluate(points[on_boundary])) > SURFACE_TOLERANCE * length
+        limit = np.where(off_surface, np.inf, current)
+        best_cost, best_move = limit.copy(), np.zeros_like(points)
+        for fraction in STEP_FRACTIONS:
+            move = fraction * descent
+            move[on_boundary] = project_to_surface(grid, points[on_boundary] + move[on_boundary]) - points[on_boundary]
+            # the cost of each node's cells when that node alone moves
+            shift = move[cells]
+            trial_volume = volume[:, None] + np.einsum("mij,mij->mi", volume_gradient, shift)
+            trial_squares = squares[:, None] + np.einsum("mij,mij->mi", 2.0 * (k + 1) * centred + k * shift, shift)
+            trial = np.bincount(corner_of, mean_ratio_cost(trial_volume.ravel(), trial_squares.ravel(), k)
+                                ** SMOOTH_POWER, n)
+            better = trial < best_cost
+            best_cost[better], best_move[better] = trial[better], move[better]
+        moving = np.isfinite(best_cost) & np.any(best_move != 0, axis=1)
+        new = points.copy()
+        new[moving] += best_move[moving]
+        for _ in range(REVERT_ROUNDS):
+            cost = inverse_mean_ratio(new[cells]) ** SMOOTH_POWER
+            worse = np.bincount(corner_of, np.repeat(cost, k + 1), n) > limit
+            worse[cells[~np.isfinite(cost)].ravel()] = True
+            worse &= moving
+            if not worse.any():
+                break
+            new[worse] = points[worse]
+            moving &= ~worse
+        else:
+            new = points
+        points = new
+    report(progress, 1.0, "smoothing")
+    return points
