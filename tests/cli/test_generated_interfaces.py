@@ -27,7 +27,9 @@ COMMANDS = {
 #: VTK filter -> the dataclasses whose fields it has setters for, in order ((dataclass, names): those fields only)
 FILTERS = {
     "PointsToImplicit": (core.ImplicitParameters, (core.BitingParameters, ("radius", "cells")),
-                         core.LabelMapParameters, core.LabelledParameters),
+                         core.LabelMapParameters,   # the heart's plausibility check runs in MeshFromPoints only:
+                         (core.LabelledParameters, [item.name for item in fields(core.LabelledParameters)
+                                                    if item.name != "allow_implausible"])),
     "BitingSampler": (core.BitingParameters,),
     "DelaunayTetra": (),
     "SpuriousCellFilter": (core.SpuriousParameters, core.FidelityParameters),

@@ -19,25 +19,21 @@ GPFILE_COUNTS = {"SAX_LV_ENDOCARDIAL": 233, "SAX_LV_EPICARDIAL": 216, "SAX_RV_FR
 PACKAGED = Path(bitemesh.__file__).resolve().parent / "data" / "bivme_patient1"
 
 
-def gpfile(shared_data) -> Path:
-    return shared_data / "bivme_patient1" / "GPFile_000.txt"
-
-
 # --- reading ------------------------------------------------------------------------------------------------------
 
-def test_the_gpfile_reads_with_its_label_counts_and_slices(shared_data):
-    points, labels, slices = read_labelled_points(gpfile(shared_data))
+def test_the_gpfile_reads_with_its_label_counts_and_slices(gpfile):
+    points, labels, slices = read_labelled_points(gpfile)
     assert points.shape == (1814, 3) and points.dtype == np.float64
     assert dict(zip(*np.unique(labels, return_counts=True))) == GPFILE_COUNTS
     assert sorted(np.unique(slices).tolist()) == [2, 3, 4, 5, 6, 7, 8, 9, 11]
     assert points[0].tolist() == [-42.09469, -25.37305, -29.46908] and labels[0] == "SAX_RV_FREEWALL"
     assert (points.min(axis=0) > [-75, -37, -114]).all() and (points.max(axis=0) < [58, 57, 7]).all()
-    same_points, same_labels, _ = read_labelled_points(gpfile(shared_data))
+    same_points, same_labels, _ = read_labelled_points(gpfile)
     assert np.array_equal(same_points, points) and np.array_equal(same_labels, labels)
 
 
-def test_the_package_ships_the_gpfile_with_its_licence(shared_data):
-    assert (PACKAGED / "GPFile_000.txt").read_bytes() == gpfile(shared_data).read_bytes()
+def test_the_package_ships_the_gpfile_with_its_licence(gpfile, shared_data):
+    assert (PACKAGED / "GPFile_000.txt").read_bytes() == gpfile.read_bytes()
     licence = shared_data / "bivme_patient1" / "LICENSE.biv-me"
     assert (PACKAGED / "LICENSE.biv-me").read_bytes() == licence.read_bytes()
     assert "Apache" in (PACKAGED / "SOURCE.md").read_text()
@@ -152,15 +148,23 @@ def test_a_json_or_toml_config_gives_the_domain_settings(tmp_path):
     assert read_labelled_config(tmp_path / "heart.toml") == {
         "domain": "EPI - LV_ENDO - RV_ENDO", "base_plane": None, "base_offset": -2.5,
         "outlets": {"LV_ENDO": ["MITRAL_VALVE"]}}
+    (tmp_path / "fit.json").write_text('{"kernel": "cubic", "offset": 3, "smoothing": 0.1, "resolution": 0.8, '
+                                       '"allow_implausible": 1}')
+    assert read_labelled_config(tmp_path / "fit.json") == {"kernel": "cubic", "offset": 3.0, "smoothing": 0.1,
+                                                          "resolution": 0.8, "allow_implausible": True}
 
 
 @pytest.mark.parametrize("text, message", [
-    ('{"domian": "EPI"}', r"unknown key\(s\) domian; known keys: domain, surfaces"),
+    ('{"domian": "EPI"}', r"unknown key\(s\) domian; known keys: domain, base_plane, min_wall"),
     ('{"min_wall": "thick"}', r"min_wall must be number, got 'thick'"),
     ('{"base_plane": [0, 0, 1]}', r"base_plane must be 'auto', 'valves', 'none', null or \{point"),
     ('{"surfaces": {"EPI": []}}', r"surfaces must be \{name: \[labels\]\}"),
     ('{"domain": "EPI"', r"cannot read a labelled-domain config from .*Expecting"),
     ('["EPI"]', r"must hold a table"),
+    # the scalar keys are LabelledParameters' fields, checked by it (its ranges and choices)
+    ('{"kernel": "gaussian"}', r"kernel must be one of .*linear"),
+    ('{"offset": 0}', r"offset must be in \(0, inf\]"),
+    ('{"rv_wall": 25}', r"rv_wall must be in \(0, 20\]"),
 ])
 def test_a_bad_config_says_what_is_wrong(tmp_path, text, message):
     from bitemesh.io import read_labelled_config
@@ -170,10 +174,10 @@ def test_a_bad_config_says_what_is_wrong(tmp_path, text, message):
         read_labelled_config(tmp_path / "bad.json")
 
 
-def test_labelled_files_are_told_from_plain_points(tmp_path, shared_data):
+def test_labelled_files_are_told_from_plain_points(tmp_path, gpfile):
     from bitemesh.io import looks_labelled
 
-    assert looks_labelled(gpfile(shared_data))
+    assert looks_labelled(gpfile)
     (tmp_path / "a.csv").write_text("x,y,z,label\n1,2,3,EPI\n")
     (tmp_path / "b.txt").write_text("1 2 3 4\n")          # x y nx ny: plain points
     (tmp_path / "c.txt").write_text("# c\n1 2 3 LV\n")

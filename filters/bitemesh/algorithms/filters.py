@@ -57,19 +57,25 @@ def labelled_contours(dataset):
     return None if labels is None else (point_coordinates(dataset), labels, slices)
 
 
-def labelled_options(parameters: LabelledParameters) -> dict:
-    """Keywords of :func:`~bitemesh.core.contours.fit.labelled_implicit` from LabelledParameters."""
-    return {"domain": (parameters.domain or "").strip() or None, "base_plane": parameters.base_plane,
-            "rv_wall": parameters.rv_wall}
+def fit_options(parameters: LabelledParameters) -> dict:
+    """The keywords of :func:`~bitemesh.core.contours.run.labelled_source` that change the fit (all but the
+    thinnest wall, applied after it, and the plausibility switch, which PointsToImplicit has not)."""
+    from ..core.contours.run import labelled_keywords
+    keywords = labelled_keywords(parameters)
+    del keywords["min_wall"], keywords["allow_implausible"]
+    return keywords
 
 
 #: the parameters of BitingParameters that lay out the grid I (R); the others are the BitingSampler's alone.
 GRID_BITING = (BitingParameters, ("radius", "cells"))
+#: PointsToImplicit's labelled-contour fields: all but the heart's plausibility check, which MeshFromPoints runs.
+FIT_LABELLED = (LabelledParameters, tuple(item.name for item in fields(LabelledParameters)
+                                          if item.name != "allow_implausible"))
 #: the MeshOptimizer filter's fields: OptimizeParameters but its switch (the filter always runs).
 OPTIMIZER_BOUNDS = tuple(item.name for item in fields(OptimizeParameters) if item.name != "optimize")
 
 
-@with_parameters(ImplicitParameters, GRID_BITING, LabelMapParameters, LabelledParameters)
+@with_parameters(ImplicitParameters, GRID_BITING, LabelMapParameters, FIT_LABELLED)
 class PointsToImplicit(BitemeshAlgorithm):
     """Scattered points (with optional ``Normals``), labelled contours or a label map -> f on the grid I
     (vtkImageData ``Implicit``).
@@ -93,7 +99,7 @@ class PointsToImplicit(BitemeshAlgorithm):
         if isinstance(data, vtkImageData):
             options = (("label", self.parameters(LabelMapParameters).label),)
         elif contours is not None:
-            options = (("labelled", *labelled_options(self.parameters(LabelledParameters)).items()),)
+            options = (("labelled", *fit_options(self.parameters(LabelledParameters)).items()),)
         else:
             implicit = self.parameters(ImplicitParameters)
             options = (("points", implicit.method, implicit.error_bound, implicit.outliers),)
@@ -105,7 +111,7 @@ class PointsToImplicit(BitemeshAlgorithm):
                 from ..core.contours.run import labelled_source
                 points, labels, slices = contours
                 source = labelled_source(points, labels, slices=slices, progress=sub_progress(self.progress, 0, 0.4),
-                                         **labelled_options(self.parameters(LabelledParameters)))
+                                         **fit_options(self.parameters(LabelledParameters)))
             else:
                 points, normals = scattered_points(data)
                 source = points_source(points, normals, self.parameters(ImplicitParameters),
@@ -336,12 +342,10 @@ class MeshFromPoints(BitemeshAlgorithm):
         if contours is None:
             result = run(*scattered_points(source), **steps)
         else:
-            from ..core.contours.run import run_labelled
-            labelled = self.parameters(LabelledParameters)
+            from ..core.contours.run import labelled_keywords, run_labelled
             points, labels, slices = contours
-            result = run_labelled(points, labels, slices=slices, min_wall=labelled.min_wall,
-                                  allow_implausible=bool(labelled.allow_implausible), **labelled_options(labelled),
-                                  **steps)
+            result = run_labelled(points, labels, slices=slices,
+                                  **labelled_keywords(self.parameters(LabelledParameters)), **steps)
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(result.mesh, output)
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))

@@ -78,12 +78,8 @@ def mesh_label_map(args, steps: dict, progress):
 def labelled_flags(args) -> dict:
     """The labelled-contour flags given on the command line (those not at their default), as keywords of
     run_labelled."""
-    labelled = parameters_from_args(args, (LabelledParameters,))[0]
-    given = {item.name: getattr(labelled, item.name) for item in fields(LabelledParameters)
-             if getattr(labelled, item.name) != item.default}
-    if "domain" in given:
-        given["domain"] = given["domain"].strip() or None
-    return given
+    from ..core.contours.run import labelled_keywords
+    return labelled_keywords(parameters_from_args(args, (LabelledParameters,))[0], given_only=True)
 
 
 def mesh_labelled_points(args, steps: dict, progress, path=None, columns=None, frame=None):

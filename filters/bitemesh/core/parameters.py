@@ -40,6 +40,10 @@ def automatic_value(item):
     return -1 if zero_allowed else 0
 
 
+#: the radial basis functions of the RBF fits: phi(r) = r, r^3, r^2 log r.
+KERNELS = ("linear", "cubic", "thin_plate")
+
+
 class Parameters:
     """Checks every field against its metadata when the dataclass is made."""
 
@@ -140,6 +144,17 @@ class LabelledParameters(Parameters):
                                        "or filled, volume or wall thickness out of range, guide points far from "
                                        "the boundary), with a warning, instead of refusing it", low=0, high=1,
                                        integer=True)
+    kernel: str = parameter("linear", "the radial basis function of each surface's fit: r (Carr's biharmonic), "
+                            "r^3, or r^2 log r", choices=KERNELS)
+    offset: float = parameter(4.0, "the largest distance of the fit's off-surface constraints from the contours "
+                              "(halved where another contour is near)", unit="input units", low=0, low_open=True)
+    smoothing: float = parameter(0.0, "added to the diagonal of each patch's kernel matrix, in units of phi(patch "
+                                 "diameter): 0 interpolates the contours, more smooths tracing noise", low=0)
+    base_offset: float = parameter(0.0, "moves the base plane along its normal (> 0: away from the apex)",
+                                   unit="input units", low=-50, high=50)
+    resolution: Optional[float] = parameter(
+        None, "the spacing of the grid each surface is sampled on; default 0.35 x the median spacing of its points "
+        "(at least offset / 4 and 1/400 of its box's diagonal)", unit="input units", low=0, low_open=True)
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,7 @@ from .grid import ImplicitGrid
 from .implicit import MIN_POINTS, fit_implicit
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
-                         STEP_PARAMETERS, SpuriousParameters,
-                         parameters_from_keywords)
+                         STEP_PARAMETERS, SpuriousParameters, parameters_from_keywords)
 from .samples import PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, noise_level, sample_spacing
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)

@@ -28,11 +28,11 @@ from scipy.spatial.distance import pdist, squareform
 from .errors import InvalidInputError, check_choice, check_number, check_points
 from .grid import bounding_box, box_depth, box_depth_gradient
 from .normals import unit_normals
+from .parameters import KERNELS
 from .progress import ProgressCallback, report
 
 #: RBF kernels phi(r) (with a linear polynomial): r (biharmonic in 3D), r^3 (triharmonic), r^2 log r (the thin
 #: plate, biharmonic in 2D).
-KERNELS = ("linear", "cubic", "thin_plate")
 #: the kernel of method 'rbf' by dimension (benchmarks/rbf_accuracy.py): in 2D the thin plate, the 2D biharmonic
 #: (r^3 lies 1.5 to 2 times closer to the annulus, but its far field falls below minus the distance to the box: -43
 #: at 29 from it); in 3D r^3 (2 to 8 times closer than the thin plate on 1,500 to 5,000 points of a sphere, as

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import warnings
 
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 
 from ..core.contours.cardiac import time_frame
+from ..core.contours.run import labelled_keywords
 from ..core.errors import InvalidInputError, check_points
+from ..core.parameters import LabelledParameters
 from .files import existing_file, vtk_silenced
 from .pointsets import _vtk_reader
 from ..core.columns import NAMES, role
@@ -168,11 +171,12 @@ def _read_labelled_vtk(path: Path):
     return points, labels, slice_ids
 
 
-#: the keys a labelled-domain config file may hold, with the type each value must have.
-LABELLED_CONFIG_KEYS = {"domain": "str", "surfaces": "{name: [labels]}", "base_plane":
-                        "'auto', 'valves', 'none', null or {point: [x, y, z], normal: [x, y, z]}",
-                        "base_offset": "number", "outlets": "{surface: [valve labels]}", "min_wall": "number",
-                        "kernel": "str", "offset": "number"}
+#: the keys a labelled-domain config file may hold, with the type each value must have: every field of
+#: LabelledParameters (checked by it) and the two mappings.
+LABELLED_CONFIG_KEYS = {**{item.name: ("'auto', 'valves', 'none', null or {point: [x, y, z], normal: [x, y, z]}"
+                                       if item.name == "base_plane" else "str" if item.type == "str" else "number")
+                           for item in fields(LabelledParameters)},
+                        "surfaces": "{name: [labels]}", "outlets": "{surface: [valve labels]}"}
 
 
 def read_labelled_config(path) -> dict:
@@ -233,22 +237,25 @@ def read_labelled_config(path) -> dict:
                 for name, members in value.items()}
 
     result = {}
+    scalars = {}
     for key, value in config.items():
-        if key in ("domain", "kernel"):
-            if not isinstance(value, str):
-                fail(key)
-            result[key] = value
-        elif key in ("base_offset", "min_wall", "offset"):
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                fail(key)
-            result[key] = float(value)
-        elif key in ("surfaces", "outlets"):
+        if key in ("surfaces", "outlets"):
             result[key] = label_lists(key)
-        else:   # base_plane
-            if value is None or value in ("auto", "valves", "none"):
-                result[key] = None if value in (None, "none") else value
-            elif isinstance(value, dict) and set(value) == {"point", "normal"}:
-                result[key] = (value["point"], value["normal"])
-            else:
+        elif key == "base_plane" and isinstance(value, dict):
+            if set(value) != {"point", "normal"}:
                 fail(key)
+            result[key] = (value["point"], value["normal"])
+        elif key == "base_plane" and value is None:
+            result[key] = None
+        elif LABELLED_CONFIG_KEYS[key] == "number" and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            fail(key)
+        elif (LABELLED_CONFIG_KEYS[key] == "str" or key == "base_plane") and not isinstance(value, str):
+            fail(key)
+        else:
+            scalars[key] = value
+    try:
+        checked = labelled_keywords(LabelledParameters(**scalars))
+    except InvalidInputError as error:
+        raise InvalidInputError(f"'{path}': {error}") from None
+    result.update({key: checked[key] for key in scalars})
     return result

@@ -109,7 +109,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         """
         bitemesh = requireBitemesh()
         from bitemesh.core.errors import Cancelled, InvalidInputError
-        from bitemesh.core.labelled import run_labelled
+        from bitemesh.core.contours.run import labelled_keywords, run_labelled
         from bitemesh.core.progress import report, sub_progress
 
         clock = time.perf_counter()
@@ -137,9 +137,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         elif domain or any(node.IsA("vtkMRMLModelNode") and modelLabels(node)[0] is not None for node in nodes):
             points, labels, slices = labelledPoints(nodes)
             report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")
-            result = run_labelled(points, labels, domain=domain or None, base_plane=labelled.base_plane,
-                                  slices=slices, min_wall=labelled.min_wall, rv_wall=labelled.rv_wall,
-                                  allow_implausible=bool(labelled.allow_implausible), implicit=implicit,
+            result = run_labelled(points, labels, slices=slices, **labelled_keywords(labelled), implicit=implicit,
                                   biting=biting, spurious=spurious, optimize=optimize, fidelity=fidelity,
                                   progress=sub_progress(progress, 0.02, 0.95))
             mesh = result.mesh

@@ -25,6 +25,11 @@ SECTIONS = {
         "minWall": ("LabelledParameters", "min_wall"),
         "rvWall": ("LabelledParameters", "rv_wall"),
         "allowImplausible": ("LabelledParameters", "allow_implausible"),
+        "kernel": ("LabelledParameters", "kernel"),
+        "offset": ("LabelledParameters", "offset"),
+        "smoothing": ("LabelledParameters", "smoothing"),
+        "baseOffset": ("LabelledParameters", "base_offset"),
+        "resolution": ("LabelledParameters", "resolution"),
     },
     "optimizerCollapsibleButton": {   # "Optimizer", collapsed
         "iterations": ("OptimizeParameters", "iterations"),

@@ -23,6 +23,7 @@ import warnings
 import numpy as np
 
 from ..errors import BitemeshWarning, InvalidInputError, MeshingError, check_number
+from ..parameters import LabelledParameters
 
 #: biv-me guide-point labels -> the surfaces they sample (see bitemesh.core.contours.fit for the septum).  biv-me splits
 #: the RV endocardium into free wall and septum (older exports: RV_ENDOCARDIAL; the outflow tract: OUTLET_* and
@@ -69,7 +70,7 @@ CVI42_NAMES = {
 BIVME_DEFAULT_DOMAIN = "EPI - LV_ENDO - RV_ENDO"
 LV_DOMAIN = "LV_EPI - LV_ENDO"
 #: the RV free wall thickness (mm) an RV epicardium is derived with: normal adult RV walls are 2 to 5 mm thick.
-RV_WALL = 3.0
+RV_WALL = LabelledParameters.rv_wall
 #: the node spacing R (mm) of a cardiac mesh when neither radius nor cells is given: about 100,000 cells for an
 #: adult biventricular myocardium, two to five cells across the LV wall.
 CARDIAC_RADIUS = 2.0

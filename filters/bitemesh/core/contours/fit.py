@@ -44,6 +44,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError, check_number, check_points
 from ..grid import ImplicitGrid, sample_function
+from ..parameters import LabelledParameters
 from ..progress import ProgressCallback, report, sub_progress
 from ..samples import slice_spacing
 from .base_plane import choose_base_plane
@@ -139,9 +140,11 @@ def _outlet_points(points, labels, valves, wall=0.0):
 
 
 def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=None, surfaces=None, outlets=None,
-                      kernel: str = "linear", offset: float = 4.0, smoothing: float = 0.0, base_offset: float = 0.0,
-                      min_wall: float = 2.5, rv_wall: float = RV_WALL,
-                      gap_factor: float = GAP_FACTOR, resolution=None, progress: ProgressCallback = None):
+                      kernel: str = LabelledParameters.kernel, offset: float = LabelledParameters.offset,
+                      smoothing: float = LabelledParameters.smoothing,
+                      base_offset: float = LabelledParameters.base_offset, min_wall: float = 2.5,
+                      rv_wall: float = RV_WALL, gap_factor: float = GAP_FACTOR, resolution=None,
+                      progress: ProgressCallback = None):
     """The implicit function of a domain bounded by several labelled contour surfaces.
 
     Parameters

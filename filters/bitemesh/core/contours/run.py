@@ -12,9 +12,8 @@ import numpy as np
 
 from ..errors import check_points
 from ..mesh import Mesh
-from ..parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
-                          STEP_PARAMETERS, SpuriousParameters,
-                          parameters_from_keywords)
+from ..parameters import (STEP_PARAMETERS, BitingParameters, FidelityParameters, ImplicitParameters,
+                          LabelledParameters, OptimizeParameters, SpuriousParameters, parameters_from_keywords)
 from ..progress import ProgressCallback, sub_progress
 from ..source import Frame, Source
 from ..spine import MeshingResult, mesh_source, timed
@@ -45,6 +44,22 @@ def is_myocardium(function: LabelledImplicit) -> bool:
     through the base plane (handles = "auto" removes the handles of its mesh)."""
     return (set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
             and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
+
+
+def labelled_keywords(parameters: LabelledParameters, given_only: bool = False) -> dict:
+    """LabelledParameters as keywords of :func:`run_labelled` (the CLI, the VTK filters and Slicer all pass them so):
+    an empty domain is None (the default domain), base_plane "none" None (no cut), allow_implausible a bool.  ``given_only``: only the fields not at
+    their defaults (so that a config file's values stand where no flag was given)."""
+    keywords = {item.name: getattr(parameters, item.name) for item in fields(LabelledParameters)}
+    if given_only:
+        keywords = {name: value for name, value in keywords.items() if value != getattr(LabelledParameters, name)}
+    if "domain" in keywords:
+        keywords["domain"] = keywords["domain"].strip() or None
+    if keywords.get("base_plane") == "none":
+        keywords["base_plane"] = None
+    if "allow_implausible" in keywords:
+        keywords["allow_implausible"] = bool(keywords["allow_implausible"])
+    return keywords
 
 
 def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,

@@ -14,6 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError, check_choice, check_number, check_points
+from ..parameters import LabelledParameters
 from ..rbf import KERNELS, RBFImplicit, fit_partition
 
 #: the points are fitted thinned to this x the off-surface offset apart (contours traced on 1.4 mm pixels are about
@@ -74,7 +75,8 @@ def thinned(points: np.ndarray, spacing: float) -> np.ndarray:
     return np.array(keep, dtype=np.int64)
 
 
-def fit_contour_rbf(points, normals, *, kernel: str = "linear", offset: float = 4.0, smoothing: float = 0.0,
+def fit_contour_rbf(points, normals, *, kernel: str = LabelledParameters.kernel,
+                    offset: float = LabelledParameters.offset, smoothing: float = LabelledParameters.smoothing,
                     interior=None, min_patch: float = 0.0, min_spacing=None) -> RBFImplicit:
     """The implicit of contour points with (in-plane) outward normals: RBFs on patches blended by a partition of
     unity (:func:`bitemesh.core.rbf.fit_partition`).
