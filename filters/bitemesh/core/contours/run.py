@@ -48,8 +48,9 @@ def is_myocardium(function: LabelledImplicit) -> bool:
 
 def labelled_keywords(parameters: LabelledParameters, given_only: bool = False) -> dict:
     """LabelledParameters as keywords of :func:`run_labelled` (the CLI, the VTK filters and Slicer all pass them so):
-    an empty domain is None (the default domain), base_plane "none" None (no cut), allow_implausible a bool.  ``given_only``: only the fields not at
-    their defaults (so that a config file's values stand where no flag was given)."""
+    an empty domain is None (the default domain), base_plane "none" None (no cut), allow_implausible a bool.
+    ``given_only``: only the fields not at their defaults (so that a config file's values stand where no flag was
+    given)."""
     keywords = {item.name: getattr(parameters, item.name) for item in fields(LabelledParameters)}
     if given_only:
         keywords = {name: value for name, value in keywords.items() if value != getattr(LabelledParameters, name)}
