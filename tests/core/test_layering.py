@@ -1,6 +1,7 @@
 """The layering of the design document (DESIGN.md, kept outside this repository in ../shared beside the clone):
-``core`` <- ``convert``, ``io`` <- the VTK filters (``algorithms``) <- {``cli``, ``paraview_plugin``, the Slicer
-module}, and nothing points back.
+``core`` <- ``convert`` <- ``io`` <- ``labelmap`` <- the VTK filters (``algorithms``) <- {``cli``,
+``paraview_plugin``, the Slicer module}, and nothing points back (``io`` may import ``core`` and ``convert``,
+``labelmap`` only ``core`` and ``io``).
 
 The import graph is read from the source with ast: every ``import`` and ``from ... import`` of every module under
 filters/bitemesh and slicer_module/BiteMesh, absolute and relative, at module level or inside a function (and
@@ -126,7 +127,7 @@ RULES = {
     "core imports no VTK": (in_room("core"), lambda imported: top(imported) in VTK),
     "convert imports only core": (in_room("convert"), outside("core", "convert")),
     "io imports only core, convert and io": (in_room("io"), outside("core", "convert", "io")),
-    "labelmap imports only core": (in_room("labelmap"), outside("core", "labelmap")),
+    "labelmap imports only core and io": (in_room("labelmap"), outside("core", "io", "labelmap")),
     "algorithms imports only core, convert, io, labelmap and algorithms":
         (in_room("algorithms"), outside("core", "convert", "io", "labelmap", "algorithms")),
     "paraview_plugin imports only algorithms and core (and the package's __init__)":
