@@ -1,19 +1,23 @@
-"""The samples the tests build, in one place: analytic shapes sampled on a grid or as scattered points, small meshes,
-the two-cavity shell's contours, and their VTK forms (point sets, a sphere surface, a label map image, the five
-filters connected as the paper's pipeline).
+"""The samples the tests build, in one place: analytic shapes sampled on a grid or as scattered points, small meshes
+and what the tests measure on meshes (volume, which points a mesh holds), the half-written files a write leaves, the
+two-cavity shell's contours, and their VTK forms (point sets, a sphere surface, a label map image, the five filters
+connected as the paper's pipeline).  The fixtures shared by several folders are in tests/conftest.py.
 
-Only numpy and bitemesh.core load with this module; the builders of VTK objects import VTK when called, so that it
-loads in every test environment: the core tests', and the Slicer one (slicer-core's VTK, bitemesh on PYTHONPATH).
+Only numpy, scipy and bitemesh.core load with this module; the builders of VTK objects import VTK when called, so
+that it loads in every test environment: the core tests', and the Slicer one (slicer-core's VTK, bitemesh on
+PYTHONPATH).
 """
 from __future__ import annotations
 
 from itertools import permutations
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 from bitemesh.core import shapes
 from bitemesh.core.grid import sample_function
 from bitemesh.core.mesh import Mesh, signed_measures
+from scipy.spatial import cKDTree
 
 # --- analytic shapes ---------------------------------------------------------------------------------------------
 
@@ -62,10 +66,39 @@ def cube_mesh() -> Mesh:
     return Mesh(points, cells, data)
 
 
+def volume(mesh) -> float:
+    """The mesh's volume (area in 2D): the sum of its cells' signed measures (all positive in a valid mesh)."""
+    return float(signed_measures(mesh.points, mesh.cells).sum())
+
+
+def located(mesh, points, candidates: int | None = 64) -> np.ndarray:
+    """(m,) True for each of the points (m, 3), or the one point (3,), that lies in a tetrahedron of ``mesh``
+    (within 1e-9 in barycentric coordinates).  Only the ``candidates`` tetrahedra with the nearest centroids are
+    tried; None tries every tetrahedron."""
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    corners = mesh.points[mesh.cells]
+    if candidates is None or candidates >= len(corners):
+        near = np.broadcast_to(np.arange(len(corners)), (len(points), len(corners)))
+    else:
+        _, near = cKDTree(corners.mean(axis=1)).query(points, k=candidates)
+        near = near.reshape(len(points), candidates)
+    edges = (corners[:, 1:] - corners[:, :1]).transpose(0, 2, 1)
+    local = np.linalg.solve(edges[near], (points[:, None, :] - corners[near, 0])[..., None])[..., 0]
+    return ((local >= -1e-9).all(axis=2) & (local.sum(axis=2) <= 1 + 1e-9)).any(axis=1)
+
+
 def square_mesh() -> Mesh:
     """The unit square in two positively oriented triangles."""
     points = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
     return Mesh(points, np.array([[0, 1, 2], [0, 2, 3]]), {"Label": np.array([3, 4], dtype=np.int32)})
+
+
+# --- files ---------------------------------------------------------------------------------------------------------
+
+
+def leftovers(folder: Path) -> list:
+    """The names of the half-written files (``.partial``, bitemesh.io's atomic writes) left in ``folder``."""
+    return [path.name for path in folder.iterdir() if ".partial" in path.name]
 
 
 # --- the two-cavity shell as labelled contours -------------------------------------------------------------------

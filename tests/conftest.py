@@ -1,10 +1,13 @@
-"""Shared test helpers: where the real data lives, and the checks every produced mesh must pass."""
+"""The fixtures shared by the test folders: where the real data lives, the biv-me patient's GPFile in it, and a small
+sphere's samples.  (The builders they use: tests/builders.py.)"""
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
 import pytest
+
+from tests import builders
 
 DATA = Path(os.environ.get("BITEMESH_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
@@ -15,3 +18,16 @@ def shared_data() -> Path:
     if not DATA.is_dir():
         pytest.skip(f"real data folder {DATA} is absent (set BITEMESH_DATA)")
     return DATA
+
+
+@pytest.fixture
+def gpfile(shared_data) -> Path:
+    """biv-me's first patient, time frame 0: the GPFile of the real data folder (skip where it is absent)."""
+    return shared_data / "bivme_patient1" / "GPFile_000.txt"
+
+
+@pytest.fixture(scope="package")
+def unit_sphere_samples():
+    """(points, unit outward normals) on the unit sphere, about 0.1 apart (1,500 points): the awkward inputs'
+    sphere, each test making its own variant of it.  Built once per test folder; the tests only read it."""
+    return builders.sphere_samples(0.1)

@@ -1,4 +1,5 @@
-"""Fixtures of the command-line tests: the input files, a reference mesh, a spy on the pipeline, sphere samples.
+"""Fixtures of the command-line tests: the input files, a reference mesh, a spy on the pipeline (the sphere's samples
+of the awkward inputs: ``unit_sphere_samples`` in tests/conftest.py).
 
 The data fixtures are built once for the folder (package scope): the tests only read them.
 """
@@ -48,10 +49,3 @@ def pipeline_spy(monkeypatch):
         return pipeline.run(*args, **kwargs)
     monkeypatch.setattr(mesh_command, "run_pipeline", spy)
     return calls
-
-
-@pytest.fixture(scope="package")
-def sphere_samples():
-    """(points, unit outward normals) on the unit sphere, about 0.1 apart: the awkward inputs' sphere (1,500
-    points), each test making its own variant of it."""
-    return builders.sphere_samples(0.1)

@@ -3,7 +3,7 @@ order mark, unknown column counts, --columns, a GPFile without its labels, decim
 
 Input as users bring it: every awkward input ends in a mesh that follows the data, or in exit 1 with a message
 that names the cause.  Never a silently wrong mesh, never a traceback, never a lost file.  Each case builds its own
-variant of a small sphere (``sphere_samples``: 1,500 points, radius 1, tests/cli/conftest.py); a mesh counts as
+variant of a small sphere (``unit_sphere_samples``: 1,500 points, radius 1, tests/conftest.py); a mesh counts as
 following the data when it is a valid domain, its volume is that of the shape within the chord error of ~3,000 cells
 (3 %), and the fidelity check passed (its line is printed).
 """
@@ -18,8 +18,8 @@ from tests.cli.commands import CELLS, assert_follows, assert_refused, mesh_cli, 
 
 # --- columns -------------------------------------------------------------------------------------------------
 
-def test_colour_columns_without_header_are_refused_with_the_columns_hint(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_colour_columns_without_header_are_refused_with_the_columns_hint(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     colours = np.random.default_rng(1).integers(0, 256, (len(points), 3))
     path = write_rows(tmp_path / "cloud.xyz", np.hstack([points, colours]))
     code, _, err, output = mesh_cli(capsys, tmp_path, path)
@@ -27,15 +27,15 @@ def test_colour_columns_without_header_are_refused_with_the_columns_hint(capsys,
     assert not output.exists()
 
 
-def test_colour_columns_read_past_with_columns(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_colour_columns_read_past_with_columns(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     colours = np.random.default_rng(1).integers(0, 256, (len(points), 3))
     path = write_rows(tmp_path / "cloud.xyz", np.hstack([points, colours]))
     assert_follows(*mesh_cli(capsys, tmp_path, path, "--columns", "x,y,z,skip,skip,skip"))
 
 
-def test_colour_columns_named_by_a_header_are_read_past_with_a_note(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_colour_columns_named_by_a_header_are_read_past_with_a_note(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     colours = np.random.default_rng(1).integers(0, 256, (len(points), 3))
     path = write_rows(tmp_path / "cloud.csv", np.hstack([points, colours]), header=["x", "y", "z", "r", "g", "b"],
                        separator=",")
@@ -44,38 +44,38 @@ def test_colour_columns_named_by_a_header_are_read_past_with_a_note(capsys, tmp_
     assert "columns r, g, b not used" in err
 
 
-def test_unit_normals_without_header_are_used_and_said(capsys, tmp_path, sphere_samples):
-    path = write_rows(tmp_path / "cloud.xyz", np.hstack(sphere_samples))
+def test_unit_normals_without_header_are_used_and_said(capsys, tmp_path, unit_sphere_samples):
+    path = write_rows(tmp_path / "cloud.xyz", np.hstack(unit_sphere_samples))
     code, out, err, output = mesh_cli(capsys, tmp_path, path)
     assert_follows(code, out, err, output)
     assert "read as normals" in err
 
 
-def test_a_header_with_units_and_other_names(capsys, tmp_path, sphere_samples):
-    points, normals = sphere_samples
+def test_a_header_with_units_and_other_names(capsys, tmp_path, unit_sphere_samples):
+    points, normals = unit_sphere_samples
     path = write_rows(tmp_path / "cloud.csv", np.hstack([normals, points]),
                        header=["Normal_X", "Normal_Y", "Normal_Z", "X [mm]", "Y [mm]", "Z [mm]"], separator=",")
     assert_follows(*mesh_cli(capsys, tmp_path, path))
 
 
-def test_a_byte_order_mark_and_windows_line_ends(capsys, tmp_path, sphere_samples):
+def test_a_byte_order_mark_and_windows_line_ends(capsys, tmp_path, unit_sphere_samples):
     path = tmp_path / "cloud.csv"
-    text = "x,y,z\r\n" + "".join(f"{x:.6f},{y:.6f},{z:.6f}\r\n" for x, y, z in sphere_samples[0])
+    text = "x,y,z\r\n" + "".join(f"{x:.6f},{y:.6f},{z:.6f}\r\n" for x, y, z in unit_sphere_samples[0])
     path.write_bytes(b"\xef\xbb\xbf" + text.encode())
     assert_follows(*mesh_cli(capsys, tmp_path, path))
 
 
 @pytest.mark.parametrize("width", [5, 7])
-def test_an_unknown_column_count_without_header_is_refused(capsys, tmp_path, sphere_samples, width):
-    points, _ = sphere_samples
+def test_an_unknown_column_count_without_header_is_refused(capsys, tmp_path, unit_sphere_samples, width):
+    points, _ = unit_sphere_samples
     extra = np.ones((len(points), width - 3))
     path = write_rows(tmp_path / "cloud.txt", np.hstack([points, extra]))
     code, _, err, _ = mesh_cli(capsys, tmp_path, path)
     assert_refused(code, err, f"{width} columns", "--columns")
 
 
-def test_a_header_that_names_no_coordinates_is_refused(capsys, tmp_path, sphere_samples):
-    path = write_rows(tmp_path / "cloud.csv", sphere_samples[0], header=["a", "b", "c"], separator=",")
+def test_a_header_that_names_no_coordinates_is_refused(capsys, tmp_path, unit_sphere_samples):
+    path = write_rows(tmp_path / "cloud.csv", unit_sphere_samples[0], header=["a", "b", "c"], separator=",")
     code, _, err, _ = mesh_cli(capsys, tmp_path, path)
     assert_refused(code, err, "names no x and y columns", "--columns")
 
@@ -85,8 +85,8 @@ def test_a_header_that_names_no_coordinates_is_refused(capsys, tmp_path, sphere_
     ("x,y,colour", ["unknown role 'colour'"]),
     ("x,x,z", ["gives x twice"]),
 ])
-def test_bad_columns_are_named(capsys, tmp_path, sphere_samples, columns, words):
-    path = write_rows(tmp_path / "cloud.xyz", sphere_samples[0])
+def test_bad_columns_are_named(capsys, tmp_path, unit_sphere_samples, columns, words):
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
     code, _, err, _ = mesh_cli(capsys, tmp_path, path, "--columns", columns)
     assert_refused(code, err, *words)
 
@@ -100,8 +100,8 @@ def test_a_gpfile_without_its_label_column_is_refused(capsys, tmp_path, shared_d
     assert_refused(code, err, "no label column", "contour type")
 
 
-def test_labelled_flags_on_plain_points_are_named(capsys, tmp_path, sphere_samples):
-    path = write_rows(tmp_path / "cloud.xyz", sphere_samples[0])
+def test_labelled_flags_on_plain_points_are_named(capsys, tmp_path, unit_sphere_samples):
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
     code, _, err, _ = mesh_cli(capsys, tmp_path, path, "--domain", "EPI - LV_ENDO")
     assert_refused(code, err, "--domain applies to labelled contours")
 
@@ -109,12 +109,12 @@ def test_labelled_flags_on_plain_points_are_named(capsys, tmp_path, sphere_sampl
 # --- decimal marks -------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("separator", [";", "\t", " "])
-def test_decimal_commas_are_read_as_decimals(capsys, tmp_path, sphere_samples, separator):
-    path = write_rows(tmp_path / "cloud.csv", sphere_samples[0], separator=separator, decimal=",")
+def test_decimal_commas_are_read_as_decimals(capsys, tmp_path, unit_sphere_samples, separator):
+    path = write_rows(tmp_path / "cloud.csv", unit_sphere_samples[0], separator=separator, decimal=",")
     code, out, err, output = mesh_cli(capsys, tmp_path, path)
     assert_follows(code, out, err, output)
     assert "decimal comma" in err
-    reference = write_rows(tmp_path / "dots.csv", sphere_samples[0])
+    reference = write_rows(tmp_path / "dots.csv", unit_sphere_samples[0])
     cli.main(["mesh", str(reference), "-o", str(tmp_path / "dots.vtu"), *CELLS])
     capsys.readouterr()
     np.testing.assert_array_equal(read_mesh(output).points, read_mesh(tmp_path / "dots.vtu").points)

@@ -4,7 +4,7 @@ points with inward normals, inconsistent normals).
 
 Input as users bring it: every awkward input ends in a mesh that follows the data, or in exit 1 with a message
 that names the cause.  Never a silently wrong mesh, never a traceback, never a lost file.  Each case builds its own
-variant of a small sphere (``sphere_samples``: 1,500 points, radius 1, tests/cli/conftest.py); a mesh counts as
+variant of a small sphere (``unit_sphere_samples``: 1,500 points, radius 1, tests/conftest.py); a mesh counts as
 following the data when it is a valid domain, its volume is that of the shape within the chord error of ~3,000 cells
 (3 %), and the fidelity check passed (its line is printed).
 """
@@ -21,8 +21,8 @@ from tests.meshcheck import assert_valid_domain
 
 # --- outliers ------------------------------------------------------------------------------------------------
 
-def test_far_outliers_are_dropped_and_reported(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_far_outliers_are_dropped_and_reported(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     far = np.random.default_rng(2).uniform(-30, 30, (len(points) // 100, 3))
     path = write_rows(tmp_path / "cloud.xyz", np.vstack([points, far]))
     code, out, err, output = mesh_cli(capsys, tmp_path, path)
@@ -30,8 +30,8 @@ def test_far_outliers_are_dropped_and_reported(capsys, tmp_path, sphere_samples)
     assert f"dropped {len(far)} outliers" in err
 
 
-def test_far_outliers_kept_on_request_are_refused_by_the_fidelity_check(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_far_outliers_kept_on_request_are_refused_by_the_fidelity_check(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     far = np.random.default_rng(2).uniform(-30, 30, (len(points) // 100, 3))
     path = write_rows(tmp_path / "cloud.xyz", np.vstack([points, far]))
     code, _, err, output = mesh_cli(capsys, tmp_path, path, "--outliers", "keep")
@@ -39,8 +39,8 @@ def test_far_outliers_kept_on_request_are_refused_by_the_fidelity_check(capsys, 
     assert not output.exists()
 
 
-def test_near_outliers_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_near_outliers_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     rng = np.random.default_rng(3)
     direction = rng.normal(size=(200, 3))
     near = direction / np.linalg.norm(direction, axis=1, keepdims=True) * rng.uniform(1.1, 1.6, (200, 1))
@@ -52,8 +52,8 @@ def test_near_outliers_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, sph
         assert_refused(code, err, "does not follow the data")
 
 
-def test_allow_unfaithful_keeps_the_mesh_with_a_loud_warning(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_allow_unfaithful_keeps_the_mesh_with_a_loud_warning(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     far = np.random.default_rng(2).uniform(-30, 30, (len(points) // 100, 3))
     path = write_rows(tmp_path / "cloud.xyz", np.vstack([points, far]))
     code, out, err, output = mesh_cli(capsys, tmp_path, path, "--outliers", "keep", "--allow-unfaithful")
@@ -65,8 +65,8 @@ def test_allow_unfaithful_keeps_the_mesh_with_a_loud_warning(capsys, tmp_path, s
 
 @pytest.mark.parametrize("offset, turn, scale", [
     (1e7, 0.0, 1.0), (5e5, 37.0, 1.0), (0.0, 0.0, 1e-6), (0.0, 0.0, 1e6), (-3e6, 120.0, 1e-3)])
-def test_scanner_coordinates_give_the_same_mesh_moved(tmp_path, sphere_samples, offset, turn, scale):
-    points, normals = sphere_samples
+def test_scanner_coordinates_give_the_same_mesh_moved(tmp_path, unit_sphere_samples, offset, turn, scale):
+    points, normals = unit_sphere_samples
     turned = rotation([1, 2, 3], turn)
     moved = points @ turned.T * scale + offset
     from bitemesh.core.pipeline import run
@@ -108,8 +108,8 @@ def test_a_thin_cylinder_gets_about_the_cells_asked_for(capsys, tmp_path):
     assert 1500 <= len(read_mesh(output).cells) <= 6000   # 3000 asked
 
 
-def test_touching_spheres_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, sphere_samples):
-    points, _ = sphere_samples
+def test_touching_spheres_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, unit_sphere_samples):
+    points, _ = unit_sphere_samples
     path = write_rows(tmp_path / "pair.xyz", np.vstack([points - [1, 0, 0], points + [1, 0, 0]]))
     code, out, err, output = mesh_cli(capsys, tmp_path, path)
     if code == 0:
@@ -118,9 +118,9 @@ def test_touching_spheres_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, 
         assert_refused(code, err, "does not follow the data")
 
 
-def test_a_volume_mesh_as_input_is_meshed_from_its_boundary(capsys, tmp_path, sphere_samples):
+def test_a_volume_mesh_as_input_is_meshed_from_its_boundary(capsys, tmp_path, unit_sphere_samples):
     from bitemesh.core.pipeline import run
-    volume = run(*sphere_samples, biting=BitingParameters(cells=8000)).mesh
+    volume = run(*unit_sphere_samples, biting=BitingParameters(cells=8000)).mesh
     path = tmp_path / "volume.vtu"
     write_mesh(volume, path)
     code, out, err, output = mesh_cli(capsys, tmp_path, path)
@@ -128,21 +128,21 @@ def test_a_volume_mesh_as_input_is_meshed_from_its_boundary(capsys, tmp_path, sp
     assert "is a volume mesh" in err
 
 
-def test_zero_margin_does_not_clip_the_mesh(capsys, tmp_path, sphere_samples):
-    path = write_rows(tmp_path / "cloud.xyz", sphere_samples[0] + [0.31, 0.72, 0.23])
+def test_zero_margin_does_not_clip_the_mesh(capsys, tmp_path, unit_sphere_samples):
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0] + [0.31, 0.72, 0.23])
     assert_follows(*mesh_cli(capsys, tmp_path, path, "--margin", "0"), tolerance=0.03)
 
 
-def test_every_point_twice_and_inward_normals(capsys, tmp_path, sphere_samples):
-    points, normals = sphere_samples
+def test_every_point_twice_and_inward_normals(capsys, tmp_path, unit_sphere_samples):
+    points, normals = unit_sphere_samples
     path = write_rows(tmp_path / "cloud.xyz", np.vstack([np.hstack([points, -normals])] * 2))
     code, out, err, output = mesh_cli(capsys, tmp_path, path)
     assert_follows(code, out, err, output)
     assert "flipped" in err
 
 
-def test_inconsistent_normals_are_refused(capsys, tmp_path, sphere_samples):
-    points, normals = sphere_samples
+def test_inconsistent_normals_are_refused(capsys, tmp_path, unit_sphere_samples):
+    points, normals = unit_sphere_samples
     signs = np.where(np.random.default_rng(5).uniform(size=len(points)) < 0.5, -1.0, 1.0)
     path = write_rows(tmp_path / "cloud.xyz", np.hstack([points, normals * signs[:, None]]))
     code, _, err, _ = mesh_cli(capsys, tmp_path, path)

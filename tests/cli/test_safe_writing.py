@@ -21,7 +21,7 @@ from bitemesh import cli
 from bitemesh.core.mesh import Mesh
 from bitemesh.io import read_mesh, write_mesh
 
-from tests.builders import sphere_samples
+from tests.builders import leftovers, sphere_samples
 
 FILTERS = Path(__file__).resolve().parents[2] / "filters"
 POSIX = pytest.mark.skipif(os.name != "posix", reason="RLIMIT_FSIZE and SIGINT to a child are POSIX")
@@ -42,11 +42,6 @@ def previous(tmp_path):
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
     write_mesh(Mesh(points, np.array([[0, 1, 2, 3]])), path)
     return path, path.read_bytes()
-
-
-def leftovers(folder: Path) -> list:
-    """The names of the half-written files left in ``folder``."""
-    return [path.name for path in folder.iterdir() if ".partial" in path.name]
 
 
 def bitemesh_process(*arguments, limit=None):

@@ -11,6 +11,7 @@ from bitemesh.core.grid import sample_function
 from bitemesh.core.handles import handle_count
 from bitemesh.core.parameters import SpuriousParameters
 
+from tests.builders import volume
 from tests.meshcheck import assert_valid_domain
 
 #: lattice spacing of the nodes (the cells are about this size)
@@ -30,11 +31,6 @@ def carved(function, extent, handles: str):
     grid = sample_function(function, lower, upper, STEP / 4, margin=STEP)
     nodes = bite(grid, STEP, seed=0)
     return carve_domain(grid, nodes, delaunay(nodes), SpuriousParameters(handles=handles))
-
-
-def volume(mesh) -> float:
-    corners = mesh.points[mesh.cells]
-    return float(np.abs(np.linalg.det(corners[:, 1:] - corners[:, :1])).sum() / 6)
 
 
 def tunnelled_ball(radius: float, hole: float):

@@ -19,7 +19,7 @@ from bitemesh.core.labelled import (
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.shapes import two_cavity_shell
 
-from tests.builders import ELLIPSOIDS, SCALE, SHELL_DOMAIN, sample_shell
+from tests.builders import ELLIPSOIDS, SCALE, SHELL_DOMAIN, located, sample_shell
 from tests.meshcheck import assert_valid_domain
 
 #: the shell's base plane: z = 0, the cavities open above it
@@ -29,15 +29,6 @@ BASE = ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
 @pytest.fixture(scope="module")
 def shell():
     return sample_shell()
-
-
-def located(mesh, points):
-    """(m,) True for points inside a tetrahedron of mesh."""
-    corners = mesh.points[mesh.cells]
-    edges = (corners[:, 1:] - corners[:, :1]).transpose(0, 2, 1)
-    inverse = np.linalg.inv(edges)
-    local = np.einsum("cij,pcj->pci", inverse, points[:, None, :] - corners[None, :, 0])
-    return ((local >= -1e-9).all(axis=2) & (local.sum(axis=2) <= 1 + 1e-9)).any(axis=1)
 
 
 # --- the synthetic shell ------------------------------------------------------------------------------------------
@@ -51,8 +42,8 @@ def test_sparse_contours_of_a_two_cavity_shell_mesh_to_its_volume(shell, given_s
     assert_valid_domain(result.mesh, euler=2, components=1, measure=exact, measure_tolerance=0.03,
                         mean_quality=0.75)
     # both cavities are open: their centres (just below the base) are not meshed; the wall between them is
-    assert not located(result.mesh, np.array([[15.0, 0, -5], [-27.5, 0, -5]])).any()
-    assert located(result.mesh, np.array([[-5.0, 0, -20]])).all()
+    assert not located(result.mesh, np.array([[15.0, 0, -5], [-27.5, 0, -5]]), candidates=None).any()
+    assert located(result.mesh, np.array([[-5.0, 0, -20]]), candidates=None).all()
     # the boundary lies on the three ellipsoids and the base
     _, surface = labelled.boundary_surfaces(result.mesh, result.function)
     assert set(np.unique(surface)) == {0, 1, 2, 3}
@@ -288,3 +279,22 @@ def test_mesh_from_labelled_points_is_deterministic(shell):
                                         cells=3000, seed=4) for _ in range(2)]
     assert np.array_equal(meshes[0].points, meshes[1].points) and np.array_equal(meshes[0].cells, meshes[1].cells)
     assert set(meshes[0].cell_data) == {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume"}
+
+
+def test_every_labelled_parameter_reaches_the_fit_with_the_dataclass_default():
+    """LabelledParameters is the one source of the contour fit's options: each field is a keyword of run_labelled
+    or of labelled_implicit, and the fit's own defaults are the dataclass's."""
+    import inspect
+
+    from bitemesh.core.contours.fit import labelled_implicit
+    from bitemesh.core.contours.run import labelled_keywords, run_labelled
+    from bitemesh.core.parameters import LabelledParameters
+    fit = inspect.signature(labelled_implicit).parameters
+    run = inspect.signature(run_labelled).parameters
+    keywords = labelled_keywords(LabelledParameters())
+    assert all(name in fit or name in run for name in keywords)
+    for name in ("kernel", "offset", "smoothing", "base_offset", "rv_wall", "resolution", "base_plane"):
+        assert fit[name].default == getattr(LabelledParameters, name), name
+    assert labelled_keywords(LabelledParameters(domain=" ", base_plane="none", allow_implausible=1)) == {
+        **keywords, "domain": None, "base_plane": None, "allow_implausible": True}
+    assert labelled_keywords(LabelledParameters(offset=3.0), given_only=True) == {"offset": 3.0}

@@ -27,7 +27,7 @@ from bitemesh.core.quality import check_valid_domain, dihedral_angles, edge_leng
 from bitemesh.core.shapes import annulus, die, sphere, torus, two_cavity_heart, two_cavity_shell
 from bitemesh.core.topology import boundary_facets, unique_rows
 
-from tests.builders import sampled
+from tests.builders import sampled, volume
 from tests.meshcheck import assert_valid_domain
 
 #: the shapes of the issue and their sizes (cells); the grid resolves R / GRID_PER_RADIUS, fine enough that the
@@ -55,10 +55,6 @@ def optimized():
         result = optimize_mesh(grid, mesh, progress=lambda *report, to=messages: to.append(report))
         cases[name] = (shape, grid, mesh, radius, result, messages)
     return cases
-
-
-def volume(mesh):
-    return signed_measures(mesh.points, mesh.cells).sum()
 
 
 # --- the issue's thresholds ----------------------------------------------------------------------------------------

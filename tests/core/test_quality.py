@@ -13,16 +13,11 @@ from bitemesh.core.quality import (
     count_boundary_components, dihedral_angles, edge_lengths, format_summary, quality_histogram, quality_summary,
     radius_ratio)
 
+from tests.builders import positively_oriented
+
 REGULAR_DIHEDRAL = np.degrees(np.arccos(1 / 3))  # 70.5288 deg
 ONE_TET = np.array([[0, 1, 2, 3]])
 ONE_TRIANGLE = np.array([[0, 1, 2]])
-
-
-def positively_oriented(points, cells):
-    cells = np.array(cells)
-    negative = signed_measures(points, cells) < 0
-    cells[negative, :2] = cells[negative, 1::-1]
-    return cells
 
 
 def regular_tet():

@@ -10,10 +10,7 @@ import pytest
 from bitemesh.core.mesh import Mesh
 from bitemesh.io import read_mesh, write_mesh
 
-
-def leftovers(folder: Path) -> list:
-    """The names of the half-written files left in ``folder``."""
-    return [path.name for path in folder.iterdir() if ".partial" in path.name]
+from tests.builders import leftovers
 
 
 def test_a_failing_writer_leaves_no_file_where_there_was_none(monkeypatch, tmp_path):
