@@ -15,7 +15,7 @@
    left (an angle below ``min_dihedral`` or a radius ratio below ``min_quality``) that lies on the surface is
    peeled (:func:`bitemesh.core.slivers.peel`).  The rounds end when no cell is poor (within ``SLIVER_ROUNDS``).
 4. Nothing turns a valid mesh into an invalid one: flips only replace cells inside the domain and smoothing keeps
-   every cell positive; :func:`bitemesh.core.quality.check_valid_domain` then judges the states met, and the best
+   every cell positive; :func:`bitemesh.core.validity.check_valid_domain` then judges the states met, and the best
    valid one is returned (the input itself when nothing did better).  Nor does anything change its topology (the
    boundary's components and Euler characteristic, :func:`topology`): a relaxation that opened or closed a hole
    through a wall thinner than about a cell is abandoned, and the sliver removal starts from the input.
@@ -42,11 +42,11 @@ from .grid import ImplicitGrid
 from .mesh import Mesh
 from .parameters import OptimizeParameters
 from .progress import ProgressCallback, report, sub_progress
-from .quality import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 # the relaxation and the sliver removal, imported from here as before (re-exported)
 from .relax import (INTERIOR_MARGIN, MAX_MOVE, MEAN_GAIN, PATIENCE, REVERT_ROUNDS,  # noqa: F401 (re-exported)
                     SMOOTH_POWER, STEP_FRACTIONS, SURFACE_ROUNDS, SURFACE_TOLERANCE, odt_targets, relax, smooth)
 from .slivers import SLIVER_ROUNDS, SMOOTH_ITERATIONS, peel, poor_cells, remove_slivers  # noqa: F401 (re-exported)
+from .validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 
 
 def _defects(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters, tolerance: float) -> tuple:
