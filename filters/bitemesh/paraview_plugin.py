@@ -15,10 +15,10 @@ its range (``IntRangeDomain``/``DoubleRangeDomain``), choices (``StringListDomai
 property without a domain) and its help and unit as documentation.  Nothing about a parameter is written here a
 second time.
 
-A parameter that is None by default ("chosen automatically") cannot be None in a ParaView property: it has an
-*automatic value*, 0 when 0 is outside the parameter's range (radius, grid spacing, error bound), else -1 (margin
-and label, for which 0 is a valid value).  The property's help says which; the setter passes None to the filter
-for it.  Any other out-of-range value reaches the filter, which refuses it with a message naming the parameter.
+A parameter that is None by default ("chosen automatically") cannot be None in a ParaView property: -1 stands for
+it (:data:`bitemesh.core.parameters.AUTOMATIC`, below every such parameter's range), as in the VTK setters, the
+Slicer panel and the CLI.  The property's help says so; the setter passes None to the filter for it.  Any other
+out-of-range value reaches the filter, which refuses it with a message naming the parameter.
 """
 from __future__ import annotations
 
@@ -58,7 +58,7 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 from bitemesh import algorithms
 from bitemesh.algorithms.base import camel
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.parameters import automatic_value, is_optional
+from bitemesh.core.parameters import AUTOMATIC, is_optional
 
 paraview_plugin_name = "bitemesh"
 paraview_plugin_version = bitemesh.__version__
@@ -105,7 +105,7 @@ def documentation(item) -> str:
         return f"{text}."
     text += f". Valid values: {range_text(item)}"
     if is_optional(item):
-        text += (f". {automatic_value(item)} means automatic (None in bitemesh: the default described above); "
+        text += (f". {AUTOMATIC} means automatic (None in bitemesh: the default described above); "
                  "any other value outside the range is refused with an error naming the parameter")
     return text + "."
 
@@ -114,7 +114,7 @@ def domain_bounds(item):
     """(min, max) of the range domain (None where unbounded); an optional field's domain includes its automatic
     value."""
     low, high, _, _ = item.metadata["range"]
-    minimum = automatic_value(item) if is_optional(item) else low
+    minimum = AUTOMATIC if is_optional(item) else low
     maximum = high if high is not None and math.isfinite(high) else None
     if item.metadata["integer"]:
         minimum = None if minimum is None else max(int(minimum), -INT_MAX)
@@ -124,7 +124,7 @@ def domain_bounds(item):
 
 def default_value(item):
     """The property's default: the field's, or the automatic value for None."""
-    return automatic_value(item) if is_optional(item) else item.default
+    return AUTOMATIC if is_optional(item) else item.default
 
 
 def property_decorators(item):

@@ -15,7 +15,7 @@ from bitemesh import algorithms
 from bitemesh.cli import build_parser
 from bitemesh.core import parameters as core
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.parameters import automatic_value, is_optional
+from bitemesh.core.parameters import AUTOMATIC, is_optional, zero_was_automatic
 
 #: command -> the dataclasses whose every field is a flag of it
 COMMANDS = {
@@ -90,10 +90,21 @@ def test_the_automatic_value_means_none_in_every_vtk_setter_and_nothing_else():
     assert {item.name for _, item in optional} >= {"radius", "grid_spacing", "error_bound", "margin", "min_wall"}
     for name, item in optional:
         algorithm = getattr(algorithms, name)()
-        automatic = automatic_value(item)
-        getattr(algorithm, f"Set{camel(item.name)}")(automatic + 3)
-        getattr(algorithm, f"Set{camel(item.name)}")(automatic)
-        assert getattr(algorithm, f"Get{camel(item.name)}")() is None, f"{name}.Set{camel(item.name)}({automatic})"
+        setter, getter = getattr(algorithm, f"Set{camel(item.name)}"), getattr(algorithm, f"Get{camel(item.name)}")
+        setter(4)
+        setter(AUTOMATIC)
+        assert getter() is None, f"{name}.Set{camel(item.name)}({AUTOMATIC})"
         owner = next(cls for cls in DATACLASSES if item in fields(cls))
         with pytest.raises(InvalidInputError, match=item.name):   # it can never stand for a real value
-            owner(**{item.name: automatic})
+            owner(**{item.name: AUTOMATIC})
+        if zero_was_automatic(item):   # the old automatic value still works, and says it is deprecated
+            setter(4)
+            with pytest.warns(DeprecationWarning, match=rf"Set{camel(item.name)}\(0\) for automatic"):
+                setter(0)
+            assert getter() is None
+    # every optional field of every dataclass, also those no filter has (the CLI's, Slicer's): -1 is outside
+    for cls in DATACLASSES:
+        for item in fields(cls):
+            if is_optional(item):
+                with pytest.raises(InvalidInputError, match=item.name):
+                    cls(**{item.name: AUTOMATIC})

@@ -136,8 +136,8 @@ def properties(proxies: dict) -> None:
             domain = prop.GetDomain("range")
             minimum = domain.GetMinimum(0) if domain and domain.GetMinimumExists(0) else None
             maximum = domain.GetMaximum(0) if domain and domain.GetMaximumExists(0) else None
-            if item.default is None:  # optional: the automatic value (0, or -1 where 0 is valid) and the words
-                automatic = 0 if (low == 0 and low_open) else -1
+            if item.default is None:  # optional: the automatic value -1 and the words
+                automatic = -1
                 if default != automatic or minimum != automatic or f"{automatic} means automatic" not in help_text:
                     problems.append(f"{class_name}.{name}: automatic {default}, min {minimum}")
             elif default != item.default or minimum != low:

@@ -180,7 +180,7 @@ def chain_here(points):
 def test_a_negative_radius_is_a_paraview_error_naming_radius_without_a_crash(pvbatch_run):
     assert_checks(pvbatch_run, "negative radius")
     stderr = pvbatch_run["stderr"]
-    assert "MeshFromPoints: radius must be in (0, inf], got -1.0" in stderr
+    assert "MeshFromPoints: radius must be in (0, inf], got -2.0" in stderr
     assert "BitingSampler: radius must be in (0, inf], got -2.0" in stderr
     assert "DelaunayTetra:" not in stderr and "SpuriousCellFilter:" not in stderr  # no echo of the root cause
 

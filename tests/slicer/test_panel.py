@@ -91,8 +91,8 @@ def test_parameter_specs_follow_the_core_dataclasses():
             assert spec.low == low and spec.lowOpen == low_open
             assert spec.high == (None if high is None or high == float("inf") else high)
             assert (spec.automatic is not None) == (item.default is None)
-            assert spec.default == (core.automatic_value(item) if item.default is None else item.default)
-    assert specs["radius"].automatic == 0.0 and specs["radius"].kind is float
+            assert spec.default == (core.AUTOMATIC if item.default is None else item.default)
+    assert specs["radius"].automatic == -1.0 and specs["radius"].kind is float   # one number for "automatic"
     assert specs["minWall"].automatic == -1.0 and specs["margin"].automatic == -1.0   # 0 is a valid wall, margin
     assert (specs["iterations"].kind, specs["iterations"].default, specs["iterations"].high) == (int, 30, 1000)
     assert (specs["minDihedral"].default, specs["minDihedral"].high, specs["minDihedral"].unit) == \
@@ -150,8 +150,10 @@ def test_keywords_split_by_dataclass_and_unknown_names_are_refused():
         lib_parameters.splitParameters({"min_dihedrals": 25.0}, "mpu")
     with pytest.raises(InvalidInputError, match="unknown parameter.* minDihedral"):   # a panel name, not a keyword
         lib_parameters.splitParameters({"minDihedral": 25.0}, "mpu")
-    assert lib_parameters.coreParameters({"radius": 0.0, "gridSpacing": 0.5, "method": "rbf", "cells": 500}) == \
+    assert lib_parameters.coreParameters({"radius": -1.0, "gridSpacing": 0.5, "method": "rbf", "cells": 500}) == \
         {"radius": None, "grid_spacing": 0.5, "method": "rbf", "cells": 500}
+    # a scene saved when 0 meant "automatic" (where 0 is outside the range) still means it
+    assert lib_parameters.coreParameters({"radius": 0.0, "errorBound": 0.0}) == {"radius": None, "error_bound": None}
     assert lib_parameters.coreParameters({"minWall": -1.0, "margin": 0.0, "minDihedral": 25.0, "iterations": 0}) == \
         {"min_wall": None, "margin": 0.0, "min_dihedral": 25.0, "iterations": 0}
     with pytest.raises(InvalidInputError, match="unknown panel parameter.* min_dihedral"):
@@ -232,7 +234,7 @@ def test_parameter_node_has_each_dataclass_range_and_default():
         integer = item.metadata["integer"]
         assert kind == ("int" if integer else "float"), name
         if item.default is None:   # automatic: a number below the valid range, at the widget's minimum
-            assert default == core.automatic_value(item) and default <= low, name
+            assert default == core.AUTOMATIC and default <= low, name
             low = default
         else:
             assert default == item.default, name

@@ -7,7 +7,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from ..core.errors import InvalidInputError
-from ..core.parameters import STEP_PARAMETERS
+from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
 from ..core.quality import quality_summary
 from ..io import MESH_EXTENSIONS, write_mesh
 
@@ -42,8 +42,23 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
                 continue
             text = "choices" in item.metadata or "text" in item.metadata
             kind = str if text else int if item.metadata["integer"] else float
+            help = describe(item.metadata, item.default)
+            if is_optional(item):
+                kind, help = or_automatic(kind), f"{help}; {AUTOMATIC} or auto: automatic (the default)"
             group.add_argument(flag, dest=item.name, type=kind, choices=item.metadata.get("choices"),
-                               default=item.default, help=describe(item.metadata, item.default))
+                               default=item.default, help=help)
+
+
+def or_automatic(kind):
+    """An argparse type: a number of ``kind``, or None for "auto" and :data:`AUTOMATIC` (-1), as in every
+    interface."""
+    def parse(text: str):
+        if text.strip().lower() == "auto":
+            return None
+        number = kind(text)
+        return None if number == AUTOMATIC else number
+    parse.__name__ = kind.__name__   # argparse names the type in its "invalid float value" message
+    return parse
 
 
 def is_switch(item) -> bool:

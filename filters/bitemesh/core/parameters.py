@@ -32,12 +32,18 @@ def is_optional(item) -> bool:
     return item.default is None and "range" in item.metadata
 
 
-def automatic_value(item):
-    """The number that stands for None ("automatic") where a number must be given (ParaView properties, the
-    Slicer parameter node; VTK setters take it too): 0 when 0 is outside the field's range, else -1."""
+#: the number that stands for None ("chosen automatically") where a number must be given: the VTK setters, the
+#: ParaView properties, the Slicer parameter node and the CLI.  Below the range of every optional field.
+AUTOMATIC = -1
+
+
+def zero_was_automatic(item) -> bool:
+    """True for an optional field whose range excludes 0, for which 0 stood for "automatic" before
+    :data:`AUTOMATIC` was one number for all (the VTK setters still take it, with a DeprecationWarning)."""
+    if not is_optional(item):
+        return False
     low, _, low_open, _ = item.metadata["range"]
-    zero_allowed = low is None or low < 0 or (low == 0 and not low_open)
-    return -1 if zero_allowed else 0
+    return low is not None and (low > 0 or (low == 0 and low_open))
 
 
 #: the radial basis functions of the RBF fits: phi(r) = r, r^3, r^2 log r.
@@ -193,7 +199,7 @@ class TableParameters(Parameters):
                              "default: from the header's names, else from the column count", text=True)
     frame: Optional[float] = parameter(None, "labelled contours: the time frame to read (a value of the 'time "
                                        "frame' column); default every point (a file whose slices are traced at "
-                                       "several frames is refused)")
+                                       "several frames is refused)", low=0)
 
 
 @dataclass(frozen=True)

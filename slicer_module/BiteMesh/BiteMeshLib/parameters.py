@@ -68,7 +68,7 @@ class ParameterSpec:
     low, high : valid range (None: unbounded); lowOpen : the low bound itself is invalid
     choices : the valid values of a str parameter, else None (a str parameter without choices is free text)
     automatic : the parameter-node value that stands for "chosen automatically" (the core's None), or None when the
-        parameter is not optional: bitemesh.core.parameters.automatic_value, 0 or -1, never a valid value
+        parameter is not optional: bitemesh.core.parameters.AUTOMATIC (-1), never a valid value
     help, unit : from the field's metadata
     """
 
@@ -111,7 +111,7 @@ def parameterSpecs() -> tuple:
         automatic = None
         default = item.default
         if core.is_optional(item):  # the number that stands for "automatic" (None) in the parameter node
-            automatic = default = kind(core.automatic_value(item))
+            automatic = default = kind(core.AUTOMATIC)
         specs.append(ParameterSpec(name, fieldName, kind, kind(default), None if low is None else kind(low), high,
                                    bool(lowOpen), None, automatic, metadata["help"], metadata["unit"]))
     return tuple(specs)
@@ -124,15 +124,21 @@ def _refuseUnknown(names, known, what: str) -> None:
         raise InvalidInputError(f"unknown {what}(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
 
 
+def _zeroWasAutomatic(spec) -> bool:
+    """0 is outside the parameter's range: a scene saved before "automatic" was -1 for all holds 0 for it."""
+    return spec.low is not None and (spec.low > 0 or (spec.low == 0 and spec.lowOpen))
+
+
 def coreParameters(values: dict) -> dict:
-    """Parameter-node values (by name) -> keywords of :meth:`BiteMeshLogic.process` ("automatic" becomes None);
-    unknown names are refused."""
+    """Parameter-node values (by name) -> keywords of :meth:`BiteMeshLogic.process` ("automatic", -1, becomes
+    None; so does 0 where it was "automatic" in scenes saved before); unknown names are refused."""
     specs = {spec.name: spec for spec in parameterSpecs()}
     _refuseUnknown(values, specs, "panel parameter")
     keywords = {}
     for name, value in values.items():
         spec = specs[name]
-        keywords[spec.core] = None if spec.automatic is not None and value == spec.automatic else value
+        keywords[spec.core] = None if spec.automatic is not None and (value == spec.automatic or (
+            value == 0 and _zeroWasAutomatic(spec))) else value
     return keywords
 
 

@@ -55,7 +55,7 @@ def labelled_keywords(parameters: LabelledParameters, given_only: bool = False) 
     if given_only:
         keywords = {name: value for name, value in keywords.items() if value != getattr(LabelledParameters, name)}
     if "domain" in keywords:
-        keywords["domain"] = keywords["domain"].strip() or None
+        keywords["domain"] = (keywords["domain"] or "").strip() or None   # a GUI's empty text may come as None
     if keywords.get("base_plane") == "none":
         keywords["base_plane"] = None
     if "allow_implausible" in keywords:
