@@ -8,42 +8,11 @@ from math import factorial
 import numpy as np
 
 from .grid import ImplicitGrid
-from .quality import cross, dihedral_angles, edge_lengths
+from .quality import cross, dihedral_angles, dot, edge_lengths, signed_radius_ratio  # noqa: F401 (re-exported)
 from .topology import boundary_facets
 
 #: sum of squared edge lengths / V^(2/k) of the regular triangle and tetrahedron.
 MEAN_RATIO_SCALE = {2: 4.0 * np.sqrt(3.0), 3: 12.0 * 3.0 ** (2.0 / 3.0)}
-
-
-def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
-
-
-def signed_radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """(m,) the radius ratio Q = k r_in / R_circ of each cell, negative for an inverted cell, 0 for a flat one.
-
-    Closed forms.  3D, with a, b, c the edges from vertex 0 and V6 = a . (b x c) six times the volume:
-    Q = 6 V6 |V6| / (S |N|), S twice the surface area, N = |a|^2 b x c + |b|^2 c x a + |c|^2 a x b
-    (R_circ = |N| / 2 |V6|).  2D: Q = 4 A2 |A2| / (P l_a l_b l_c), A2 twice the signed area, P the perimeter.
-    Equal to :func:`bitemesh.core.quality.radius_ratio` on positive cells, and several times faster.
-    """
-    corners = points[cells]
-    a, b = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    if points.shape[1] == 2:
-        twice_area = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-        sides = [np.sqrt(dot(v, v)) for v in (a, b, b - a)]
-        numerator = 4.0 * twice_area * np.abs(twice_area)
-        denominator = (sides[0] + sides[1] + sides[2]) * sides[0] * sides[1] * sides[2]
-    else:
-        c = corners[:, 3] - corners[:, 0]
-        bc, ca, ab = cross(b, c), cross(c, a), cross(a, b)
-        six_volume = dot(a, bc)
-        centre = dot(a, a)[:, None] * bc + dot(b, b)[:, None] * ca + dot(c, c)[:, None] * ab
-        facing = bc + ca + ab  # twice the area vector of the facet opposite vertex 0
-        surface = sum(np.sqrt(dot(v, v)) for v in (bc, ca, ab, facing))
-        numerator = 6.0 * six_volume * np.abs(six_volume)
-        denominator = surface * np.sqrt(dot(centre, centre))
-    return np.divide(numerator, denominator, out=np.zeros(len(cells)), where=denominator > 0)
 
 
 def mean_ratio_cost(volume: np.ndarray, squares: np.ndarray, k: int) -> np.ndarray:

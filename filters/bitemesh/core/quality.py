@@ -17,7 +17,7 @@ from itertools import combinations
 import numpy as np
 
 from .errors import InvalidInputError, check_number
-from .mesh import Mesh, circumspheres, facets_of, signed_measures
+from .mesh import Mesh, facets_of, signed_measures
 from .topology import (boundary_facets, connected_components, distinct_faces, euler_characteristic,  # noqa: F401
                        facet_table, neighbour_pairs, unique_rows)
 from .validity import _check_cells, _check_mesh
@@ -69,17 +69,41 @@ def radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    (m,) float64 in [0, 1]: 1 for the regular simplex, 0 for a degenerate one.  Independent of orientation;
-    ``r_in = k |measure| / (sum of facet measures)``.
+    (m,) float64 in [0, 1]: 1 for the regular simplex, 0 for a degenerate one; independent of orientation
+    (:func:`signed_radius_ratio` without its sign).
     """
-    k = points.shape[1]
-    measure = np.abs(signed_measures(points, cells))
-    surface = np.linalg.norm(facet_normals(points, cells), axis=-1).sum(axis=1)
-    _, circumradius = circumspheres(points, cells)
-    ok = (surface > 0) & np.isfinite(circumradius)
-    q = np.zeros(len(cells))
-    q[ok] = k * k * measure[ok] / (surface[ok] * circumradius[ok])
-    return np.minimum(q, 1.0)
+    return np.minimum(np.abs(signed_radius_ratio(points, cells)), 1.0)
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", a, b)
+
+
+def signed_radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) the radius ratio Q = k r_in / R_circ of each cell, negative for an inverted cell, 0 for a flat one.
+
+    Closed forms.  3D, with a, b, c the edges from vertex 0 and V6 = a . (b x c) six times the volume:
+    Q = 6 V6 |V6| / (S |N|), S twice the surface area, N = |a|^2 b x c + |b|^2 c x a + |c|^2 a x b
+    (R_circ = |N| / 2 |V6|).  2D: Q = 4 A2 |A2| / (P l_a l_b l_c), A2 twice the signed area, P the perimeter.
+    :func:`radius_ratio` is its absolute value.
+    """
+    corners = points[cells]
+    a, b = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    if points.shape[1] == 2:
+        twice_area = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        sides = [np.sqrt(dot(v, v)) for v in (a, b, b - a)]
+        numerator = 4.0 * twice_area * np.abs(twice_area)
+        denominator = (sides[0] + sides[1] + sides[2]) * sides[0] * sides[1] * sides[2]
+    else:
+        c = corners[:, 3] - corners[:, 0]
+        bc, ca, ab = cross(b, c), cross(c, a), cross(a, b)
+        six_volume = dot(a, bc)
+        centre = dot(a, a)[:, None] * bc + dot(b, b)[:, None] * ca + dot(c, c)[:, None] * ab
+        facing = bc + ca + ab  # twice the area vector of the facet opposite vertex 0
+        surface = sum(np.sqrt(dot(v, v)) for v in (bc, ca, ab, facing))
+        numerator = 6.0 * six_volume * np.abs(six_volume)
+        denominator = surface * np.sqrt(dot(centre, centre))
+    return np.divide(numerator, denominator, out=np.zeros(len(cells)), where=denominator > 0)
 
 
 def dihedral_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
