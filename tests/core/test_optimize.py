@@ -8,6 +8,7 @@ cells 0.805 / 0.8 deg -> 0.902 / 32.5 deg; die 10,000 0.795 / 1.3 -> 0.895 / 25.
 """
 from __future__ import annotations
 
+import re
 import warnings
 from math import comb
 
@@ -79,8 +80,10 @@ def test_the_volume_and_the_node_spacing_are_kept(optimized, name):
     assert abs(volume(result) - shape.measure) <= abs(volume(mesh) - shape.measure) + 0.002 * shape.measure
     _, before = edge_lengths(mesh.points, mesh.cells)
     _, after = edge_lengths(result.points, result.cells)
-    # the shell's walls are 1.7 edges thick, its surface nodes denser than its interior ones: 0.150 measured
-    assert after.std() / after.mean() <= (0.155 if name == "two-cavity shell" else 0.145)
+    # the spacing is more even than every peer's in benchmarks/peers.md: the most even there is TetGen -pq1.2a's
+    # 0.178 on the sphere (gmsh + Netgen 0.226 and 0.208, unoptimised bitemesh 0.170 and 0.178).  Measured: the
+    # shell 0.150 (walls 1.7 edges thick, surface nodes denser than interior ones), the others at most 0.145
+    assert after.std() / after.mean() < 0.178
     assert after.std() / after.mean() < before.std() / before.mean() - 0.03
     assert after.mean() == pytest.approx(before.mean(), rel=0.08)
     assert len(result.points) >= 0.97 * len(mesh.points)
@@ -100,22 +103,28 @@ def test_boundary_nodes_lie_on_the_surface(optimized, name):
 
 
 def test_the_sphere_leads_the_peers_of_the_issue(optimized):
-    """At about 10,000 cells: gmsh+Netgen 0.86 / 24 deg, CGAL 0.887 / 15.9 deg, TetGen -q 0.82 / 1.4 deg."""
+    """At about 10,000 cells the issue's peers give mean radius ratio / smallest dihedral angle: gmsh+Netgen
+    0.86 / 24 deg, CGAL 0.887 / 15.9 deg (published), TetGen -q 0.82 / 1.4 deg; measured on this sphere in
+    benchmarks/peers.md: gmsh+Netgen 0.849 / 23.7 deg with min Q 0.444, TetGen 0.792 / 1.9 deg.  Each bound is the
+    best peer's figure, which the optimised sphere must beat (measured: 0.902 / 32.5 deg, min Q 0.586)."""
     _, _, _, _, result, _ = optimized["sphere"]
     q = radius_ratio(result.points, result.cells)
-    assert q.mean() >= 0.90
-    assert np.nanmin(dihedral_angles(result.points, result.cells)) >= 30.0
-    assert q.min() >= 0.5
+    assert q.mean() > 0.887   # CGAL's published mean, the best of the issue's peers
+    assert np.nanmin(dihedral_angles(result.points, result.cells)) > 24.0   # gmsh+Netgen's, the issue's table
+    assert q.min() > 0.444   # gmsh+Netgen's smallest radius ratio on the sphere, benchmarks/peers.md
 
 
 def test_progress_reports_the_convergence_and_what_remains(optimized):
-    *_, messages = optimized["sphere"]
+    *_, result, messages = optimized["sphere"]
     fractions = [fraction for fraction, _ in messages]
     assert fractions == sorted(fractions) and fractions[-1] == 1.0
     relaxation = [message for _, message in messages if message.startswith("relaxation ")]
     means = [float(message.rsplit(" ", 1)[1]) for message in relaxation if "mean radius ratio" in message]
     assert 2 <= len(means) <= OptimizeParameters().iterations and means[-1] > means[0] + 0.02
-    assert messages[-1][1].startswith("optimised: mean radius ratio 0.9")
+    # the last message reports the mesh returned (its figure is checked against the peers above, not here)
+    last = re.match(r"optimised: mean radius ratio (\d\.\d{4}); ", messages[-1][1])
+    assert last, messages[-1][1]
+    assert float(last[1]) == pytest.approx(radius_ratio(result.points, result.cells).mean(), abs=5e-5)
     assert "remain 0 cells with an angle below 20 degrees or a radius ratio below 0.3, 0 boundary nodes" in \
         messages[-1][1]
 
@@ -351,13 +360,20 @@ def test_edge_removal_knows_every_triangulation_of_the_ring():
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_fast_radius_ratio_agrees_with_the_quality_module(dim):
+def test_the_closed_form_radius_ratio_agrees_with_its_definition(dim):
+    """Q = k r_in / R_circ from the circumsphere and r_in = k |measure| / (sum of facet measures), against the
+    closed form the quality arrays and the optimizer use; signed for inverted cells."""
+    from bitemesh.core.mesh import circumspheres
+    from bitemesh.core.quality import facet_normals
     rng = np.random.default_rng(dim)
     points = rng.random((200, dim))
     cells = delaunay(points)
-    assert np.allclose(signed_radius_ratio(points, cells), radius_ratio(points, cells), atol=1e-12)
+    surface = np.linalg.norm(facet_normals(points, cells), axis=-1).sum(axis=1)
+    definition = dim * dim * np.abs(signed_measures(points, cells)) / (surface * circumspheres(points, cells)[1])
+    assert np.allclose(signed_radius_ratio(points, cells), definition, atol=1e-12)
+    assert np.allclose(radius_ratio(points, cells), definition, atol=1e-12)
     inverted = cells[:, [1, 0] + list(range(2, dim + 1))]
-    assert np.allclose(signed_radius_ratio(points, inverted), -radius_ratio(points, cells), atol=1e-12)
+    assert np.allclose(signed_radius_ratio(points, inverted), -definition, atol=1e-12)
 
 
 @pytest.mark.parametrize("dim", [2, 3])

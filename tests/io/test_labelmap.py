@@ -189,9 +189,11 @@ def test_optimize_relaxes_a_rotated_label_map_in_place(ellipsoid, ellipsoid_file
     assert cli.main(["mesh", str(ellipsoid_file), "-o", str(output), "--cells", "2500", "--optimize"]) == 0
     assert "optimize" in capsys.readouterr().out
     mesh = read_mesh(output)
+    # mean radius ratio at least gmsh + Netgen's on the smooth sphere at 10,000 cells (0.849, benchmarks/peers.md),
+    # though this is a rotated voxel ellipsoid at 2,500 cells (measured 0.897); chords: -3.1 % (-3.4 % unoptimised)
     assert_valid_domain(mesh, euler=2, components=1, measure=4 / 3 * np.pi * np.prod(SEMI_AXES),
-                        measure_tolerance=0.04, mean_quality=0.86)   # chords: -3.1 % (-3.4 % unoptimised)
-    assert np.nanmin(dihedral_angles(mesh.points, mesh.cells)) >= 20.0
+                        measure_tolerance=0.04, mean_quality=0.849)
+    assert np.nanmin(dihedral_angles(mesh.points, mesh.cells)) >= 20.0   # the optimiser's min_dihedral (issue 12)
     assert np.linalg.norm(centroid(mesh) - ellipsoid[1]) < SPACING.min()
 
 
