@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from bitemesh.core.biting import bite
 from bitemesh.core.delaunay import delaunay
-from bitemesh.core.domain import carve_domain
+from bitemesh.core.repair import carve_domain
 from bitemesh.core.grid import sample_function
 from bitemesh.core.handles import handle_count
 from bitemesh.core.parameters import SpuriousParameters

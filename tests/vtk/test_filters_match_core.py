@@ -14,7 +14,7 @@ from bitemesh.algorithms import SpuriousCellFilter
 from bitemesh.convert import cell_types, image_to_grid, point_coordinates, unstructured_to_mesh
 from bitemesh.core.biting import bite
 from bitemesh.core.delaunay import delaunay
-from bitemesh.core.domain import carve_domain
+from bitemesh.core.repair import carve_domain
 from bitemesh.core.mesh import Mesh
 from bitemesh.core.parameters import SpuriousParameters
 from bitemesh.core.pipeline import points_to_implicit

@@ -14,7 +14,7 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandD
 
 from ..core.biting import bite
 from ..core.delaunay import delaunay
-from ..core.domain import carve_domain
+from ..core.repair import carve_domain
 from ..core.errors import InvalidInputError
 from ..core.fidelity import check_fidelity, measure_fidelity, on_plane
 from ..core.mesh import Mesh

@@ -129,7 +129,7 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     centroids; the shallower clusters are tried first, then the smaller, and none reaching farther than
     :data:`MAX_DEPTH` cells' size (a handle that thick is the data's, not the sampling's).  A cluster is kept
     when it raises the Euler characteristic by one and leaves the parts and the boundary surfaces as they were.
-    The result may need the repair of :func:`bitemesh.core.domain.repaired` (a cut can pinch the boundary).
+    The result may need the repair of :func:`bitemesh.core.repair.repaired` (a cut can pinch the boundary).
 
     Parameters
     ----------

@@ -6,7 +6,7 @@
    2005.  Each interior node moves to the volume-weighted mean of the circumcentres of its cells, each boundary
    node towards the area-weighted mean of the centroids of its boundary facets, along the surface and back onto
    f = 0; then the nodes are triangulated again (Delaunay and the circumcentre test), until the mean radius ratio
-   stops rising.  The last state is carved into a valid domain (:func:`bitemesh.core.domain.carve_domain`).
+   stops rising.  The last state is carved into a valid domain (:func:`bitemesh.core.repair.carve_domain`).
 3. Sliver removal (:func:`bitemesh.core.slivers.remove_slivers`): rounds of flips (:mod:`bitemesh.core.flips`),
    which replace the cells around an interior edge (edge removal: 3-2, 4-4, 5-6 ... flips) or on both sides of an
    interior facet (2-3 flips; 2-2 in 2D) when that raises the worst radius ratio among them, then of smoothing

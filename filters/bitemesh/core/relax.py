@@ -6,7 +6,7 @@ relaxation and the smoothing.  Boundary nodes stay on f = 0 (Newton steps along 
   node moves to the volume-weighted mean of the circumcentres of its cells, each boundary node towards the
   area-weighted mean of the centroids of its boundary facets, along the surface and back onto f = 0; then the
   nodes are triangulated again (Delaunay and the circumcentre test), until the mean radius ratio stops rising.
-  The last state is carved into a valid domain (:func:`bitemesh.core.domain.carve_domain`).
+  The last state is carved into a valid domain (:func:`bitemesh.core.repair.carve_domain`).
 - Smoothing (:func:`smooth`, a step of the sliver removal, :mod:`bitemesh.core.slivers`): the nodes move down sum
   over the cells of (1 / mean ratio)^2 (Knupp's inverse mean ratio, infinite for a flat cell) with the boundary
   nodes sliding on f = 0; the cells stay as they are and every cell stays positive.
@@ -19,7 +19,7 @@ from .biting import project_to_surface
 from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
                             mean_ratio_terms, off_surface_nodes, scatter_to_points, signed_radius_ratio, tangential)
 from .delaunay import delaunay
-from .domain import carve_domain, compact
+from .repair import carve_domain, compact
 from .errors import MeshingError
 from .grid import ImplicitGrid
 from .mesh import circumspheres, signed_measures

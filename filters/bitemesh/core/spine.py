@@ -21,7 +21,7 @@ import numpy as np
 
 from .biting import bite
 from .delaunay import delaunay
-from .domain import carve_domain
+from .repair import carve_domain
 from .errors import BitemeshWarning, InvalidInputError, check_number
 from .fidelity import Fidelity, check_fidelity, measure_fidelity
 from .grid import (BYTES_PER_NODE, EXACT_WITHIN, ImplicitGrid, available_memory_mb, grid_shape_unchecked,

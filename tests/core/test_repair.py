@@ -6,7 +6,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from bitemesh.core.delaunay import delaunay
-from bitemesh.core.domain import carve_domain
+from bitemesh.core.repair import carve_domain
 from bitemesh.core.grid import sample_function
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters
@@ -94,7 +94,7 @@ def test_carving_an_empty_inside_is_a_clear_error():
 def test_a_pinch_is_mended_by_the_smaller_change_and_filling_can_be_turned_off():
     """Two cubes of a 2 x 2 block meeting only along an edge: per pinch, fill the gap or drop the smaller fans,
     whichever changes less volume; without filling, cells only go."""
-    from bitemesh.core.domain import DelaunayCells, unpinch
+    from bitemesh.core.repair import DelaunayCells, unpinch
     from bitemesh.core.topology import non_manifold_faces
     corners = np.array([[i, j, k] for i in range(3) for j in range(3) for k in range(2)], float)
     corners += np.random.default_rng(0).normal(0, 1e-3, corners.shape)
@@ -109,3 +109,9 @@ def test_a_pinch_is_mended_by_the_smaller_change_and_filling_can_be_turned_off()
     assert (removed <= keep).all() and removed.sum() < keep.sum()
     change_with_fill = volume[filled != keep].sum()
     assert 0 < change_with_fill <= volume[removed != keep].sum() + 1e-12
+
+
+def test_the_former_module_name_still_imports():
+    """``bitemesh.core.domain`` was the repair's module: scripts that import carve_domain from it keep working."""
+    from bitemesh.core import domain, repair
+    assert domain.carve_domain is repair.carve_domain and domain.repaired is repair.repaired
