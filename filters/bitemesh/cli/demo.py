@@ -27,8 +27,8 @@ def add_parser(subcommands) -> None:
                         help="die (default) or heart")
     parser.add_argument("-o", "--output", help="the mesh to write; default die.vtu or heart.vtu")
     cells = {item.name: item for item in fields(BitingParameters)}["cells"]
-    parser.add_argument("--cells", type=int, help=describe(cells.metadata, None) + "; default 10000 (die), 136000 "
-                                                                                  "(heart)")
+    parser.add_argument("--cells", type=int, help=describe(cells.metadata, None)
+                        + f"; default {BitingParameters.cells} (die), 136000 (heart)")
     add_parameter_options(parser, (OptimizeParameters,))
     parser.set_defaults(run=run)
 
@@ -50,8 +50,9 @@ def mesh_die(args, progress):
     shape = die()
     points, normals = sample_surface(shape, spacing=0.04, noise=0.002, seed=1)
     print(f"die: {len(points)} scattered points with normals, noise sd 0.002 (die size 2)")
-    result = run_pipeline(points, normals, ImplicitParameters(), BitingParameters(cells=args.cells or 10000),
-                          progress=progress, optimize=parameters_from_args(args, (OptimizeParameters,))[0])
+    biting = BitingParameters(cells=args.cells) if args.cells else BitingParameters()
+    result = run_pipeline(points, normals, ImplicitParameters(), biting, progress=progress,
+                          optimize=parameters_from_args(args, (OptimizeParameters,))[0])
     volume_error = result.mesh.cell_data["Volume"].sum() / shape.measure - 1
     return result, f", volume {volume_error:+.2%} of the exact die"
 

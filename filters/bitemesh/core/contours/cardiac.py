@@ -239,6 +239,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     -------
     list of the problems (empty when plausible)
     """
+    from ..fidelity import facet_measures
     from ..quality import count_boundary_components
     from ..topology import boundary_facets, euler_characteristic
 
@@ -265,7 +266,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     total = float(volumes.sum())
     facets = boundary_facets(cells)
     corners = points[facets]
-    areas = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    areas = facet_measures(corners)
     walls = areas[~function.is_base(corners.mean(axis=1))].sum() if function.base is not None else areas.sum()
     thickness = 2 * total / walls if walls > 0 else np.inf
     low, high = MYOCARDIAL_VOLUME
