@@ -218,3 +218,41 @@ def test_every_core_module_imports_without_vtk():
             "loaded = [m for m, module in sys.modules.items() if module is not None]\n"
             "assert not any(m.startswith(('vtk', 'bitemesh.io', 'bitemesh.cli')) for m in loaded), loaded")
     subprocess.run([sys.executable, "-c", code], check=True, env={"PYTHONPATH": str(FILTERS)})
+
+
+def module_level_imports(path: Path, root: Path) -> set:
+    """The bitemesh modules the file imports when it is imported: its module-level imports, not those inside a
+    function (a lazy import is how a module may name one that imports it)."""
+    name, package = module_name(path, root)
+    found = set()
+    for node in ast.parse(path.read_text(), filename=str(path)).body:
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = resolve(name, package, node.level, node.module)
+            found |= {base} | {f"{base}.{alias.name}" for alias in node.names if alias.name != "*"}
+    return {imported for imported in found if top(imported) == "bitemesh" and imported != name}
+
+
+def test_no_import_cycle_at_module_level():
+    """No module of bitemesh imports, at module level, one that (through others) imports it back: such a cycle
+    works or fails by which module is imported first."""
+    modules = {module_name(path, FILTERS)[0]: path for path in sorted((FILTERS / "bitemesh").rglob("*.py"))
+               if "__pycache__" not in path.parts}
+    edges = {name: sorted(imported for imported in module_level_imports(path, FILTERS) if imported in modules)
+             for name, path in modules.items()}
+    cycles, state = [], {}
+
+    def visit(name, trail):
+        state[name] = "open"
+        for imported in edges[name]:
+            if state.get(imported) == "open":
+                cycles.append(" -> ".join(trail[trail.index(imported):] + [imported]))
+            elif imported not in state:
+                visit(imported, trail + [imported])
+        state[name] = "done"
+
+    for name in modules:
+        if name not in state:
+            visit(name, [name])
+    assert not cycles, "module-level import cycles:\n" + "\n".join(cycles)
