@@ -79,8 +79,8 @@ def _annotated(spec):
     from slicer.parameterNodeWrapper import Choice, Minimum, WithinRange
     if spec.choices is not None:
         return Annotated[str, Choice(list(spec.choices))]
-    if spec.kind is str:   # free text
-        return str
+    if spec.kind in (str, bool):   # free text, a switch
+        return spec.kind
     high, low = spec.high, spec.low if spec.automatic is None else min(spec.low, spec.automatic)
     if spec.kind is int:
         high = _INT_MAX if high is None else min(high, _INT_MAX)

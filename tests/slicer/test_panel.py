@@ -24,7 +24,8 @@ from BiteMeshLib import parameters as lib_parameters  # on sys.path from tests.s
 INT_MAX = 2**31 - 1   # QSpinBox's largest value (BiteMesh._INT_MAX)
 #: the suffix a spin box shows for each unit of the dataclasses (Slicer's input units are mm).
 UNIT_SUFFIX = {"": None, "input units": " mm", "mm": " mm", "MiB": " MiB", "degrees": "°", "%": " %"}
-WIDGET_CLASSES = {"choices": "QComboBox", str: "QLineEdit", int: "QSpinBox", float: "QDoubleSpinBox"}
+WIDGET_CLASSES = {"choices": "QComboBox", str: "QLineEdit", int: "QSpinBox", float: "QDoubleSpinBox",
+                  bool: "QCheckBox"}
 
 
 def core_field(name):
@@ -85,6 +86,8 @@ def test_parameter_specs_follow_the_core_dataclasses():
             assert spec.choices == item.metadata["choices"] and spec.default == item.default
         elif item.metadata.get("text"):
             assert spec.kind is str and spec.choices is None and spec.default == item.default
+        elif item.metadata["integer"] and item.metadata["range"][:2] == (0, 1):   # a switch: a check box
+            assert spec.kind is bool and spec.default is bool(item.default) and spec.automatic is None
         else:
             low, high, low_open, _ = item.metadata["range"]
             assert spec.kind is (int if item.metadata["integer"] else float)
@@ -206,7 +209,7 @@ assert typing.get_args(hints["contours"])[0] is slicer.vtkMRMLMarkupsClosedCurve
 fields = {}
 for name, hint in hints.items():
     kind, *validators = typing.get_args(hint) or (hint,)   # free text: plain str
-    if isinstance(kind, type) and kind in (int, float, str):
+    if isinstance(kind, type) and kind in (int, float, str, bool):
         fields[name] = (kind.__name__, [(type(v).__name__, v.arguments) for v in validators], getattr(cls, name))
 print(repr({"names": sorted(hints), "fields": fields}))
 """
@@ -232,6 +235,9 @@ def test_parameter_node_has_each_dataclass_range_and_default():
             continue
         low, high, _, _ = item.metadata["range"]
         integer = item.metadata["integer"]
+        if integer and (low, high) == (0, 1):   # a switch: a check box
+            assert (kind, validators, default) == ("bool", [], bool(item.default)), name
+            continue
         assert kind == ("int" if integer else "float"), name
         if item.default is None:   # automatic: a number below the valid range, at the widget's minimum
             assert default == core.AUTOMATIC and default <= low, name

@@ -76,7 +76,7 @@ def test_the_panel_values_reach_the_core(scene, logic, monkeypatch):
     """As the Apply button does it: every parameter-node value, through coreParameters, into process."""
     node = labelled_input(scene, monkeypatch, logic)
     values = {spec.name: spec.default for spec in logic.parameterSpecs()}
-    values.update(optimize=1, iterations=3, minDihedral=25.0, minQuality=0.35, rvWall=4.0, minWall=3.0, margin=2.0)
+    values.update(optimize=True, iterations=3, minDihedral=25.0, minQuality=0.35, rvWall=4.0, minWall=3.0, margin=2.0)
     core = reached(logic, node, scene, **logic.coreParameters(values))
     assert core["optimize"] == OptimizeParameters(optimize=1, **BOUNDS)
     assert (core["min_wall"], core["rv_wall"], core["allow_implausible"]) == (3.0, 4.0, False)

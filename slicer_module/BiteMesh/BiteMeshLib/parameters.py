@@ -64,7 +64,7 @@ class ParameterSpec:
     Attributes
     ----------
     name : parameter-node name (camelCase); core : keyword of ``process`` (the dataclass field)
-    kind : float, int or str; default : the parameter-node default
+    kind : float, int, bool (a 0/1 switch of the core) or str; default : the parameter-node default
     low, high : valid range (None: unbounded); lowOpen : the low bound itself is invalid
     choices : the valid values of a str parameter, else None (a str parameter without choices is free text)
     automatic : the parameter-node value that stands for "chosen automatically" (the core's None), or None when the
@@ -106,6 +106,10 @@ def parameterSpecs() -> tuple:
                                        metadata["help"], metadata["unit"]))
             continue
         low, high, lowOpen, _ = metadata["range"]
+        if metadata["integer"] and (low, high) == (0, 1):   # a switch: a check box, True for 1
+            specs.append(ParameterSpec(name, fieldName, bool, bool(item.default), None, None, False, None, None,
+                                       metadata["help"], metadata["unit"]))
+            continue
         kind = int if metadata["integer"] else float
         high = None if high is None or high == float("inf") else kind(high)
         automatic = None
