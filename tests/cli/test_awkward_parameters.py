@@ -4,7 +4,7 @@ defects instead of repairing them.
 
 Input as users bring it: every awkward input ends in a mesh that follows the data, or in exit 1 with a message
 that names the cause.  Never a silently wrong mesh, never a traceback, never a lost file.  Each case builds its own
-variant of a small sphere (``sphere_samples``: 1,500 points, radius 1, tests/cli/conftest.py); a mesh counts as
+variant of a small sphere (``unit_sphere_samples``: 1,500 points, radius 1, tests/cli/conftest.py); a mesh counts as
 following the data when it is a valid domain, its volume is that of the shape within the chord error of ~3,000 cells
 (3 %), and the fidelity check passed (its line is printed).
 """
@@ -31,8 +31,8 @@ from tests.cli.commands import assert_refused, mesh_cli, write_rows
     (["--far-samples", "-1"], ["far_samples must be in [0, 100]"]),
     (["--outliers", "maybe"], []),
 ])
-def test_parameters_out_of_range_are_named_at_once(capsys, tmp_path, sphere_samples, options, words):
-    path = write_rows(tmp_path / "cloud.xyz", sphere_samples[0])
+def test_parameters_out_of_range_are_named_at_once(capsys, tmp_path, unit_sphere_samples, options, words):
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
     output = tmp_path / "out.vtu"
     try:
         code = cli.main(["mesh", str(path), "-o", str(output), *options])
@@ -44,19 +44,19 @@ def test_parameters_out_of_range_are_named_at_once(capsys, tmp_path, sphere_samp
         assert word in err, err
 
 
-def test_the_memory_hint_fits(capsys, tmp_path, sphere_samples):
+def test_the_memory_hint_fits(capsys, tmp_path, unit_sphere_samples):
     """The radius the memory refusal suggests is accepted at the same memory bound."""
-    path = write_rows(tmp_path / "cloud.xyz", sphere_samples[0])
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
     code, _, err, _ = mesh_cli(capsys, tmp_path, path, "--radius", "0.001", "--max-memory-mb", "64")
     assert code == 1
     suggested = float(err.split("radius >= ")[1].split()[0])
     from bitemesh.core.pipeline import run
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters
-    result = run(sphere_samples[0], None, ImplicitParameters(max_memory_mb=64), BitingParameters(radius=suggested))
+    result = run(unit_sphere_samples[0], None, ImplicitParameters(max_memory_mb=64), BitingParameters(radius=suggested))
     assert result.mesh.cells.size
 
 
-def test_a_grid_over_the_free_memory_is_refused_in_a_moment(monkeypatch, capsys, tmp_path, sphere_samples):
+def test_a_grid_over_the_free_memory_is_refused_in_a_moment(monkeypatch, capsys, tmp_path, unit_sphere_samples):
     """--max-memory-mb above what the machine has: the machine's free memory bounds the grid, before the fit."""
     import time
 
@@ -64,22 +64,22 @@ def test_a_grid_over_the_free_memory_is_refused_in_a_moment(monkeypatch, capsys,
     import bitemesh.core.spine as spine
     for module in (grid, spine):
         monkeypatch.setattr(module, "available_memory_mb", lambda: 500.0)
-    path = write_rows(tmp_path / "cloud.xyz", sphere_samples[0])
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
     clock = time.perf_counter()
     code, _, err, _ = mesh_cli(capsys, tmp_path, path, "--grid-spacing", "0.004", "--max-memory-mb", "1000000")
     assert time.perf_counter() - clock < 5
     assert_refused(code, err, "the 500 MiB of memory this machine has free", "grid_spacing >= ")
 
 
-def test_a_missing_output_folder_is_refused_before_any_work(capsys, tmp_path, sphere_samples):
-    path = write_rows(tmp_path / "cloud.xyz", sphere_samples[0])
+def test_a_missing_output_folder_is_refused_before_any_work(capsys, tmp_path, unit_sphere_samples):
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
     code = cli.main(["mesh", str(path), "-o", str(tmp_path / "absent" / "out.vtu")])
     _, err = capsys.readouterr()
     assert_refused(code, err, "does not exist")
 
 
-def test_nan_rows_are_named_by_their_line(capsys, tmp_path, sphere_samples):
-    points = sphere_samples[0].copy()
+def test_nan_rows_are_named_by_their_line(capsys, tmp_path, unit_sphere_samples):
+    points = unit_sphere_samples[0].copy()
     points[4, 2] = np.nan
     path = write_rows(tmp_path / "cloud.xyz", points, header=["x", "y", "z"])
     code, _, err, _ = mesh_cli(capsys, tmp_path, path)
@@ -94,10 +94,10 @@ def test_nan_rows_are_named_by_their_line(capsys, tmp_path, sphere_samples):
     ("sphere", "wrong shape", ["normals must have the shape of points"]),
     ("sphere", "zeros", ["normals", "zero-length"]),
 ])
-def test_the_api_names_the_bad_argument(sphere_samples, points, normals, words):
+def test_the_api_names_the_bad_argument(unit_sphere_samples, points, normals, words):
     import bitemesh
     if isinstance(points, str):
-        points = sphere_samples[0]
+        points = unit_sphere_samples[0]
     normals = {"wrong shape": np.ones((5, 3)), "zeros": np.zeros_like(points), None: None}[normals]
     with pytest.raises(bitemesh.InvalidInputError) as caught:
         bitemesh.mesh_from_points(points, normals, cells=1000)
@@ -107,9 +107,9 @@ def test_the_api_names_the_bad_argument(sphere_samples, points, normals, words):
 
 # --- bitemesh quality reports defects ------------------------------------------------------------------------
 
-def small_mesh(sphere_samples):
+def small_mesh(unit_sphere_samples):
     from bitemesh.core.pipeline import run
-    return run(*sphere_samples, biting=BitingParameters(cells=1500)).mesh
+    return run(*unit_sphere_samples, biting=BitingParameters(cells=1500)).mesh
 
 
 @pytest.mark.parametrize("defect, words", [
@@ -118,8 +118,8 @@ def small_mesh(sphere_samples):
     ("flat", ["flat cells"]),
     ("unused", ["points used by no cell"]),
 ])
-def test_quality_reports_defects_instead_of_repairing_them(capsys, tmp_path, sphere_samples, defect, words):
-    mesh = small_mesh(sphere_samples)
+def test_quality_reports_defects_instead_of_repairing_them(capsys, tmp_path, unit_sphere_samples, defect, words):
+    mesh = small_mesh(unit_sphere_samples)
     points, cells = mesh.points, mesh.cells.copy()
     if defect == "inverted":
         cells[:100, :2] = cells[:100, 1::-1]
@@ -139,9 +139,9 @@ def test_quality_reports_defects_instead_of_repairing_them(capsys, tmp_path, sph
         assert word in out
 
 
-def test_quality_of_a_truncated_file_says_why(capsys, tmp_path, sphere_samples):
+def test_quality_of_a_truncated_file_says_why(capsys, tmp_path, unit_sphere_samples):
     path = tmp_path / "mesh.vtu"
-    write_mesh(small_mesh(sphere_samples), path)
+    write_mesh(small_mesh(unit_sphere_samples), path)
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
     code = cli.main(["quality", str(path)])
     _, err = capsys.readouterr()
