@@ -150,8 +150,7 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
 
     Parameters
     ----------
-    function : maps (m, k) points to (m,) values, f > 0 inside; where it has ``at_nodes(x, index, axes)``, that
-        gives the same values at grid nodes ``x[:, d] = axes[d][index[d]]`` (C order) from the grid's structure
+    function : maps (m, k) points to (m,) values, f > 0 inside
     lower, upper : (k,) float64, the box to cover
     spacing : float or (k,) float64, grid spacing h (> 0)
     margin : float, added on every side of the box
@@ -180,14 +179,12 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
                                  exact_within=2 * exact_within if levels > 1 else None, levels=levels - 1)
         values = refined(coarse.values)[tuple(slice(n) for n in shape)].reshape(-1)
         nodes = np.flatnonzero(np.abs(values) < exact_within)
-    axes = tuple(lower[d] + np.arange(n) * spacing_array[d] for d, n in enumerate(shape))
-    at_nodes = getattr(function, "at_nodes", None)
+    axes = [lower[d] + np.arange(n) * spacing_array[d] for d, n in enumerate(shape)]
     for start in range(0, len(nodes), chunk):
         report(progress, start / len(nodes), f"sampling f on {' x '.join(map(str, shape))} nodes")
         flat = nodes[start:start + chunk]
         index = np.unravel_index(flat, shape)
-        x = np.stack([axes[d][index[d]] for d in range(len(shape))], axis=1)
-        values[flat] = function(x) if at_nodes is None else at_nodes(x, index, axes)
+        values[flat] = function(np.stack([axes[d][index[d]] for d in range(len(shape))], axis=1))
     report(progress, 1.0, "sampling f: done")
     return ImplicitGrid(origin=lower, spacing=spacing_array, values=values.reshape(shape))
 
@@ -200,8 +197,7 @@ def bounding_box(points: np.ndarray):
 
 def box_depth(x: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """(m,) signed distance of (m, k) points to the boundary of the box [lower, upper], > 0 inside."""
-    distance_out = np.linalg.norm(x - np.clip(x, lower, upper), axis=1)
-    return np.where(distance_out > 0, -distance_out, np.minimum(x - lower, upper - x).min(axis=1))
+    return box_depth_gradient(x, lower, upper)[0]
 
 
 def box_depth_gradient(x: np.ndarray, lower: np.ndarray, upper: np.ndarray):

@@ -12,7 +12,6 @@ from scipy.spatial import cKDTree
 
 from .errors import check_points
 from .grid import box_depth, box_depth_gradient
-from .mpu_pairs import TreeOrder, lattice_pairs
 
 #: MPU evaluation points handled at once (bounds the memory of the point-leaf pairs).
 _EVALUATION_CHUNK = 1 << 15
@@ -75,12 +74,6 @@ class MPUImplicit:
         return [(radius, leaf, cKDTree(self.centres[leaf])) for radius, leaf in zip(values, members)]
 
     @cached_property
-    def _lattice_groups(self) -> list:
-        """:func:`~bitemesh.core.mpu_pairs.lattice_pairs`'s groups: (radius, leaves, centres, order of their tree)."""
-        return [(radius, leaf[tree.indices], self.centres[leaf[tree.indices]], TreeOrder.of(tree, by_place=True))
-                for radius, leaf, tree in self._groups]
-
-    @cached_property
     def _data_tree(self) -> cKDTree:
         return cKDTree(self.points)
 
@@ -100,22 +93,13 @@ class MPUImplicit:
         """(m, 3) analytic gradient of f at (m, 3) points x."""
         return self._evaluate(x, gradient=True)[1]
 
-    def at_nodes(self, x, index: tuple, axes: tuple) -> np.ndarray:
-        """(m,) f at (m, 3) grid nodes ``x[:, d] = axes[d][index[d]]`` (C order), the same values as ``self(x)``;
-        the pairs of nodes and leaves found from the grid (:func:`~bitemesh.core.mpu_pairs.lattice_pairs`)."""
-        return self._evaluate(x, gradient=False, nodes=(index, axes))[0]
-
-    def _evaluate(self, x, *, gradient: bool, nodes: tuple | None = None):
+    def _evaluate(self, x, *, gradient: bool):
         x = check_points(x, "x", dims=(3,))
         value = np.empty(len(x))
         slope = np.empty_like(x) if gradient else None
         for start in range(0, len(x), _EVALUATION_CHUNK):
             part = slice(start, start + _EVALUATION_CHUNK)
-            pairs = None if nodes is None else lattice_pairs(
-                self._lattice_groups, x[part], tuple(i[part] for i in nodes[0]), nodes[1], _PAIR_BLOCK)
-            if pairs is None:
-                pairs = self._tree_pairs(x[part])
-            value[part], grad = self._blend(x[part], pairs, gradient)
+            value[part], grad = self._blend(x[part], gradient)
             if gradient:
                 slope[part] = grad
         if gradient:
@@ -128,19 +112,14 @@ class MPUImplicit:
             slope[clamp] = box_slope[clamp]
         return value, slope
 
-    def _tree_pairs(self, x: np.ndarray) -> tuple:
-        """(leaf, point, distance) (p,) of the pairs |x_point - c_leaf| <= R_leaf of (m, 3) points, by k-d trees."""
+    def _blend(self, x: np.ndarray, gradient: bool):
+        """f (and its gradient) of the partition of unity at (m, 3) points; -distance to the data where uncovered."""
         there = cKDTree(x)
         found = [(members, tree.sparse_distance_matrix(there, radius, output_type="ndarray"))
                  for radius, members, tree in self._groups]
-        return (np.concatenate([members[pairs["i"]] for members, pairs in found]),
-                np.concatenate([pairs["j"] for _, pairs in found]),
-                np.concatenate([pairs["v"] for _, pairs in found]))
-
-    def _blend(self, x: np.ndarray, pairs: tuple, gradient: bool):
-        """f (and its gradient) of the partition of unity at (m, 3) points from their (leaf, point, distance) pairs,
-        summed in slices of _PAIR_BLOCK; -distance to the data where uncovered."""
-        leaf, at, distance = pairs
+        leaf = np.concatenate([members[pairs["i"]] for members, pairs in found])
+        at = np.concatenate([pairs["j"] for _, pairs in found])
+        distance = np.concatenate([pairs["v"] for _, pairs in found])
         # Sums over the pairs, in cache-sized blocks: w, w Q (and w grad Q, grad w, Q grad w).
         sums = np.zeros((11 if gradient else 2, len(x)))
         for start in range(0, len(leaf), _PAIR_BLOCK):
