@@ -69,6 +69,9 @@ def test_every_field_is_a_flag_with_the_dataclass_default(command):
             off = parser.parse_args([*REQUIRED.get(command, ()), f"--no-{flag[2:]}"])
             on = parser.parse_args([*REQUIRED.get(command, ()), flag])
             assert (getattr(on, item.name), getattr(off, item.name)) == (1, 0), flag
+        if is_optional(item):   # "automatic", as in every interface: -1, or auto
+            for text in (str(AUTOMATIC), "auto"):
+                assert getattr(parser.parse_args([*REQUIRED.get(command, ()), flag, text]), item.name) is None
 
 
 def test_every_filter_has_setters_for_exactly_its_fields():
