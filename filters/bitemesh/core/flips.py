@@ -10,7 +10,7 @@ import numpy as np
 
 from .cell_measures import signed_radius_ratio
 from .progress import ProgressCallback, report
-from .topology import facet_table, neighbour_pairs, unique_rows
+from .mesh import facets_of
 
 #: a flip must raise the worst radius ratio of the cells it replaces by at least FLIP_GAIN; only groups of cells
 #: with a radius ratio below FLIP_QUALITY are tried (the others rarely gain: measured, no change in the result).
@@ -58,6 +58,18 @@ EDGE_OTHERS = np.array([next(rest for rest in permutations(set(range(4)) - {i, j
                         for i, j in EDGE_PAIRS])
 
 
+def _sorted_keys(rows: np.ndarray):
+    """One stable sort of the rows (r, j) of vertex indices by their sorted vertices: ``order`` (r,) and the
+    sorted keys (r,), equal for the rows that hold the same vertices."""
+    rows = np.sort(rows, axis=1)
+    keys = rows[:, 0].astype(np.int64)
+    base = int(rows.max()) + 1 if rows.size else 1
+    for column in range(1, rows.shape[1]):
+        keys = keys * base + rows[:, column]
+    order = np.argsort(keys, kind="stable")
+    return order, keys[order]
+
+
 def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING) -> dict:
     """The interior edges of a tetrahedral mesh with the cells around them in order.
 
@@ -72,9 +84,10 @@ def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING) -> dict:
     swap = a > b  # (b, a, x, y) has the other orientation: the ring runs the other way
     a, b, x, y = np.where(swap, b, a), np.where(swap, a, b), np.where(swap, y, x), np.where(swap, x, y)
     owner = np.repeat(np.arange(len(cells)), len(EDGE_PAIRS))
-    edges, group, counts = unique_rows(np.stack([a, b], axis=1))
-    order = np.argsort(group, kind="stable")
-    start = np.concatenate([[0], np.cumsum(counts)])
+    order, keys = _sorted_keys(np.stack([a, b], axis=1))
+    start = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1], [True]]))
+    counts = np.diff(start)
+    edges = np.stack([a[order[start[:-1]]], b[order[start[:-1]]]], axis=1)
     rings = {}
     for n in range(3, max_ring + 1):
         chosen = np.flatnonzero(counts == n)
@@ -125,8 +138,10 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray):
             keep = gain > FLIP_GAIN
             chosen = new[np.flatnonzero(keep)[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
             found.append((around[keep], chosen, gain[keep]))
-    facets, inverse, _ = facet_table(cells)
-    first, second = neighbour_pairs(inverse)
+    facets = facets_of(cells).reshape(-1, k)
+    order, keys = _sorted_keys(facets)  # the rows that are the same facet, paired as by neighbour_pairs
+    same = keys[1:] == keys[:-1]
+    first, second = order[:-1][same], order[1:][same]
     cell_a, cell_b = first // (k + 1), second // (k + 1)
     worst_old = np.minimum(quality[cell_a], quality[cell_b])
     poor = worst_old < FLIP_QUALITY
@@ -185,8 +200,9 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
     -------
     (m', k + 1) int64, the new cells, positively oriented
     """
+    quality = signed_radius_ratio(points, cells)
     for pass_ in range(passes):
-        candidates = flip_candidates(points, cells, signed_radius_ratio(points, cells))
+        candidates = flip_candidates(points, cells, quality)
         found = sum(len(gain) for _, _, gain in candidates)
         report(progress, pass_ / passes, f"flip pass {pass_ + 1}: {found} improving flips")
         if not found:
@@ -201,4 +217,5 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
             removed[old[take].ravel()] = True
             added.append(new[take].reshape(-1, cells.shape[1]))
         cells = np.concatenate([cells[~removed]] + added)
+        quality = np.concatenate([quality[~removed]] + [signed_radius_ratio(points, new) for new in added])
     return cells

@@ -52,9 +52,10 @@ from .validity import boundary_euler_characteristic, check_valid_domain, count_b
 def _defects(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters, tolerance: float) -> tuple:
     """What keeps ``mesh`` from the goal: the number of poor cells, of boundary nodes off f = 0, and the mean
     radius ratio."""
-    poor = len(poor_cells(mesh.points, mesh.cells, parameters.min_dihedral, parameters.min_quality))
+    quality = signed_radius_ratio(mesh.points, mesh.cells)
+    poor = len(poor_cells(mesh.points, mesh.cells, parameters.min_dihedral, parameters.min_quality, quality))
     off = len(off_surface_nodes(grid, mesh.points, mesh.cells, tolerance))
-    return poor, off, float(signed_radius_ratio(mesh.points, mesh.cells).mean())
+    return poor, off, float(quality.mean())
 
 
 def topology(mesh: Mesh) -> tuple:

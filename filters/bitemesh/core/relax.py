@@ -49,15 +49,17 @@ SURFACE_TOLERANCE = 0.01
 
 # --- relaxation ----------------------------------------------------------------------------------------------------
 
-def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margin: float) -> np.ndarray:
+def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margin: float,
+                centres: np.ndarray | None = None) -> np.ndarray:
     """(n, k) where the ODT smoothing moves each node (Alliez et al. 2005, section 4).
 
     Interior nodes: the volume-weighted mean of the circumcentres of their cells, pushed back to f = ``margin``
     when it lies closer to the surface.  Boundary nodes: the area-weighted mean of the centroids of their boundary
     facets, the move taken along the surface, then onto f = 0.  A node in no cell with volume stays.
+    ``centres``: the cells' circumcentres, when already known.
     """
     n, k = points.shape
-    centres, _ = circumspheres(points, cells)
+    centres = circumspheres(points, cells)[0] if centres is None else centres
     volume = np.abs(signed_measures(points, cells))
     usable = np.isfinite(centres).all(axis=1)
     weight = np.bincount(cells[usable].ravel(), np.repeat(volume[usable], k + 1), n)
@@ -73,7 +75,8 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
     along = scatter_to_points(n, facets, np.repeat((area[:, None] * corners.mean(axis=1))[:, None], k, axis=1))
     along_weight = np.bincount(facets.ravel(), np.repeat(area, k), n)
 
-    on_boundary = boundary_nodes(cells, n)
+    on_boundary = np.zeros(n, bool)
+    on_boundary[facets.ravel()] = True
     inner = np.flatnonzero(~on_boundary)
     value = grid.evaluate(targets[inner])
     shallow = inner[value < margin]
@@ -106,14 +109,18 @@ def relax(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations:
     length = mean_edge_length(points, cells)
     margin = INTERIOR_MARGIN * length
     history = []
+    centres = triangulation = None  # of the cells kept, and all Delaunay cells of their nodes when none was dropped
     for iteration in range(iterations):
-        moved = odt_targets(grid, points, cells, margin)
+        moved = odt_targets(grid, points, cells, margin, centres)
         triangulation = delaunay(moved)
-        inside = triangulation[~outside_cells(grid, moved, triangulation, spurious.threshold)]
-        if len(inside) == 0:
+        spheres = circumspheres(moved, triangulation)
+        inside = ~outside_cells(grid, moved, triangulation, spurious.threshold, spheres)
+        if not inside.any():
             raise MeshingError("the relaxed nodes leave no cell inside the domain")
-        relaxed = compact(moved, inside)
-        points, cells = relaxed.points, relaxed.cells
+        relaxed = compact(moved, triangulation[inside])
+        points, cells, centres = relaxed.points, relaxed.cells, spheres[0][inside]
+        if len(points) < len(moved):
+            triangulation = None
         history.append(float(signed_radius_ratio(points, cells).mean()))
         report(progress, (iteration + 1) / iterations,
                f"relaxation {iteration + 1}/{iterations}: mean radius ratio {history[-1]:.4f}")
@@ -121,8 +128,8 @@ def relax(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations:
             break
     for round_ in range(SURFACE_ROUNDS):
         if round_:  # the carving laid nodes bare: move them onto f = 0, with the others
-            points = odt_targets(grid, points, cells, margin)
-        mesh = carve_domain(grid, points, delaunay(points), spurious)
+            points, triangulation = odt_targets(grid, points, cells, margin), None
+        mesh = carve_domain(grid, points, delaunay(points) if triangulation is None else triangulation, spurious)
         points, cells = mesh.points, mesh.cells
         if len(off_surface_nodes(grid, points, cells, SURFACE_TOLERANCE * length)) == 0:
             break
@@ -172,13 +179,17 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         off_surface[on_boundary] = np.abs(grid.evaluate(points[on_boundary])) > SURFACE_TOLERANCE * length
         limit = np.where(off_surface, np.inf, current)
         best_cost, best_move = limit.copy(), np.zeros_like(points)
-        for fraction in STEP_FRACTIONS:
-            move = fraction * descent
-            move[on_boundary] = project_to_surface(grid, points[on_boundary] + move[on_boundary]) - points[on_boundary]
+        moves = [fraction * descent for fraction in STEP_FRACTIONS]
+        start = points[on_boundary]  # the boundary nodes of every step length projected onto f = 0 at once
+        ends = np.split(project_to_surface(grid, np.concatenate([start + move[on_boundary] for move in moves])),
+                        len(moves))
+        twice_centred = 2.0 * (k + 1) * centred
+        for move, end in zip(moves, ends):
+            move[on_boundary] = end - start
             # the cost of each node's cells when that node alone moves
             shift = move[cells]
             trial_volume = volume[:, None] + np.einsum("mij,mij->mi", volume_gradient, shift)
-            trial_squares = squares[:, None] + np.einsum("mij,mij->mi", 2.0 * (k + 1) * centred + k * shift, shift)
+            trial_squares = squares[:, None] + np.einsum("mij,mij->mi", twice_centred + k * shift, shift)
             trial = np.bincount(corner_of, mean_ratio_cost(trial_volume.ravel(), trial_squares.ravel(), k)
                                 ** SMOOTH_POWER, n)
             better = trial < best_cost
@@ -186,8 +197,8 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         moving = np.isfinite(best_cost) & np.any(best_move != 0, axis=1)
         new = points.copy()
         new[moving] += best_move[moving]
+        cost = inverse_mean_ratio(new[cells]) ** SMOOTH_POWER
         for _ in range(REVERT_ROUNDS):
-            cost = inverse_mean_ratio(new[cells]) ** SMOOTH_POWER
             worse = np.bincount(corner_of, np.repeat(cost, k + 1), n) > limit
             worse[cells[~np.isfinite(cost)].ravel()] = True
             worse &= moving
@@ -195,6 +206,8 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
                 break
             new[worse] = points[worse]
             moving &= ~worse
+            touched = np.flatnonzero(worse[cells].any(axis=1))  # only their cells change cost
+            cost[touched] = inverse_mean_ratio(new[cells[touched]]) ** SMOOTH_POWER
         else:
             new = points
         points = new

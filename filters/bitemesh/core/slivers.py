@@ -47,11 +47,12 @@ def peel(cells: np.ndarray, n_points: int, candidates: np.ndarray) -> np.ndarray
     return cells
 
 
-def poor_cells(points: np.ndarray, cells: np.ndarray, min_angle: float, min_quality: float) -> np.ndarray:
+def poor_cells(points: np.ndarray, cells: np.ndarray, min_angle: float, min_quality: float,
+               quality: np.ndarray | None = None) -> np.ndarray:
     """The cells with an angle below ``min_angle`` (degrees; dihedral in 3D, interior in 2D) or a radius ratio
-    below ``min_quality``."""
-    return np.flatnonzero((smallest_angles(points, cells) < min_angle)
-                          | (signed_radius_ratio(points, cells) < min_quality))
+    below ``min_quality``; ``quality``: their :func:`signed_radius_ratio`, when already known."""
+    quality = signed_radius_ratio(points, cells) if quality is None else quality
+    return np.flatnonzero((smallest_angles(points, cells) < min_angle) | (quality < min_quality))
 
 
 def remove_slivers(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, min_angle: float,
@@ -73,12 +74,14 @@ def remove_slivers(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, mi
                                                           (round_ + 0.2) / SLIVER_ROUNDS))
         points = smooth(grid, points, cells, SMOOTH_ITERATIONS,
                         sub_progress(progress, (round_ + 0.2) / SLIVER_ROUNDS, (round_ + 1) / SLIVER_ROUNDS))
-        poor = poor_cells(points, cells, min_angle, min_quality)
-        if len(poor):
-            cells = peel(cells, len(points), poor)
-            poor = poor_cells(points, cells, min_angle, min_quality)
+        quality = signed_radius_ratio(points, cells)
+        poor = poor_cells(points, cells, min_angle, min_quality, quality)
+        peeled = peel(cells, len(points), poor) if len(poor) else cells
+        if peeled is not cells:
+            cells, quality = peeled, signed_radius_ratio(points, peeled)
+            poor = poor_cells(points, cells, min_angle, min_quality, quality)
         states.append((points, cells))
-        previous, mean = mean, signed_radius_ratio(points, cells).mean()
+        previous, mean = mean, quality.mean()
         report(progress, (round_ + 1) / SLIVER_ROUNDS,
                f"sliver removal round {round_ + 1}: mean radius ratio {mean:.4f}, {len(poor)} cells with an angle "
                f"below {min_angle:g} degrees or a radius ratio below {min_quality:g}")

@@ -11,7 +11,8 @@ from .mesh import circumspheres
 SHALLOW = 0.1
 
 
-def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4) -> np.ndarray:
+def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4,
+                  spheres: tuple | None = None) -> np.ndarray:
     """(m,) bool, True for a cell whose circumcentre c is outside (f(c) < 0) and far from the surface.
 
     The distance from c to the surface is approximated by d(c) = |f(c)| / |grad f(c)|; a cell is outside when
@@ -24,13 +25,16 @@ def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, thr
     - the circumcentre test judges only the cells whose vertices all lie within ``SHALLOW`` x R_circ of the
       surface (the flat cells lying on it).  A cell with a deeper vertex is an ordinary boundary cell whose
       circumcentre pokes out; removing it bared an interior node (a notch 0.6 R deep on the sphere and torus).
+
+    ``spheres``: the cells' (centres, radii) from :func:`~bitemesh.core.mesh.circumspheres`, when already known.
     """
-    far, radii = circumcentre_outside(grid, points, cells, threshold)
+    far, radii = circumcentre_outside(grid, points, cells, threshold, spheres)
     shallow = grid.evaluate(points)[cells].max(axis=1) < SHALLOW * radii
     return (far & (shallow | ~np.isfinite(radii))) | (grid.evaluate(points[cells].mean(axis=1)) < 0)
 
 
-def circumcentre_outside(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4):
+def circumcentre_outside(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4,
+                         spheres: tuple | None = None):
     """The paper's test alone (section 4.2.2), read as ">" (see :func:`outside_cells`).
 
     Returns
@@ -40,7 +44,7 @@ def circumcentre_outside(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarr
     radii : (m,) circumradii R_circ (input units; inf for a flat cell)
     """
     check_number(threshold, "threshold", low=0, high=1)
-    centres, radii = circumspheres(points, cells)
+    centres, radii = circumspheres(points, cells) if spheres is None else spheres
     finite = np.isfinite(radii)
     outside = ~finite
     value = grid.evaluate(centres[finite])
