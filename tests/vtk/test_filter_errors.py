@@ -64,8 +64,8 @@ def image_without_implicit(pipeline):
 
 BAD_INPUTS = {
     # case: (break the pipeline, repair it, the filter that fails, what its message must name)
-    "negative radius": (lambda p: p.biting.SetRadius(-1.0), lambda p: p.biting.SetRadius(None),
-                        BitingSampler, r"radius must be in \(0, inf\], got -1"),
+    "negative radius": (lambda p: p.biting.SetRadius(-2.0), lambda p: p.biting.SetRadius(None),
+                        BitingSampler, r"radius must be in \(0, inf\], got -2"),   # -1 is automatic
     "biting R finer than the grid": (lambda p: p.biting.SetCells(400000), lambda p: p.biting.SetCells(10000),
                                      BitingSampler, r"Radius \(chosen for Cells = 400000\) = .* too small for the "
                                      r"grid I .*set Radius or Cells on PointsToImplicit"),
