@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from bitemesh.core import labelled
 from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.fidelity import distances_to_facets
 from bitemesh.core.parameters import BitingParameters
 from bitemesh.core.pipeline import mesh_from_grid
 from bitemesh.core.quality import count_boundary_components
 from bitemesh.io import read_labelled_points
-from scipy.spatial import cKDTree
 
 from tests.builders import located
 from tests.meshcheck import assert_valid_domain
@@ -24,31 +24,9 @@ PACKAGED = Path(bitemesh.__file__).resolve().parent / "data" / "bivme_patient1"
 
 # --- the real heart ------------------------------------------------------------------------------------------------
 
-def point_triangle_distance(p, triangles):
-    """(m,) distance from points p (m, 3) to triangles (m, 3, 3): the plane if the foot falls inside, else edges."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    normal = np.cross(b - a, c - a)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    height = np.einsum("ij,ij->i", p - a, normal)
-    foot = p - height[:, None] * normal
-    inside = np.ones(len(p), bool)
-    for start, end in ((a, b), (b, c), (c, a)):
-        inside &= np.einsum("ij,ij->i", np.cross(end - start, foot - start), normal) >= 0
-    edges = []
-    for start, end in ((a, b), (b, c), (c, a)):
-        t = np.clip(np.einsum("ij,ij->i", p - start, end - start) / np.einsum("ij,ij->i", end - start, end - start),
-                    0, 1)
-        edges.append(np.linalg.norm(p - (start + t[:, None] * (end - start)), axis=1))
-    return np.where(inside, np.abs(height), np.min(edges, axis=0))
-
-
-def distance_to_surface(points, vertices, facets, candidates=24):
-    """(m,) distance from each point to the nearest of the triangles (by the triangles with the nearest centroids)."""
-    k = min(candidates, len(facets))
-    _, near = cKDTree(vertices[facets].mean(axis=1)).query(points, k=k)
-    near = near.reshape(len(points), k)
-    triangles = vertices[facets[near.ravel()]]
-    return point_triangle_distance(np.repeat(points, k, axis=0), triangles).reshape(-1, k).min(axis=1)
+def distance_to_surface(points, vertices, facets):
+    """(m,) exact distance from each point to the nearest of the triangles ``vertices[facets]``."""
+    return distances_to_facets(points, vertices[facets])
 
 
 @cache

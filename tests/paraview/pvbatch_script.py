@@ -34,6 +34,7 @@ import bitemesh
 import numpy as np
 from bitemesh import algorithms
 from bitemesh.convert import nodes_to_polydata, unstructured_to_mesh
+from bitemesh.core.fidelity import distances_to_facets
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
 from bitemesh.core.quality import boundary_euler_characteristic, count_boundary_components
@@ -42,7 +43,6 @@ from paraview import servermanager, simple
 from paraview.simple import CSVReader, LoadPlugin, ProgrammableFilter, SaveData, TableToPoints, TrivialProducer
 from pvbatch_checks import (check, checks, environment, facts, guarded, properties, same_mesh, timed, updated,
                             valid_sphere)
-from scipy.spatial import cKDTree
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonDataModel import vtkImageData
 
@@ -89,38 +89,13 @@ def one_shot(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
                          "file": "one_shot.vtu"}
 
 
-def point_triangle_distance(p, triangles):
-    """(m,) distance from the points p (m, 3) to the triangles (m, 3, 3): to the plane where the foot falls inside
-    the triangle, else to the nearest edge."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    normal = np.cross(b - a, c - a)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    height = np.einsum("ij,ij->i", p - a, normal)
-    foot = p - height[:, None] * normal
-    inside = np.ones(len(p), bool)
-    edges = []
-    for start, end in ((a, b), (b, c), (c, a)):
-        inside &= np.einsum("ij,ij->i", np.cross(end - start, foot - start), normal) >= 0
-        t = np.clip(np.einsum("ij,ij->i", p - start, end - start) / np.einsum("ij,ij->i", end - start, end - start),
-                    0, 1)
-        edges.append(np.linalg.norm(p - (start + t[:, None] * (end - start)), axis=1))
-    return np.where(inside, np.abs(height), np.min(edges, axis=0))
-
-
-def boundary_hausdorff(first, second, candidates: int = 16) -> float:
+def boundary_hausdorff(first, second) -> float:
     """The symmetric Hausdorff distance between two meshes' boundary surfaces, taken at their boundary nodes: the
-    largest distance from a boundary node of either mesh to the other's boundary triangles (each node to the
-    ``candidates`` triangles with the nearest centroids)."""
-    largest = 0.0
-    for mesh, other in ((first, second), (second, first)):
-        nodes = mesh.points[np.unique(boundary_facets(mesh.cells))]
-        facets = boundary_facets(other.cells)
-        k = min(candidates, len(facets))
-        _, near = cKDTree(other.points[facets].mean(axis=1)).query(nodes, k=k)
-        triangles = other.points[facets[np.reshape(near, (len(nodes), k)).ravel()]]
-        distances = point_triangle_distance(np.repeat(nodes, k, axis=0), triangles).reshape(-1, k).min(axis=1)
-        largest = max(largest, float(distances.max()))
-    return largest
+    largest distance from a boundary node of either mesh to the other's boundary triangles (exact:
+    :func:`bitemesh.core.fidelity.distances_to_facets`)."""
+    return max(float(distances_to_facets(mesh.points[np.unique(boundary_facets(mesh.cells))],
+                                         other.points[boundary_facets(other.cells)]).max())
+               for mesh, other in ((first, second), (second, first)))
 
 
 @guarded("five-filter chain")
