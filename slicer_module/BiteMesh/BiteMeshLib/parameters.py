@@ -128,9 +128,12 @@ def _refuseUnknown(names, known, what: str) -> None:
         raise InvalidInputError(f"unknown {what}(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
 
 
-def _zeroWasAutomatic(spec) -> bool:
-    """0 is outside the parameter's range: a scene saved before "automatic" was -1 for all holds 0 for it."""
-    return spec.low is not None and (spec.low > 0 or (spec.low == 0 and spec.lowOpen))
+def _zeroWasAutomatic(name: str) -> bool:
+    """A scene saved before "automatic" was -1 for all holds 0 for it where 0 is outside the range
+    (bitemesh.core.parameters.zero_was_automatic of the panel parameter's field)."""
+    core = _core()
+    dataclassName, fieldName = PARAMETERS[name]
+    return core.zero_was_automatic({f.name: f for f in fields(getattr(core, dataclassName))}[fieldName])
 
 
 def coreParameters(values: dict) -> dict:
@@ -142,7 +145,7 @@ def coreParameters(values: dict) -> dict:
     for name, value in values.items():
         spec = specs[name]
         keywords[spec.core] = None if spec.automatic is not None and (value == spec.automatic or (
-            value == 0 and _zeroWasAutomatic(spec))) else value
+            value == 0 and _zeroWasAutomatic(name))) else value
     return keywords
 
 
