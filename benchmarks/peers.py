@@ -1,42 +1,41 @@
 #!/usr/bin/env python
-"""bitemesh (without and with the MeshOptimizer) beside gmsh and TetGen, side by side in one run (issue #5).
+"""bitemesh (its default, and --no-optimize) beside gmsh and TetGen, side by side in one run (issues #5, #12).
 
-For each shape (unit sphere; torus R = 1, r = 0.4, as in ``bitemesh.core.shapes``) at about 10,000 tetrahedra:
+Cases: sphere, torus, die and two-cavity heart (``bitemesh.core.shapes``) at about 10,000 tets; the heart and the
+sphere at about 136,000; the sphere at about 1,000,000.  Each mesher x case runs in its own process
+(``peers_meshers.py``), which reports its times and its peak memory and saves its first mesh:
 
-* bitemesh: noisy scattered surface points with normals (``run_benchmarks.make_input``, seed 0), then
-  ``pipeline.run`` with default parameters and ``BitingParameters(cells=N)``, once with ``OptimizeParameters()``
-  (off) and once with ``OptimizeParameters(optimize=1)``.  The time is the whole ``run`` (implicit fit included).
-* gmsh (Python API, if importable): the exact shape from OpenCASCADE (``occ.addSphere`` / ``occ.addTorus``),
-  default 3D algorithm (Delaunay), ``Mesh.Optimize = 1``, ``Mesh.OptimizeNetgen = 1``.  The mesh size is
-  calibrated for about N tets (untimed calibration runs, size scaled by (n / N)^(1/3)); the timed run is the last.
-* TetGen (the ``tetgen`` package, if importable): a triangulated surface built here (geodesic icosphere / a
-  (u, v) torus grid) at an edge length matched to the volume mesh, then ``-pq1.2a<vol>`` (order 1, minratio 1.2,
-  maxvolume calibrated for about N tets the same way).  The time is ``tetrahedralize`` only (surface excluded).
+* bitemesh: noisy scattered surface points with normals (``shape_worker.make_input``, seed 0), then the whole
+  ``pipeline.run`` with ``BitingParameters(cells=N)``: "default" is ``OptimizeParameters()`` (whatever the dataclass
+  says at the commit measured, shown in the row), "--no-optimize" is ``OptimizeParameters(optimize=0)``.
+* gmsh (Python API): the exact CAD shape from OpenCASCADE (``peers_cad``), Delaunay, ``Mesh.Optimize = 1``,
+  ``Mesh.OptimizeNetgen = 1``, one thread; uniform size calibrated for about N tets by untimed runs.
+* TetGen (the ``tetgen`` package): ``-pq1.2a<vol>`` of a surface triangulation made here (``peers_surfaces``) at an
+  edge matched to the volume mesh, calibrated the same way; the time is ``tetrahedralize`` only.
 
-Every mesh is measured with bitemesh's own functions (``quality_summary``, ``check_valid_domain``; volume error
-against the exact volume).  Cells of gmsh/TetGen with negative signed volume are reoriented (and counted) and
-unused nodes dropped before measuring, since ``check_valid_domain`` expects positive cells and no unused points.
+Every mesh is measured in this process with bitemesh's own functions (``quality_summary``, ``check_valid_domain``;
+volume error against the exact volume).  Cells of gmsh/TetGen with negative signed volume are reoriented (counted)
+and unused nodes dropped first, since ``check_valid_domain`` expects positive cells and no unused points.
 
-Usage (from the repository root, in an environment with numpy, scipy and optionally gmsh, tetgen)::
-
-    /work/bench-venv/bin/python benchmarks/peers.py --output benchmarks/peers.md
+    /work/bench-venv/bin/python benchmarks/peers.py --output benchmarks/peers.md   # the full table
+    /work/bench-venv/bin/python benchmarks/peers.py --quick                        # every case at a small size
 """
 from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import os
 import platform
 import subprocess
 import sys
-import time
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SOURCE_ROOT = HERE.parent / "filters"
-for p in (str(SOURCE_ROOT), str(HERE)):
+for p in (str(HERE.parent / "filters"), str(HERE)):
     if p not in sys.path:
         sys.path.insert(0, p)
 
@@ -44,10 +43,25 @@ from bitemesh.core import shapes  # noqa: E402
 from bitemesh.core.mesh import Mesh  # noqa: E402
 from bitemesh.core.quality import check_valid_domain, quality_summary  # noqa: E402
 from golden import processor  # noqa: E402
-from shape_worker import make_input  # noqa: E402
+from peers_meshers import MESHERS, ONE_RUN_CELLS, SINGLE_RUN_LIMIT  # noqa: E402
+from shape_worker import SHAPES  # noqa: E402
 
-CALIBRATION_TOLERANCE = 0.05  # stop calibrating once the tet count is within 5 % of the target
-CALIBRATION_ROUNDS = 3
+#: the sizes of the cases, full and --quick
+SIZES = {"10k": 10_000, "136k": 136_000, "1M": 1_000_000}
+QUICK = {"10k": 2_000, "136k": 8_000, "1M": 60_000}
+CASES = [("sphere", "10k"), ("torus", "10k"), ("die", "10k"), ("two-cavity-heart", "10k"),
+         ("two-cavity-heart", "136k"), ("sphere", "136k"), ("sphere", "1M")]
+#: issue #12's targets: (shape, size, mesher, against, at most): a time ratio against a peer, or peak memory (MiB)
+TARGETS = [("two-cavity-heart", "136k", "bitemesh", "tetgen", 2.0),
+           ("two-cavity-heart", "136k", "bitemesh", "gmsh", 0.5),
+           ("two-cavity-heart", "136k", "bitemesh-no-optimize", "tetgen", 1.0),
+           ("sphere", "136k", "bitemesh-no-optimize", "tetgen", 1.0),
+           ("sphere", "1M", "bitemesh-no-optimize", "tetgen", 1.0),
+           ("sphere", "1M", "bitemesh", "tetgen", 2.0),
+           ("sphere", "1M", "bitemesh", "memory", 1024.0)]
+#: bitemesh's grid costs about this many bytes per grid node (f, its gradient grids and the biting's state)
+GRID_BYTES_PER_NODE = 48
+WORKER_TIMEOUT = 3 * 3600
 
 
 # --- measuring -------------------------------------------------------------------------------------------------------
@@ -74,146 +88,26 @@ def measure(points, cells, shape) -> dict:
                 valid=not problems, problems=problems[:3], reoriented=int(negative.sum()), unused_dropped=int(unused))
 
 
-# --- bitemesh ----------------------------------------------------------------------------------------------------
-
-def run_bitemesh(name: str, target: int, optimize: bool):
-    from bitemesh.core.parameters import (BitingParameters, ImplicitParameters, OptimizeParameters,
-                                          SpuriousParameters)
-    from bitemesh.core.pipeline import run
-    shape, points, normals, _ = make_input(name, target)
-    start = time.perf_counter()
-    result = run(points, normals, ImplicitParameters(), BitingParameters(cells=target), SpuriousParameters(),
-                 optimize=OptimizeParameters(optimize=int(optimize)))
-    seconds = time.perf_counter() - start
-    return result.mesh.points, result.mesh.cells, seconds, f"{len(points)} noisy input points"
-
-
-# --- gmsh --------------------------------------------------------------------------------------------------------
-
-def gmsh_once(name: str, h: float):
-    import gmsh
-    gmsh.initialize(["-noenv"], readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.model.add(name)
-        if name == "sphere":
-            gmsh.model.occ.addSphere(0, 0, 0, 1.0)
-        else:
-            gmsh.model.occ.addTorus(0, 0, 0, 1.0, 0.4)
-        gmsh.model.occ.synchronize()
-        gmsh.option.setNumber("Mesh.MeshSizeMin", h)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-        gmsh.option.setNumber("Mesh.Algorithm3D", 1)  # Delaunay (the default)
-        gmsh.option.setNumber("Mesh.Optimize", 1)
-        gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)
-        start = time.perf_counter()
-        gmsh.model.mesh.generate(3)
-        seconds = time.perf_counter() - start
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        _, node_tags = gmsh.model.mesh.getElementsByType(4)
-    finally:
-        gmsh.finalize()
-    index = np.full(int(tags.max()) + 1, -1, np.int64)
-    index[tags.astype(np.int64)] = np.arange(tags.size)
-    return coords.reshape(-1, 3), index[node_tags.astype(np.int64).reshape(-1, 4)], seconds
-
-
-def run_gmsh(name: str, target: int, shape):
-    h = (shape.measure / target * 6 * np.sqrt(2) * 1.2) ** (1 / 3)  # regular-tet guess, slightly coarse
-    for _ in range(CALIBRATION_ROUNDS):
-        points, cells, seconds = gmsh_once(name, h)
-        if abs(len(cells) / target - 1) < CALIBRATION_TOLERANCE:
-            break
-        h *= (len(cells) / target) ** (1 / 3)
-    points, cells, seconds = gmsh_once(name, h)  # the timed run (warm, same size as the last calibration run)
-    return points, cells, seconds, f"OCC exact {name}, h = {h:.4f}"
-
-
-# --- TetGen ------------------------------------------------------------------------------------------------------
-
-def icosphere(frequency: int):
-    """Geodesic unit sphere: each icosahedron face split into frequency^2 triangles, projected on the sphere."""
-    t = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
-                  [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6],
-         [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
-         [8, 6, 7], [9, 8, 1]]
-    n = frequency
-    points, faces = [], []
-    for a, b, c in f:
-        ids = {}
-        for i in range(n + 1):
-            for j in range(n + 1 - i):
-                ids[i, j] = len(points)
-                points.append(v[a] + (v[b] - v[a]) * i / n + (v[c] - v[a]) * j / n)
-        for i in range(n):
-            for j in range(n - i):
-                faces.append([ids[i, j], ids[i + 1, j], ids[i, j + 1]])
-                if j < n - i - 1:
-                    faces.append([ids[i + 1, j], ids[i + 1, j + 1], ids[i, j + 1]])
-    points = np.array(points)
-    points /= np.linalg.norm(points, axis=1)[:, None]
-    keys = np.round(points, 9)
-    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    return points[first], inverse.reshape(-1)[np.array(faces)]
-
-
-def torus_surface(nu: int, nv: int, major=1.0, minor=0.4):
-    """Closed (u, v) grid triangulation of the torus, outward-oriented."""
-    u = 2 * np.pi * np.arange(nu) / nu
-    v = 2 * np.pi * np.arange(nv) / nv
-    U, V = np.meshgrid(u, v, indexing="ij")
-    points = np.stack([(major + minor * np.cos(V)) * np.cos(U), (major + minor * np.cos(V)) * np.sin(U),
-                       minor * np.sin(V)], axis=-1).reshape(-1, 3)
-    idx = lambda i, j: (i % nu) * nv + (j % nv)  # noqa: E731
-    faces = []
-    for i in range(nu):
-        for j in range(nv):
-            faces.append([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)])
-            faces.append([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)])
-    return points, np.array(faces)
-
-
-def tetgen_surface(name: str, h: float):
-    if name == "sphere":
-        return icosphere(max(2, round(1.05 / h)))  # icosahedron edge on the unit sphere ~1.05
-    return torus_surface(max(8, round(2 * np.pi * 1.0 / h)), max(6, round(2 * np.pi * 0.4 / h)))
-
-
-def tetgen_once(name: str, h: float, maxvolume: float):
-    import tetgen
-    surface_points, faces = tetgen_surface(name, h)
-    tet = tetgen.TetGen(surface_points, faces.astype(np.int32))
-    sys.stdout.flush()
-    saved = os.dup(1)
-    with open(os.devnull, "w") as null:  # the wrapper prints "parsing switches" on the C stdout
-        os.dup2(null.fileno(), 1)
+def run_case(mesher: str, name: str, cells: int, repeat: int) -> dict:
+    """One mesher x case in its own process; its record with the metrics of its first mesh."""
+    with tempfile.TemporaryDirectory(prefix="peers-") as out:
+        command = [sys.executable, str(HERE / "peers_meshers.py"), mesher, name, str(cells), "--repeat", str(repeat),
+                   "--out", out]
         try:
-            start = time.perf_counter()
-            nodes, elems, *_ = tet.tetrahedralize(switches=f"pq1.2a{maxvolume:.6g}Q")
-            seconds = time.perf_counter() - start
-        finally:
-            os.dup2(saved, 1)
-            os.close(saved)
-    return nodes, elems[:, :4], seconds, len(surface_points)
+            done = subprocess.run(command, capture_output=True, text=True, timeout=WORKER_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            return dict(ok=False, error=f"no answer in {WORKER_TIMEOUT} s")
+        path = Path(out) / "record.json"
+        if not path.exists():
+            return dict(ok=False, error=f"the worker died (exit status {done.returncode}): {done.stderr[-300:]}")
+        record = json.loads(path.read_text())
+        if record["ok"]:
+            with np.load(Path(out) / "mesh.npz") as mesh:
+                record["metrics"] = measure(mesh["points"], mesh["cells"], getattr(shapes, SHAPES[name])())
+        return record
 
 
-def run_tetgen(name: str, target: int, shape):
-    h = (shape.measure / target * 6 * np.sqrt(2)) ** (1 / 3)
-    for _ in range(CALIBRATION_ROUNDS):
-        maxvolume = h ** 3 / (6 * np.sqrt(2)) * 1.5
-        points, cells, seconds, n_surface = tetgen_once(name, h, maxvolume)
-        if abs(len(cells) / target - 1) < CALIBRATION_TOLERANCE:
-            break
-        h *= (len(cells) / target) ** (1 / 3)
-    points, cells, seconds, n_surface = tetgen_once(name, h, maxvolume)
-    return points, cells, seconds, f"-pq1.2a{maxvolume:.3g}, {n_surface} surface nodes (h = {h:.4f})"
-
-
-# --- the run -------------------------------------------------------------------------------------------------------
+# --- the report ------------------------------------------------------------------------------------------------------
 
 def versions() -> dict:
     out = {"python": platform.python_version(), "numpy": np.__version__}
@@ -232,78 +126,155 @@ def versions() -> dict:
     return out
 
 
+def memory_total_mb() -> float:
+    """This machine's memory, MiB (/proc/meminfo)."""
+    for line in Path("/proc/meminfo").read_text().splitlines():
+        if line.startswith("MemTotal:"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
 def machine() -> str:
     return (f"{platform.system()} {platform.release()} {platform.machine()}, {processor()}, "
-            f"{os.cpu_count()} logical CPUs")
+            f"{os.cpu_count()} logical CPUs, {memory_total_mb() / 1024:.1f} GiB")
+
+
+def label(mesher: str, record: dict) -> str:
+    if mesher == "bitemesh":
+        return f"bitemesh default (optimize={record['optimize']})" if "optimize" in record else "bitemesh default"
+    return {"bitemesh-no-optimize": "bitemesh --no-optimize", "gmsh": "gmsh Delaunay + Netgen opt.",
+            "tetgen": "TetGen -pq1.2a"}[mesher]
 
 
 COLUMNS = [("mesher", "{}"), ("tets", "{:,}"), ("nodes", "{:,}"), ("mean Q", "{:.3f}"), ("min Q", "{:.3f}"),
            ("min dihedral (deg)", "{:.1f}"), ("% Q < 0.3", "{:.2f}"), ("edge CV", "{:.3f}"),
-           ("volume error %", "{:+.2f}"), ("valid", "{}"), ("seconds (median)", "{:.2f}"),
-           ("x bitemesh time", "{:.2f}")]
+           ("volume error %", "{:+.2f}"), ("valid", "{}"), ("runs", "{}"), ("seconds (median)", "{:.2f}"),
+           ("x bitemesh time", "{:.2f}"), ("x TetGen time", "{:.2f}"), ("x gmsh time", "{:.2f}"),
+           ("peak MB", "{:,.0f}")]
+
+
+def table(records: dict) -> list:
+    """Markdown rows of one case; records: mesher -> record (ok ones only)."""
+    median = {m: float(np.median(r["seconds"])) for m, r in records.items()}
+    ratio = lambda m, base: median[m] / median[base] if base in median else float("nan")  # noqa: E731
+    lines = ["| " + " | ".join(c for c, _ in COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    for mesher, r in records.items():
+        m = r["metrics"]
+        row = [label(mesher, r), m["cells"], m["points"], m["q_mean"], m["q_min"], m["angle_min"],
+               m["percent_q_below_0_3"], m["edge_cv"], m["volume_error_percent"], "yes" if m["valid"] else "NO",
+               len(r["seconds"]), median[mesher], ratio(mesher, "bitemesh"), ratio(mesher, "tetgen"),
+               ratio(mesher, "gmsh"), r["peak_mb"]]
+        cells = ["-" if isinstance(v, float) and np.isnan(v) else fmt.format(v) for (_, fmt), v in zip(COLUMNS, row)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def note(name: str, cells: int, mesher: str, r: dict) -> str:
+    if not r["ok"]:
+        return f"- {name} ~{cells:,}, {label(mesher, r)}: failed: {r['error']}"
+    m, extra = r["metrics"], []
+    if m["reoriented"]:
+        extra.append(f"{m['reoriented']} cells reoriented")
+    if m["unused_dropped"]:
+        extra.append(f"{m['unused_dropped']} unused nodes dropped")
+    if m["problems"]:
+        extra.append("problems: " + "; ".join(m["problems"]))
+    times = ", ".join(f"{s:.2f}" for s in r["seconds"])
+    cpu = ", ".join(f"{s:.2f}" for s in r["cpu_seconds"])
+    text = f"- {name} ~{cells:,}, {label(mesher, r)}: {r['note']}; seconds {times} (CPU {cpu})"
+    if "steps" in r:
+        text += "; first run's steps (s): " + ", ".join(f"{k} {v}" for k, v in r["steps"].items())
+    if r.get("warnings"):
+        text += "; warnings: " + " / ".join(r["warnings"])
+    return text + (" (" + ", ".join(extra) + ")" if extra else "")
+
+
+def targets(results: dict) -> list:
+    """The "Targets" section: each target, its measured value and met / missed by how much."""
+    lines = ["## Targets (issue #12)", "", "| case | target | measured | verdict |", "|---|---|---|---|"]
+    for name, size, mesher, against, limit in TARGETS:
+        records = results.get((name, size), {})
+        who = (f"{name} ~{records.get('cells', 0):,}, "
+               + ("bitemesh default" if mesher == "bitemesh" else "bitemesh --no-optimize"))
+        if mesher not in records or (against != "memory" and against not in records):
+            lines.append(f"| {who} | {'peak memory' if against == 'memory' else against} | not measured | - |")
+            continue
+        if against == "memory":
+            value, goal, shown = records[mesher]["peak_mb"], f"peak memory <= {limit:,.0f} MiB", "{:,.0f} MiB"
+        else:
+            value = float(np.median(records[mesher]["seconds"]) / np.median(records[against]["seconds"]))
+            goal, shown = f"time <= {limit:g}x {label(against, {})}", "{:.2f}x"
+        verdict = (f"met ({value / limit:.2f} of the bound)" if value <= limit
+                   else f"missed: {value / limit:.2f}x the bound ({shown.format(value - limit)} over)")
+        lines.append(f"| {who} | {goal} | {shown.format(value)} | {verdict} |")
+    return lines + [""]
+
+
+def ten_million(results: dict, cells: int) -> list:
+    """The estimate of bitemesh's 10M-cell sphere from its run at ``cells`` (grid nodes and peak memory scale with
+    the cell count, the grid spacing being R / 4)."""
+    r = results.get(("sphere", "1M"), {}).get("bitemesh")
+    if not r:
+        return []
+    factor = 10_000_000 / cells
+    nodes, peak, total = factor * r["grid_nodes"], factor * r["peak_mb"], memory_total_mb()
+    grid = nodes * GRID_BYTES_PER_NODE / 2**20
+    verdict = ("more than 80 % of this machine's memory, which three other users share: not run here"
+               if peak > 0.8 * total else "within this machine's memory")
+    return ["## 10,000,000 cells (bitemesh alone)", "",
+            f"Estimated from the sphere at {cells:,} (default), whose grid had {r['grid_nodes']:,} nodes and whose "
+            f"process peaked at {r['peak_mb']:,.0f} MiB: at {factor:g}x the cells the grid has ~{factor:g}x the "
+            f"nodes ({nodes:,.0f}, ~{grid:,.0f} MiB at {GRID_BYTES_PER_NODE} bytes per node, above the default "
+            f"--max-memory-mb 4096) and the peak would be ~{peak:,.0f} MiB against this machine's {total:,.0f} MiB: "
+            f"{verdict}.", ""]
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--shapes", nargs="+", default=["sphere", "torus"], choices=["sphere", "torus"])
-    parser.add_argument("--cells", type=int, default=10_000)
-    parser.add_argument("--repeat", type=int, default=3,
-                        help="timed runs per mesher; seconds are the median, the metrics come from the first run")
+    parser.add_argument("--quick", action="store_true", help="every case at a small size: "
+                        + ", ".join(f"{SIZES[k]:,} -> {v:,}" for k, v in QUICK.items()))
+    parser.add_argument("--cases", nargs="+", metavar="SHAPE:SIZE", help="instead of the table's cases, e.g. "
+                        "sphere:10k die:2000 (sizes: a number or 10k, 136k, 1M)")
+    parser.add_argument("--meshers", nargs="+", default=list(MESHERS), choices=MESHERS)
+    parser.add_argument("--repeat", type=int, default=3, help="timed runs per mesher and case (median)")
     parser.add_argument("--output", type=Path)
     args = parser.parse_args(argv)
-
-    meshers = [("bitemesh", lambda n, N, s: run_bitemesh(n, N, False)),
-               ("bitemesh + optimize", lambda n, N, s: run_bitemesh(n, N, True)),
-               ("gmsh Delaunay + Netgen opt.", run_gmsh),
-               ("TetGen -pq1.2a", run_tetgen)]
+    sizes = QUICK if args.quick else SIZES
+    cases = [tuple(c.split(":")) for c in args.cases] if args.cases else CASES
     info = versions()
-    lines = [f"# bitemesh beside gmsh and TetGen (~{args.cells:,} tets)", "",
+    lines = ["# bitemesh beside gmsh and TetGen", "",
              f"Date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M UTC}  ",
              f"Machine: {machine()}  ",
              "Versions: " + ", ".join(f"{k} {v}" for k, v in info.items()) + "  ",
              f"Command: `{Path(sys.executable).name} benchmarks/peers.py "
              + " ".join(argv if argv is not None else sys.argv[1:]) + "`", ""]
-    notes = []
-    for name in args.shapes:
-        shape = getattr(shapes, name)()
-        rows = []
-        base_seconds = None
-        for label, function in meshers:
-            try:
-                points, cells, seconds, note = function(name, args.cells, shape)
-                times = [seconds] + [function(name, args.cells, shape)[2] for _ in range(args.repeat - 1)]
-                seconds = float(np.median(times))
-            except Exception as error:  # noqa: BLE001
-                notes.append(f"- {name}, {label}: failed or not available: {type(error).__name__}: {error}")
-                print(notes[-1], flush=True)
-                continue
-            m = measure(points, cells, shape)
-            if base_seconds is None and label == "bitemesh":
-                base_seconds = seconds
-            ratio = seconds / base_seconds if base_seconds else float("nan")
-            rows.append([label, m["cells"], m["points"], m["q_mean"], m["q_min"], m["angle_min"],
-                         m["percent_q_below_0_3"], m["edge_cv"], m["volume_error_percent"],
-                         "yes" if m["valid"] else "NO", seconds, ratio])
-            extra = []
-            if m["reoriented"]:
-                extra.append(f"{m['reoriented']} cells reoriented")
-            if m["unused_dropped"]:
-                extra.append(f"{m['unused_dropped']} unused nodes dropped")
-            if m["problems"]:
-                extra.append("problems: " + "; ".join(m["problems"]))
-            notes.append(f"- {name}, {label}: {note}" + (" (" + ", ".join(extra) + ")" if extra else ""))
-            print(f"{name:7s} {label:28s} tets {m['cells']:6d} Q {m['q_mean']:.3f} min dihedral "
-                  f"{m['angle_min']:.1f} {seconds:.2f} s", flush=True)
-        lines += [f"## {name} (exact volume {shape.measure:.5f})", "",
-                  "| " + " | ".join(c for c, _ in COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
-        for row in rows:
-            lines.append("| " + " | ".join(fmt.format(v) for (_, fmt), v in zip(COLUMNS, row)) + " |")
-        lines.append("")
-    lines += [f"Seconds: median of {args.repeat} runs in this one process, single thread for gmsh "
-              "(General.NumThreads = 1); bitemesh: the whole pipeline.run from scattered points (implicit fit "
-              "included); gmsh: generate(3) from the exact CAD shape (calibration runs untimed); TetGen: "
-              "tetrahedralize of a given surface triangulation (building the surface untimed).", "",
-              "Notes per mesh:", ""] + notes + [""]
+    results, notes = {}, []
+    for name, size in cases:
+        cells = sizes[size] if size in sizes else int(size)
+        records = {}
+        for mesher in args.meshers:
+            r = run_case(mesher, name, cells, args.repeat)
+            notes.append(note(name, cells, mesher, r))
+            print(notes[-1], flush=True)
+            if r["ok"]:
+                records[mesher] = r
+        results[name, size] = dict(records, cells=cells)
+        lines += [f"## {name}, ~{cells:,} tets (exact volume {getattr(shapes, SHAPES[name])().measure:.5f})", ""]
+        lines += table(records) + [""]
+    lines += [f"Seconds: the median of up to {args.repeat} runs in the worker process (one run for "
+              f"{ONE_RUN_CELLS:,} tets and above, or when one run took over {SINGLE_RUN_LIMIT:.0f} s; 'runs' says "
+              "how many). bitemesh: the whole pipeline.run from scattered points (implicit fit, optimizer, quality "
+              "and fidelity included); gmsh: generate(3) from the exact CAD shape, one thread "
+              "(General.NumThreads = 1); TetGen: tetrahedralize of a given surface triangulation (building the "
+              "surface untimed); calibration runs untimed. x bitemesh / TetGen / gmsh time: this row's median over "
+              "that mesher's, same case.", "",
+              "Peak MB: ru_maxrss (MiB) of the worker process at its end, nothing subtracted: the interpreter and "
+              "imports (numpy, scipy, bitemesh; gmsh's or TetGen's library), the input (bitemesh: making the "
+              "scattered points; TetGen: the surface), the calibration runs and every timed run; measuring the "
+              "mesh happens in the parent, outside it.", ""]
+    if not args.cases:
+        lines += targets(results) + ten_million(results, sizes["1M"])
+    lines += ["Notes per mesh:", ""] + notes + [""]
     text = "\n".join(lines)
     print(text)
     if args.output:
