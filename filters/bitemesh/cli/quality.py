@@ -4,9 +4,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..core.errors import InvalidInputError, MeshingError
+from ..core.fem_check import FemParameters
 from ..core.parameters import QualityParameters
 from ..core.quality import check_valid_domain, quality_histogram, quality_summary, radius_ratio
 from ..io import atomic_output, read_mesh
+from .fem import check
 from .options import add_parameter_options, parameters_from_args
 
 
@@ -19,7 +21,10 @@ def add_parser(subcommands) -> None:
                                                 "exit code 1 when it has any.")
     parser.add_argument("mesh", help="the mesh to measure")
     parser.add_argument("--histogram", metavar="OUT.png", help="also draw the radius-ratio histogram (matplotlib)")
-    add_parameter_options(parser, (QualityParameters,))
+    parser.add_argument("--fem", action="store_true", help="also the solver check of bitemesh fem (conditioning of "
+                                                           "P1 -laplace and elasticity, stiffest cells, a CG solve), "
+                                                           "for a valid domain")
+    add_parameter_options(parser, (QualityParameters, FemParameters))
     parser.set_defaults(run=run)
 
 
@@ -38,6 +43,8 @@ def run(args) -> None:
         raise MeshingError(f"{args.mesh} is not a valid finite-element domain: {len(problems)} kinds of defect "
                            f"({problems[0]}{', ...' if len(problems) > 1 else ''})")
     print("defects: none (a valid domain: no inverted, flat or duplicated cell, a closed manifold boundary)")
+    if args.fem:
+        print(check(args.mesh, parameters_from_args(args, (FemParameters,))[0], mesh))
 
 
 def save_histogram(q, path: str, bins: int, title: str) -> None:
