@@ -19,7 +19,7 @@ from bitemesh.core.topology import boundary_facets
 
 from tests.builders import cube_mesh, positively_oriented, square_mesh
 
-#: tight enough for the dense comparison (rtol 1e-6): the default 1e-5 is for speed on large meshes
+#: tight enough for the dense comparison (rtol 1e-6): the default 1e-4 is for speed on large meshes
 TIGHT = FemParameters(tolerance=1e-8)
 
 

@@ -64,11 +64,14 @@ def elasticity_elements(gradients: np.ndarray, volumes: np.ndarray, young: float
     component i): volume (lambda d_i phi_a d_j phi_b + mu d_j phi_a d_i phi_b + mu delta_ij grad phi_a . grad phi_b),
     units of ``young`` x input units."""
     lam, mu = lame(young, poisson)
-    outer = np.einsum("mai,mbj->maibj", gradients, gradients)       # d_i phi_a d_j phi_b
-    block = lam * outer + mu * outer.transpose(0, 1, 4, 3, 2)                # + mu d_j phi_a d_i phi_b
-    dots = np.einsum("mai,mbi->mab", gradients, gradients)
-    block += mu * dots[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
-    return volumes[:, None, None] * block.reshape(len(volumes), 12, 12)
+    weighted = volumes[:, None, None] * gradients
+    outer = weighted[:, :, :, None, None] * gradients[:, None, None, :, :]     # volume d_i phi_a d_j phi_b
+    block = lam * outer
+    block += mu * outer.transpose(0, 1, 4, 3, 2)                              # + mu d_j phi_a d_i phi_b
+    dots = mu * np.einsum("mai,mbi->mab", weighted, gradients)
+    for i in range(3):
+        block[:, :, i, :, i] += dots
+    return block.reshape(len(volumes), 12, 12)
 
 
 def element_dofs(cells: np.ndarray, per_node: int = 1) -> np.ndarray:
