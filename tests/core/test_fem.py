@@ -66,6 +66,16 @@ def test_zero_volume_and_2d_meshes_are_refused():
         fem.basis_gradients(points, np.array([[0, 1, 2, 3]]))
     with pytest.raises(InvalidInputError, match="needs tetrahedra.*triangles"):
         fem_check(square_mesh())
+    with pytest.raises(InvalidInputError, match="every node lies on the boundary.*finer mesh"):
+        fem_check(cube_mesh())
+
+
+def test_unused_points_are_left_out(sphere):
+    mesh = sphere(2000, 1)
+    padded = Mesh(np.vstack([mesh.points, [[5.0, 5.0, 5.0]]]), mesh.cells)
+    with_unused, plain = fem_check(padded), fem_check(mesh)
+    assert with_unused.n_points == plain.n_points == len(mesh.points)
+    assert with_unused.laplace.lambda_max == pytest.approx(plain.laplace.lambda_max, rel=1e-9)
 
 
 # --- Poisson on the unit ball ----------------------------------------------------------------------------------
