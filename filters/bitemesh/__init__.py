@@ -11,6 +11,7 @@ FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFi
 _CORE = {"BitemeshError": "core.errors", "BitemeshWarning": "core.errors", "Cancelled": "core.errors",
          "InvalidInputError": "core.errors", "MeshingError": "core.errors", "Mesh": "core.mesh",
          "mesh_from_points": "core.pipeline", "run": "core.pipeline", "quality_summary": "core.quality",
+         "batch": "cohorts",
          **{name: "algorithms" for name in FILTERS}}
 __all__ = sorted(_CORE)
 

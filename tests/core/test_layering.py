@@ -1,7 +1,8 @@
 """The layering of the design document (DESIGN.md, kept outside this repository in ../shared beside the clone):
 ``core`` <- ``convert`` <- ``io`` <- ``labelmap`` <- the VTK filters (``algorithms``) <- {``cli``,
 ``paraview_plugin``, the Slicer module}, and nothing points back (``io`` may import ``core`` and ``convert``,
-``labelmap`` only ``core`` and ``io``).
+``labelmap`` only ``core`` and ``io``); ``cohorts`` (many cases on Dask) stands on ``core``, ``io`` and
+``labelmap``, below ``cli``.
 
 The import graph is read from the source with ast: every ``import`` and ``from ... import`` of every module under
 filters/bitemesh and slicer_module/BiteMesh, absolute and relative, at module level or inside a function (and
@@ -130,6 +131,8 @@ RULES = {
     "labelmap imports only core and io": (in_room("labelmap"), outside("core", "io", "labelmap")),
     "algorithms imports only core, convert, io, labelmap and algorithms":
         (in_room("algorithms"), outside("core", "convert", "io", "labelmap", "algorithms")),
+    "cohorts imports only core, convert, io, labelmap and cohorts (and the package's __init__)":
+        (in_room("cohorts"), outside("bitemesh", "core", "convert", "io", "labelmap", "cohorts")),
     "paraview_plugin imports only algorithms and core (and the package's __init__)":
         (in_room("paraview_plugin"), outside("bitemesh", "algorithms", "core", "paraview_plugin")),
     "the package's __init__ imports neither cli nor paraview_plugin":
@@ -177,11 +180,12 @@ def test_the_graph_holds_every_room_and_the_slicer_module(graph):
                                                                    for m in slicer_imports}
 
 
-def test_the_package_names_load_only_from_core_and_algorithms():
-    """``bitemesh.run`` and ``from bitemesh import PointsToImplicit`` load their module on first use, by a name
-    that ast cannot read (importlib.import_module of a table entry): the table names only core and algorithms."""
+def test_the_package_names_load_only_from_core_algorithms_and_cohorts():
+    """``bitemesh.run``, ``bitemesh.batch`` and ``from bitemesh import PointsToImplicit`` load their module on first
+    use, by a name that ast cannot read (importlib.import_module of a table entry): the table names only core,
+    algorithms and cohorts."""
     assert bitemesh._CORE and {room(f"bitemesh.{module}") for module in bitemesh._CORE.values()} <= \
-        {"core", "algorithms"}
+        {"core", "algorithms", "cohorts"}
 
 
 def test_the_reader_finds_relative_imports_and_those_inside_functions(tmp_path):

@@ -1,0 +1,242 @@
+"""Mesh a cohort on dask.distributed: one task per case, each isolated (its failure is its summary row), resumable
+(a case whose output and record match its hash is skipped), interruptible (Ctrl-C writes the summary of what
+finished).
+
+dask and distributed are imported only inside :func:`batch` and :func:`cluster_client`: the rest of bitemesh never
+needs them.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import secrets
+import time
+import warnings
+from pathlib import Path
+
+from ..core.errors import BitemeshError, InvalidInputError
+from ..core.progress import ProgressCallback
+from ..core.quality import quality_summary
+from ..io import write_mesh
+from .cases import Case, case_hash, find_cases, recorded_row, write_record
+from .meshing import mesh_input, resolved
+from .report import render_cut, save_picture, write_report, write_summary
+
+#: the columns of summary.csv (R, fidelity and volume in input units; seconds of wall clock on the worker)
+COLUMNS = ("case", "status", "message", "cells", "points", "R", "mean_Q", "min_Q", "min_dihedral", "fidelity",
+           "volume", "seconds", "input", "output")
+#: how many times a case is run again after its worker died (Dask's distributed.scheduler.allowed-failures)
+RETRIES = 2
+
+
+def one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
+def row_of(case: Case, status: str, message: str = "", **values) -> dict:
+    """A summary row: every column, empty where there is no value."""
+    row = dict.fromkeys(COLUMNS, "")
+    row.update(case=case.name, status=status, message=one_line(message), input=str(case.input),
+               output=case.output_name, **values)
+    return row
+
+
+class _Captured(logging.Handler):
+    """The bitemesh logger's warnings during one case."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:
+    """The task of one case, run on a worker: mesh ``case.input`` as ``bitemesh mesh`` would with ``options`` under
+    the case's own, write the mesh (atomically), its picture and its record; return its summary row.  Every
+    error of the case is its row ("failed", the one-line message); a case already recorded with ``digest`` (its
+    task run again after a worker died) is returned as recorded, not meshed twice."""
+    output_dir = Path(output_dir)
+    row = recorded_row(output_dir, case, digest)
+    if row is not None:
+        return row
+    start = time.perf_counter()
+    logger, captured = logging.getLogger("bitemesh"), _Captured()
+    logger.addHandler(captured)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = mesh_input(case.input, {**options, **case.options})
+            write_mesh(result.mesh, output_dir / case.output_name)
+    except Exception as error:   # noqa: BLE001 (one case's failure, whatever it is, is its row)
+        message = str(error) if isinstance(error, BitemeshError) else f"{type(error).__name__}: {error}"
+        return row_of(case, "failed", message, seconds=round(time.perf_counter() - start, 3))
+    finally:
+        logger.removeHandler(captured)
+    summary = quality_summary(result.mesh)
+    notes = captured.messages + [str(warning.message) for warning in caught]
+    row = row_of(case, "done", "; ".join(dict.fromkeys(notes)), cells=summary.n_cells, points=summary.n_points,
+                 R=result.radius, mean_Q=summary.q_mean, min_Q=summary.q_min, min_dihedral=summary.angle_min,
+                 fidelity="" if result.fidelity is None else result.fidelity.to_boundary_mean,
+                 volume=summary.total_volume, seconds=round(time.perf_counter() - start, 3))
+    save_picture(output_dir, case.name, render_cut(result.mesh))
+    write_record(output_dir, case, digest, row)
+    return row
+
+
+@contextlib.contextmanager
+def cluster_client(client=None, scheduler=None, workers=None, worker_memory=None, retries=RETRIES):
+    """Yield a dask.distributed Client: ``client`` itself (left open), one connected to ``scheduler`` (or to
+    $DASK_SCHEDULER_ADDRESS), else an embedded LocalCluster of ``workers`` processes (default: one per core), one
+    thread each, each restarted when it passes ``worker_memory`` (bytes or "2GB"), a case failed once its
+    workers died ``retries`` + 1 times.  Closed (the cluster too) on exit, Ctrl-C included."""
+    if client is not None:
+        yield client
+        return
+    import dask
+    from distributed import Client, LocalCluster
+
+    scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if scheduler:
+        with Client(scheduler) as connected:
+            yield connected
+        return
+    settings = {"distributed.scheduler.allowed-failures": retries,
+                # a worker is restarted over its memory limit, never paused nor spilling (tasks hold no data)
+                "distributed.worker.memory.pause": False, "distributed.worker.memory.spill": False,
+                "distributed.worker.memory.target": False}
+    with dask.config.set(settings), \
+            LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                         memory_limit=worker_memory or "auto",
+                         dashboard_address=":0") as cluster, Client(cluster) as local:
+        yield local
+
+
+def dashboard_link(client):
+    """The Dask dashboard's address, or None when the scheduler serves none (bokeh absent)."""
+    with contextlib.suppress(Exception):
+        if "dashboard" in client.scheduler_info().get("services", {}):
+            return client.dashboard_link
+    return None
+
+
+def collected(future, case: Case) -> dict:
+    """The row a finished task returned; a worker that died too often (KilledWorker) or any failure of Dask itself
+    is the case's failed row."""
+    from distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker:
+        return row_of(case, "failed", "its worker died each time it meshed this case (killed, or over the worker "
+                      "memory limit --worker-memory); give the workers more memory or a coarser mesh")
+    except Exception as error:   # noqa: BLE001
+        return row_of(case, "failed", f"{type(error).__name__}: {error}")
+
+
+def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_memory=None, retries=RETRIES,
+          scheduler=None, extension=".vtu", progress: ProgressCallback = None, on_client=None) -> list:
+    """Mesh every case as ``bitemesh mesh`` would, one Dask task each, into ``output_dir``; write its summary.csv
+    and report.html; return the summary rows (dicts of :data:`COLUMNS`), in the order of the cases.
+
+    Parameters
+    ----------
+    cases : files, folders, glob patterns, manifest CSVs or :class:`Case` objects
+    options : mapping of ``bitemesh mesh`` option names to values (``cells=1500``), under each case's own
+    client : a dask.distributed Client to use (left open); default: ``scheduler`` or an embedded LocalCluster of
+        ``workers`` processes, ``worker_memory`` each, closed at the end
+    retries : how many times a case runs again after its worker died (embedded cluster only)
+    extension : the mesh format of cases whose name has none (.vtu, .vtk, .msh, .inp, .mesh)
+    progress : callable(fraction, message), called as cases finish
+    on_client : callable(client), called once the client is up (the CLI prints the dashboard's address)
+
+    A case whose output exists and whose record holds the hash of its input and options is skipped (status
+    "skipped", its recorded values).  Ctrl-C (KeyboardInterrupt) cancels the rest, writes the summary (status
+    "cancelled" for the cases not finished) and is raised again.
+    """
+    from distributed import as_completed
+
+    check_cluster(client, scheduler, workers, worker_memory, retries)
+    cases = find_cases(cases, extension)
+    options = dict(options or {})
+    resolved(options)
+    if not cases:
+        raise InvalidInputError("no cases: the inputs hold no file bitemesh can mesh")
+    output_dir = Path(output_dir)
+    output_dir.mkdir(parents=True, exist_ok=True)
+    digests, rows = {}, {}
+    for case in cases:
+        try:
+            resolved({**options, **case.options})
+            digests[case.name] = case_hash(case, options)
+        except OSError as error:
+            rows[case.name] = row_of(case, "failed", f"cannot read '{case.input}': {error.strerror or error}")
+            continue
+        except BitemeshError as error:
+            rows[case.name] = row_of(case, "failed", error)
+            continue
+        recorded = recorded_row(output_dir, case, digests[case.name])
+        if recorded is not None:
+            notes = f": {recorded['message']}" if recorded["message"] else ""
+            rows[case.name] = {**recorded, "status": "skipped",
+                               "message": f"up to date (input and options unchanged){notes}"}
+    todo = [case for case in cases if case.name not in rows]
+    if not todo:   # nothing left to mesh: no cluster started
+        return finished(rows, cases, output_dir)
+    report = progress or (lambda fraction, message="": None)
+    try:
+        with cluster_client(client, scheduler, workers, worker_memory, retries) as connected:
+            if on_client is not None:
+                on_client(connected)
+            futures = {connected.submit(run_case, case, options, str(output_dir), digests[case.name],
+                                        key=f"bitemesh-{case.name}-{secrets.token_hex(4)}", pure=False):
+                       case for case in todo}
+            report(len(rows) / len(cases), f"{len(rows)}/{len(cases)} cases")
+            try:
+                for future in as_completed(futures):
+                    case = futures[future]
+                    rows[case.name] = collected(future, case)
+                    failed = sum(row["status"] == "failed" for row in rows.values())
+                    report(len(rows) / len(cases), f"{len(rows)}/{len(cases)} cases, {failed} failed")
+            except KeyboardInterrupt:
+                connected.cancel(list(futures))
+                raise
+    except KeyboardInterrupt:
+        for case in cases:
+            rows.setdefault(case.name, row_of(case, "cancelled", "not finished: the run was interrupted; run the "
+                                              "same command again to mesh it"))
+        finished(rows, cases, output_dir)
+        raise
+    return finished(rows, cases, output_dir)
+
+
+def check_cluster(client, scheduler, workers, worker_memory, retries) -> None:
+    """Refuse cluster settings that cannot apply, naming the setting, the value and the hint."""
+    from dask.utils import parse_bytes
+
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise InvalidInputError(f"workers must be a whole number >= 1, got {workers!r}")
+    if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
+        raise InvalidInputError(f"retries must be a whole number >= 0, got {retries!r}")
+    if worker_memory is not None:
+        try:
+            size = parse_bytes(worker_memory)
+        except (TypeError, ValueError):
+            size = None
+        if size is None or size < 2**26:
+            raise InvalidInputError(f"worker_memory (--worker-memory) must be a size of at least 64MB such as "
+                                    f"'2GB' or a number of bytes, got {worker_memory!r}")
+    given = [name for name, value in (("workers", workers), ("worker_memory", worker_memory)) if value is not None]
+    if given and (client is not None or scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")):
+        raise InvalidInputError(f"{given[0]} applies to the embedded cluster, not to a given client or scheduler "
+                                "(whose workers are set where the cluster is started); leave it out")
+
+
+def finished(rows: dict, cases, output_dir: Path) -> list:
+    """The rows in the cases' order, written to summary.csv and report.html."""
+    ordered = [rows[case.name] for case in cases]
+    write_summary(ordered, output_dir, COLUMNS)
+    write_report(ordered, output_dir)
+    return ordered
