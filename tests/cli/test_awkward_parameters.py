@@ -51,8 +51,9 @@ def test_the_memory_hint_fits(capsys, tmp_path, unit_sphere_samples):
     assert code == 1
     suggested = float(err.split("radius >= ")[1].split()[0])
     from bitemesh.core.pipeline import run
-    from bitemesh.core.parameters import BitingParameters, ImplicitParameters
-    result = run(unit_sphere_samples[0], None, ImplicitParameters(max_memory_mb=64), BitingParameters(radius=suggested))
+    from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
+    result = run(unit_sphere_samples[0], None, ImplicitParameters(max_memory_mb=64), BitingParameters(radius=suggested),
+                 optimize=OptimizeParameters(optimize=0))   # the hint is the grid's: the optimizer only adds time
     assert result.mesh.cells.size
 
 

@@ -1,7 +1,8 @@
 """Real cardiac data as it comes (issue 10): the shipped biv-me case turned into the variants other exports are
-(tests/cardiac_variants.py), each read and meshed with the defaults, and judged as a cardiac user would: one valid
-closed component, both cavities open, the guide points near the boundary, a derived RV epicardium against the
-full data's myocardial volume."""
+(tests/cardiac_variants.py), each read and meshed with the defaults but the optimizer (the reading and the fit
+are tested here; the shipped heart's default mesh in tests/core/test_bivme_patient.py), and judged as a cardiac user
+would: one valid closed component, both cavities open, the guide points near the boundary, a derived RV epicardium
+against the full data's myocardial volume."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -16,6 +17,7 @@ from bitemesh.core.parameters import FidelityParameters
 from bitemesh.core.errors import BitemeshWarning, InvalidInputError, MeshingError
 from bitemesh.core.quality import count_boundary_components
 from bitemesh.io import read_labelled_points
+from tests.builders import PLAIN
 from tests.cardiac_variants import VARIANTS, read_gpfile, variant_file, write_gpfile
 from tests.meshcheck import assert_valid_domain
 
@@ -26,12 +28,12 @@ def shipped(shared_data):
 
 @pytest.fixture(scope="module")
 def full_heart(tmp_path_factory):
-    """The shipped case meshed with the defaults (R = 2 mm), once."""
+    """The shipped case meshed with the defaults (R = 2 mm) but the optimizer, once."""
     from tests.conftest import DATA
     if not DATA.is_dir():
         pytest.skip("no real data")
     points, labels, slices = read_labelled_points(DATA / "bivme_patient1" / "GPFile_000.txt")
-    return labelled.run_labelled(points, labels, slices=slices)
+    return labelled.run_labelled(points, labels, slices=slices, optimize=PLAIN)
 
 
 # --- reading what exports write -------------------------------------------------------------------------------------
@@ -104,7 +106,7 @@ MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x")]
 def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart):
     path = variant_file(shipped(shared_data), name, tmp_path)
     points, labels, slices = read_labelled_points(path)
-    result = labelled.run_labelled(points, labels, slices=slices)
+    result = labelled.run_labelled(points, labels, slices=slices, optimize=PLAIN)
     mesh = result.mesh
     assert_valid_domain(mesh, euler=2, components=1)   # no handle: a myocardium with its cavities open is a ball
     assert count_boundary_components(mesh) == 1

@@ -180,6 +180,6 @@ def test_labelled_flags_win_over_the_config_file(tmp_path, capsys):
     output = tmp_path / "shell.vtu"
     assert cli.main(["mesh", str(contours), "-o", str(output), "--config", str(config)]) == 1
     assert "base_plane='valves' needs at least 3 points" in capsys.readouterr().err
-    assert cli.main(["mesh", str(contours), "-o", str(output), "--config", str(config), "--cells", "6000",
-                     "--domain", "EPI - LV_ENDO - RV_ENDO", "--base-plane", "none", "--min-wall", "3"]) == 0
+    assert cli.main(["mesh", str(contours), "-o", str(output), "--config", str(config), "--cells", "6000", "--domain",
+                     "EPI - LV_ENDO - RV_ENDO", "--base-plane", "none", "--min-wall", "3", "--no-optimize"]) == 0
     assert_valid_domain(read_mesh(output), euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03)

@@ -2,6 +2,7 @@
 ../shared/data/bivme_patient1, read with bitemesh.io, which loads no VTK for it), and the real input made bad."""
 from __future__ import annotations
 
+import warnings
 from functools import cache
 from pathlib import Path
 
@@ -11,12 +12,12 @@ import pytest
 from bitemesh.core import labelled
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.fidelity import distances_to_facets
-from bitemesh.core.parameters import BitingParameters
+from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.pipeline import mesh_from_grid
 from bitemesh.core.quality import count_boundary_components
 from bitemesh.io import read_labelled_points
 
-from tests.builders import located
+from tests.builders import PLAIN, located
 from tests.meshcheck import assert_valid_domain
 
 PACKAGED = Path(bitemesh.__file__).resolve().parent / "data" / "bivme_patient1"
@@ -30,9 +31,10 @@ def distance_to_surface(points, vertices, facets):
 
 
 @cache
-def heart(path: str, cells: int):
+def heart(path: str, cells: int, optimize: int = 1):
     points, labels, slices = read_labelled_points(path)
-    return labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells))
+    return labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells),
+                                 optimize=OptimizeParameters(optimize=optimize))
 
 
 def guide_point_distances(result):
@@ -69,18 +71,20 @@ def check_heart(result, source, *, mean_bound, max_bound):
 
 
 def test_the_patient_meshes_as_one_valid_myocardium_near_its_contours(gpfile):
-    """40,000 cells (R about 2.8 mm): valid, one part, the contour points within 1 mm on average."""
-    check_heart(heart(str(gpfile), 40000), gpfile, mean_bound=1.0, max_bound=6.0)
+    """40,000 cells (R about 2.8 mm), the plain method: valid, one part, the contour points within 1 mm on average
+    (the default, optimised, at 136,000 cells below)."""
+    check_heart(heart(str(gpfile), 40000, optimize=0), gpfile, mean_bound=1.0, max_bound=6.0)
 
 
 def test_the_myocardium_is_one_closed_surface_whatever_the_seed():
     """At 30,000 cells seeds 7, 8 and 13 gave Euler characteristics -2, 0 and 0 (a hole punched through the RV wall
     where it is about one cell thick, a one-cell void at the RV cavity's tip) before the repair weighed topology."""
     points, labels, slices = read_labelled_points(PACKAGED / "GPFile_000.txt")
-    first = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=30000, seed=7))
+    first = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=30000, seed=7),
+                                  optimize=PLAIN)
     for seed in (7, 8, 13):
-        mesh = first.mesh if seed == 7 else mesh_from_grid(first.implicit,
-                                                           BitingParameters(radius=first.radius, seed=seed)).mesh
+        biting = BitingParameters(radius=first.radius, seed=seed)
+        mesh = first.mesh if seed == 7 else mesh_from_grid(first.implicit, biting, optimize=PLAIN).mesh
         assert_valid_domain(mesh, euler=2, components=1)
         assert count_boundary_components(mesh) == 1
 
@@ -88,13 +92,19 @@ def test_the_myocardium_is_one_closed_surface_whatever_the_seed():
 @pytest.mark.slow
 def test_the_patient_at_136000_cells_meets_the_goals(gpfile):
     """The paper's heart size: contour points within 0.5 mm of their surface on average (issue 10's bound) and
-    within the fidelity check's far bound R + 3 x noise at most, mean radius ratio >= 0.78.  (The farthest point,
-    2.9-3.1 mm over seeds, lies at the RV cavity's apical tip, thinner than a cell.)"""
-    result = heart(str(gpfile), 136000)
+    within the fidelity check's far bound R + 3 x noise at most.  (The farthest point, 2.9-3.1 mm over seeds, lies
+    at the RV cavity's apical tip, thinner than a cell.)  The default is FEM-grade (issue 12): mean radius ratio at
+    least gmsh + Netgen's on the two-cavity heart (0.837, benchmarks/peers.md), and min dihedral >= 20 degrees or
+    a warning that gives the figures (a wall a cell or two thick can leave a cell below it)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = heart(str(gpfile), 136000)
     far = result.radius + 3 * result.function.tracing_noise()
     check_heart(result, gpfile, mean_bound=0.5, max_bound=far)
-    assert result.mesh.cell_data["RadiusRatio"].mean() >= 0.78
+    assert result.mesh.cell_data["RadiusRatio"].mean() >= 0.837
     assert len(result.mesh.cells) > 110000
+    if result.mesh.cell_data["MinDihedralAngle"].min() < 20.0:
+        assert any("could not meet its bounds" in str(warning.message) for warning in caught)
 
 
 # --- bad real input -------------------------------------------------------------------------------------------------

@@ -26,6 +26,8 @@ QUICK = [name for name, (_, quick) in golden.CASES.items() if quick]
 def test_same_mesh_as_recorded(name):
     if RECORDED is None:
         pytest.skip(f"no fingerprints recorded for {golden.environment()} (benchmarks/golden.py --record)")
+    if name not in RECORDED["meshes"]:
+        pytest.skip(f"{name} is not recorded for this environment (benchmarks/golden.py --record --cases ...)")
     mesh = golden.CASES[name][0]()
     assert golden.fingerprint(mesh) == RECORDED["meshes"][name], \
         f"{name}: the mesh changed; if that is meant, re-record with python benchmarks/golden.py --record"

@@ -36,8 +36,9 @@ def shell():
 @pytest.mark.parametrize("given_slices", [True, False], ids=["slice-ids", "inferred-slices"])
 def test_sparse_contours_of_a_two_cavity_shell_mesh_to_its_volume(shell, given_slices):
     points, labels, slices = shell
-    result = run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane=BASE,
-                          slices=slices if given_slices else None, biting=BitingParameters(cells=8000))
+    # the default (optimised) with the slices given; the plain method where they are inferred (the reading differs)
+    result = run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane=BASE, slices=slices if given_slices else None,
+                          biting=BitingParameters(cells=8000), optimize=OptimizeParameters(optimize=int(given_slices)))
     exact = two_cavity_shell().measure * SCALE ** 3
     assert_valid_domain(result.mesh, euler=2, components=1, measure=exact, measure_tolerance=0.03,
                         mean_quality=0.75)
@@ -266,7 +267,7 @@ def test_optimize_relaxes_the_shell_without_changing_its_shape_or_topology(shell
     points, labels, slices = shell
     plain, optimized = (run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane=BASE, slices=slices,
                                      biting=BitingParameters(cells=4000), optimize=optimize)
-                        for optimize in (OptimizeParameters(), OptimizeParameters(optimize=1)))
+                        for optimize in (OptimizeParameters(optimize=0), OptimizeParameters()))
     assert_valid_domain(optimized.mesh, euler=2, components=1, mean_quality=0.84,
                         measure=plain.mesh.cell_data["Volume"].sum(), measure_tolerance=0.02)
     assert optimized.mesh.cell_data["MinDihedralAngle"].min() >= 15.0 > plain.mesh.cell_data["MinDihedralAngle"].min()

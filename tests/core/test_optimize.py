@@ -39,11 +39,12 @@ GRID_PER_RADIUS = 6
 
 
 def meshed(shape, cells, seed=0):
-    """The grid, the unoptimised mesh of the pipeline and R."""
+    """The grid, the unoptimised mesh of the pipeline (the paper's plain method, optimize=0) and R."""
     radius = radius_for_cells(shape.measure, cells, shape.dim)
     spacing = radius / GRID_PER_RADIUS
     grid = sampled(shape, spacing)
-    return grid, mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed)).mesh, radius
+    plain = mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed), optimize=OptimizeParameters(optimize=0))
+    return grid, plain.mesh, radius
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +71,16 @@ def test_optimized_shapes_are_valid_with_good_cells(optimized, name):
     assert result.cell_data == {}
     # before: slivers (the paper's section 5)
     assert radius_ratio(mesh.points, mesh.cells).min() < 0.05
+
+
+@pytest.mark.parametrize("name", list(SHAPES))
+def test_the_default_pipeline_gives_these_fem_grade_meshes(optimized, name):
+    """Issue 12: FEM-grade is the default.  The pipeline with its default parameters returns exactly the optimised
+    mesh judged above (min dihedral >= 20 degrees, no Q < 0.3), with its quality arrays."""
+    _, grid, _, radius, result, _ = optimized[name]
+    default = mesh_from_grid(grid, BitingParameters(radius=radius, seed=0)).mesh
+    assert np.array_equal(default.points, result.points) and np.array_equal(default.cells, result.cells)
+    assert default.cell_data["MinDihedralAngle"].min() >= 20.0 and default.cell_data["RadiusRatio"].min() >= 0.3
 
 
 @pytest.mark.parametrize("name", list(SHAPES))

@@ -14,7 +14,7 @@ from bitemesh.core.pipeline import mesh_from_grid
 from bitemesh.core.shapes import annulus, die, sphere, torus, two_cavity_shell
 from bitemesh.core.spurious import outside_cells
 
-from tests.builders import sampled
+from tests.builders import PLAIN, sampled
 from tests.meshcheck import assert_valid_domain
 
 
@@ -22,7 +22,7 @@ from tests.meshcheck import assert_valid_domain
                                            (two_cavity_shell(), 0.07), (annulus(), 0.05)],
                          ids=lambda v: getattr(v, "name", ""))
 def test_analytic_shapes_give_valid_domains_of_the_right_topology_volume_and_quality(shape, radius):
-    result = mesh_from_grid(sampled(shape, radius / 4), BitingParameters(radius=radius, seed=0))
+    result = mesh_from_grid(sampled(shape, radius / 4), BitingParameters(radius=radius, seed=0), optimize=PLAIN)
     assert_valid_domain(result.mesh, euler=shape.boundary_euler if shape.dim == 3 else None,
                         measure=shape.measure, measure_tolerance=0.02, mean_quality=0.78)
 
@@ -62,7 +62,7 @@ def test_a_hollow_cavity_stays_open_and_a_stray_part_is_dropped():
         return np.maximum(big.function(p), small.function(p - np.array([1.6, 0, 0])))
 
     grid = sample_function(function, (-1, -1, -1), (1.8, 1, 1), 0.03, margin=0.1)
-    result = mesh_from_grid(grid, BitingParameters(radius=0.12))
+    result = mesh_from_grid(grid, BitingParameters(radius=0.12), optimize=PLAIN)
     assert_valid_domain(result.mesh, euler=2, components=1)
     assert result.mesh.points[:, 0].max() <= 1.01
 
@@ -72,7 +72,8 @@ def test_a_hollow_cavity_stays_open_and_a_stray_part_is_dropped():
 def test_any_radius_seed_and_threshold_give_a_valid_domain(radius, seed, threshold):
     from bitemesh.core.parameters import SpuriousParameters
     grid = sampled(torus(), 0.03)
-    result = mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed), SpuriousParameters(threshold=threshold))
+    result = mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed), SpuriousParameters(threshold=threshold),
+                            optimize=PLAIN)
     assert_valid_domain(result.mesh)
 
 

@@ -82,9 +82,11 @@ def ellipsoid_file(request, ellipsoid, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def ellipsoid_meshes(ellipsoid_file):
-    """The file meshed in LPS and in RAS (same seed)."""
+    """The file meshed in LPS and in RAS (same seed), the plain method (the reading and the frames are tested here;
+    the optimizer on a label map in test_optimize_relaxes_a_rotated_label_map_in_place)."""
     label_map = read_label_map(ellipsoid_file)
-    return label_map_mesh(label_map, cells=CELLS), label_map_mesh(label_map, cells=CELLS, ras=True)
+    return (label_map_mesh(label_map, cells=CELLS, optimize=0),
+            label_map_mesh(label_map, cells=CELLS, ras=True, optimize=0))
 
 
 # ------------------------------------------------------------------------------------------------ reading

@@ -171,7 +171,7 @@ def test_settings_hold_the_values_and_the_optimizer_follows_its_switch():
     assert on["ImplicitParameters"] == core.ImplicitParameters(method="mpu", margin=2.0)
     assert lib_parameters.coreSettings({"optimize": 1}, "mpu")["OptimizeParameters"] == \
         core.OptimizeParameters(optimize=1)
-    assert lib_parameters.coreSettings(bounds, "mpu")["OptimizeParameters"].optimize == 0   # off (its default)
+    assert lib_parameters.coreSettings(bounds, "mpu")["OptimizeParameters"].optimize == 1   # on (its default)
     # the bounds are checked even when the optimizer is off
     with pytest.raises(InvalidInputError, match=r"min_dihedral must be in \[0, 60\)"):
         lib_parameters.coreSettings({"optimize": 0, "min_dihedral": 60.0}, "mpu")

@@ -18,7 +18,7 @@ from bitemesh.core.pipeline import GRID_PER_RADIUS
 from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
-from tests.builders import SHELL_DOMAIN, SHELL_VOLUME, chain, closed_shell_contours, labelled_polydata
+from tests.builders import PLAIN, SHELL_DOMAIN, SHELL_VOLUME, chain, closed_shell_contours, labelled_polydata
 from tests.meshcheck import assert_valid_domain
 
 CELLS = 6000
@@ -38,9 +38,10 @@ def test_mesh_from_points_meshes_labelled_contours_as_the_core_does(closed_shell
     one_step.SetCells(CELLS)
     one_step.SetDomain(SHELL_DOMAIN)
     one_step.SetBasePlane("none")
+    one_step.SetOptimize(0)   # the plain method: the filter reaches the core's labelled path (walls ~1 cell thick)
     mesh = unstructured_to_mesh(one_step.update())
     core = run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane="none", slices=slices,
-                        biting=BitingParameters(cells=CELLS)).mesh
+                        biting=BitingParameters(cells=CELLS), optimize=PLAIN).mesh
     np.testing.assert_array_equal(mesh.cells, core.cells)
     np.testing.assert_allclose(mesh.points, core.points, atol=1e-9)
     assert_valid_domain(mesh, euler=6, components=1, measure=SHELL_VOLUME, measure_tolerance=0.03,
@@ -136,8 +137,9 @@ def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path, 
     points, labels, slices = read_labelled_points(path)
     one_step = MeshFromPoints()
     one_step.SetInputData(labelled_polydata(points, labels, slices))
+    one_step.SetOptimize(0)   # the reading is tested here; the optimizer on a heart in tests/core/test_bivme_patient
     mesh = unstructured_to_mesh(one_step.update())
-    core = run_labelled(points, labels, slices=slices)
+    core = run_labelled(points, labels, slices=slices, optimize=PLAIN)
     np.testing.assert_array_equal(mesh.cells, core.mesh.cells)
     assert core.radius == 2.0 and core.function.derived == ("RV_EPI",)
     assert_valid_domain(mesh, euler=2, components=1)   # its handles, thinner than a cell, removed

@@ -178,8 +178,9 @@ class OptimizeParameters(Parameters):
     checkbox); the MeshOptimizer filter itself always runs and has only the other fields.
     """
 
-    optimize: int = parameter(0, "1 also runs the MeshOptimizer (relaxation, sliver removal) on the valid domain; "
-                              "0 skips it: the paper's plain method", low=0, high=1, integer=True)
+    optimize: int = parameter(1, "1 runs the MeshOptimizer (relaxation, sliver removal) on the valid domain, for "
+                              "FEM-grade cells; 0 skips it: the paper's plain method, faster, with slivers",
+                              low=0, high=1, integer=True)
     iterations: int = parameter(30, "the most relaxation (ODT smoothing and Delaunay) iterations; the relaxation stops "
                                 "earlier once the mean radius ratio stops rising; 0 skips it", low=0, high=1000,
                                 integer=True)

@@ -18,7 +18,7 @@ from .topology import facet_table, non_manifold_faces
 
 #: rounds of flips and smoothing, and the smoothing iterations in each round.
 SLIVER_ROUNDS = 4
-SMOOTH_ITERATIONS = 6
+SMOOTH_ITERATIONS = 3
 
 
 def peel(cells: np.ndarray, n_points: int, candidates: np.ndarray) -> np.ndarray:

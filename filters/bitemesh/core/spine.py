@@ -138,7 +138,7 @@ def switched_optimizer(optimize: OptimizeParameters) -> OptimizeParameters | Non
                                 "OptimizeParameters(optimize=1)")
     if optimize.optimize:
         return optimize
-    if optimize != OptimizeParameters():
+    if replace(optimize, optimize=1) != OptimizeParameters():
         warnings.warn(BitemeshWarning(f"{optimize} has optimize=0: the MeshOptimizer does not run and its bounds "
                                       "do nothing; give optimize=1 to run it"), stacklevel=3)
     return None
