@@ -28,6 +28,9 @@ COLUMNS = ("case", "status", "message", "cells", "points", "R", "mean_Q", "min_Q
            "volume", "seconds", "input", "output")
 #: how many times a case is run again after its worker died (Dask's distributed.scheduler.allowed-failures)
 RETRIES = 2
+#: glibc's trim threshold in the embedded cluster's workers, bytes: Dask's 64 KiB returns freed memory to the system
+#: at once (a system call per large numpy temporary); 64 MiB still gives the memory of a finished case back
+TRIM = 2**26
 
 
 def one_line(text) -> str:
@@ -106,7 +109,12 @@ def cluster_client(client=None, scheduler=None, workers=None, worker_memory=None
     settings = {"distributed.scheduler.allowed-failures": retries,
                 # a worker is restarted over its memory limit, never paused nor spilling (tasks hold no data)
                 "distributed.worker.memory.pause": False, "distributed.worker.memory.spill": False,
-                "distributed.worker.memory.target": False}
+                "distributed.worker.memory.target": False,
+                # the worker's sampling profiler, GIL monitor and 20 ms event-loop tick take the GIL from the
+                # case's thread: a case ran up to 1.7x slower than in a plain process (benchmarks/batch.md)
+                "distributed.worker.profile.enabled": False, "distributed.admin.tick.interval": "1s",
+                "distributed.admin.system-monitor.gil.enabled": False,
+                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": TRIM}
     with dask.config.set(settings), \
             LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                          memory_limit=worker_memory or "auto",
