@@ -285,8 +285,8 @@ def label_map_mesh(label_map, *, labels=None, ras=False, smoothing=SMOOTHING_VOX
     progress : callable(fraction, message), optional
     parameters : any field of ImplicitParameters (``grid_spacing``: the grid I, mm, default R / 4 or the voxels
         when between R / 8 and R / 4; ``max_memory_mb``), BitingParameters (``radius``: R, mm, default chosen for
-        about ``cells`` cells; ``order``, ``seed``), SpuriousParameters, OptimizeParameters (``optimize=1``) and
-        FidelityParameters, by name
+        about ``cells`` cells; ``order``, ``seed``), SpuriousParameters, OptimizeParameters (``optimize=0``: no
+        MeshOptimizer) and FidelityParameters, by name
 
     Returns
     -------

@@ -326,7 +326,7 @@ class MeshFromPoints(BitemeshAlgorithm):
     """The whole method in one filter: scattered points -> a valid mesh with its quality arrays.
 
     As ``bitemesh.run``: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by default;
-    ``SetOptimize(1)`` also runs the MeshOptimizer.  Points with a ``Label`` point array are labelled contours,
+    the MeshOptimizer runs unless ``SetOptimize(0)``.  Points with a ``Label`` point array are labelled contours,
     meshed as ``bitemesh.core.labelled.run_labelled`` does (``Domain``, ``BasePlane``, ``MinWall``).
     """
 

@@ -141,7 +141,8 @@ def mesh_from_points(points, normals=None, *, progress: ProgressCallback = None,
     normals : (n, k) float64 outward normals, or None to estimate them
     parameters : any field of :class:`ImplicitParameters`, :class:`BitingParameters`, :class:`SpuriousParameters`,
         :class:`OptimizeParameters` and :class:`FidelityParameters`, by name, e.g. ``radius=0.05`` (R, input
-        units; default chosen for about ``cells`` cells), ``cells=20000``, ``optimize=1``
+        units; default chosen for about ``cells`` cells), ``cells=20000``, ``optimize=0`` (the paper's
+        plain method; the MeshOptimizer runs by default)
     progress : callable(fraction, message), optional
 
     Returns

@@ -103,7 +103,8 @@ def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: Spuri
                    optimize: OptimizeParameters = OptimizeParameters()) -> MeshingResult:
     """Mesh {f > 0} of a sampled implicit function; R is ``biting.radius`` or chosen for ``biting.cells`` cells.
 
-    With ``optimize.optimize`` 1, the MeshOptimizer step (relaxation, sliver removal) runs on the valid domain.
+    With ``optimize.optimize`` 1 (the default), the MeshOptimizer step (relaxation, sliver removal) runs on the
+    valid domain; 0 gives the paper's plain method.
     """
     seconds = {} if seconds is None else seconds
     radius = biting.radius or radius_on_grid(grid, biting.cells)

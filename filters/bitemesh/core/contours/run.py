@@ -142,8 +142,8 @@ def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto",
     min_wall : float, input units, the thinnest wall; default max(2.5, 1.25 R) (see :func:`run_labelled`)
     options : any field of ImplicitParameters, BitingParameters (``radius``: R, input units, default chosen for
         about ``cells`` cells), SpuriousParameters, OptimizeParameters and FidelityParameters by name, e.g.
-        ``cells=20000, optimize=1``; the others go to :func:`labelled_implicit` (kernel, offset, surfaces,
-        outlets, base_offset, resolution, ...).
+        ``cells=20000, optimize=0`` (no MeshOptimizer); the others go to :func:`labelled_implicit` (kernel,
+        offset, surfaces, outlets, base_offset, resolution, ...).
 
     Returns
     -------
