@@ -36,7 +36,7 @@ from bitemesh import algorithms
 from bitemesh.convert import nodes_to_polydata, unstructured_to_mesh
 from bitemesh.core.fidelity import distances_to_facets
 from bitemesh.core.mesh import signed_measures
-from bitemesh.core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
+from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
 from bitemesh.core.quality import boundary_euler_characteristic, count_boundary_components
 from bitemesh.core.topology import boundary_facets
 from paraview import servermanager, simple
@@ -147,7 +147,8 @@ def chain(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
         check(f"chain cell data {key} = plain VTK's", np.array_equal(mesh.cell_data.get(key), plain.cell_data[key]),
               key)
     result = bitemesh.run(xyz, None, ImplicitParameters(grid_spacing=args.grid_spacing, margin=margin),
-                          BitingParameters(radius=args.radius, seed=args.seed), SpuriousParameters())
+                          BitingParameters(radius=args.radius, seed=args.seed), SpuriousParameters(),
+                          optimize=OptimizeParameters(optimize=0))   # the five filters: the plain method
     # bitemesh.run meshes the points centred and scaled to unit size, the chain in the points' own frame (its image
     # is in user coordinates): the grids differ in their rounding, so the meshes are equivalent, not equal
     volumes = [float(np.sum(signed_measures(m.points, m.cells))) for m in (mesh, result.mesh)]
