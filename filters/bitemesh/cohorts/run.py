@@ -28,8 +28,11 @@ COLUMNS = ("case", "status", "message", "cells", "points", "R", "mean_Q", "min_Q
            "volume", "seconds", "input", "output")
 #: how many times a case is run again after its worker died (Dask's distributed.scheduler.allowed-failures)
 RETRIES = 2
-#: glibc's trim threshold in the embedded cluster's workers, bytes: Dask's 64 KiB returns freed memory to the system
-#: at once (a system call per large numpy temporary); 64 MiB still gives the memory of a finished case back
+#: glibc's trim and mmap thresholds in the embedded cluster's workers, bytes.  Dask sets MALLOC_TRIM_THRESHOLD_
+#: (64 KiB) in its workers, and any fixed trim threshold turns off glibc's dynamic mmap threshold: every numpy
+#: temporary over 128 KiB is then mapped and unmapped, page faults each time.  Measured on one 6,000-cell sphere
+#: (CPU): 1.48 s unset, 2.48 s at 64 KiB, 2.10 s at 64 MiB, 1.34 s at 64 MiB with the mmap threshold at 64 MiB too;
+#: 64 MiB still gives the memory of a finished case back.
 TRIM = 2**26
 
 
@@ -114,7 +117,8 @@ def cluster_client(client=None, scheduler=None, workers=None, worker_memory=None
                 # case's thread: a case ran up to 1.7x slower than in a plain process (benchmarks/batch.md)
                 "distributed.worker.profile.enabled": False, "distributed.admin.tick.interval": "1s",
                 "distributed.admin.system-monitor.gil.enabled": False,
-                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": TRIM}
+                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": TRIM,
+                "distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": TRIM}
     with dask.config.set(settings), \
             LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                          memory_limit=worker_memory or "auto",
