@@ -14,29 +14,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
-#: the die's pips: face value -> (axis, sign) and the spots (u, v) in units of 0.45 x half, as in shapes.die
-DIE_FACES = {1: (2, 1), 6: (2, -1), 2: (0, 1), 5: (0, -1), 3: (1, 1), 4: (1, -1)}
-DIE_SPOTS = {1: [(0, 0)], 2: [(-1, -1), (1, 1)], 3: [(-1, -1), (0, 0), (1, 1)],
-             4: [(-1, -1), (-1, 1), (1, -1), (1, 1)], 5: [(-1, -1), (-1, 1), (0, 0), (1, -1), (1, 1)],
-             6: [(-1, -1), (-1, 0), (-1, 1), (1, -1), (1, 0), (1, 1)]}
-#: the heart's ellipsoids: (centre, semi-axes), as in shapes.two_cavity_heart; its base plane
-HEART = dict(lv_outer=((0.0, 0.0, 0.0), (0.62, 0.62, 1.00)), lv_inner=((0.0, 0.0, 0.0), (0.45, 0.45, 0.84)),
-             rv_outer=((-0.40, 0.0, 0.05), (0.88, 0.74, 0.88)), rv_inner=((-0.40, 0.0, 0.05), (0.78, 0.64, 0.78)))
-HEART_BASE = 0.40
-
-
-def die_pip_centres(half: float = 1.0) -> np.ndarray:
-    """(21, 3) centres of the die's pips, on its faces."""
-    centres = []
-    for value, (axis, sign) in DIE_FACES.items():
-        others = [a for a in range(3) if a != axis]
-        for u, v in DIE_SPOTS[value]:
-            centre = np.zeros(3)
-            centre[axis] = sign * half
-            centre[others] = np.array([u, v]) * 0.45 * half
-            centres.append(centre)
-    return np.array(centres)
+from bitemesh.core.shapes import HEART_BASE, HEART_ELLIPSOIDS, die_pip_centres
 
 
 def _ellipsoid(occ, centre, semi_axes) -> int:
@@ -62,9 +40,9 @@ def build(name: str) -> None:
         pips = [(3, occ.addSphere(*c, 0.16)) for c in die_pip_centres()]
         occ.cut(rounded, pips)
     elif name == "two-cavity-heart":
-        lv_outer, lv_inner, rv_outer, rv_inner = (_ellipsoid(occ, *HEART[k])
+        lv_outer, lv_inner, rv_outer, rv_inner = (_ellipsoid(occ, *HEART_ELLIPSOIDS[k])
                                                   for k in ("lv_outer", "lv_inner", "rv_outer", "rv_inner"))
-        keep = _ellipsoid(occ, *HEART["lv_outer"])  # a copy: the RV cavity is cut by the LV outer ellipsoid
+        keep = _ellipsoid(occ, *HEART_ELLIPSOIDS["lv_outer"])  # a copy: the RV cavity is cut by the LV outer ellipsoid
         rv_cavity, _ = occ.cut([(3, rv_inner)], [(3, keep)])
         walls, _ = occ.fuse([(3, lv_outer)], [(3, rv_outer)])
         solid, _ = occ.cut(walls, [(3, lv_inner)] + rv_cavity)

@@ -70,24 +70,32 @@ def torus(major: float = 1.0, minor: float = 0.4) -> Shape:
                  2 * np.pi**2 * major * minor**2, 0)
 
 
+#: the die's pips: face value -> (axis, sign), and each face's spots (u, v) in units of 0.45 x the half-side
+DIE_FACES = {1: (2, 1), 6: (2, -1), 2: (0, 1), 5: (0, -1), 3: (1, 1), 4: (1, -1)}
+DIE_SPOTS = {1: [(0, 0)], 2: [(-1, -1), (1, 1)], 3: [(-1, -1), (0, 0), (1, 1)],
+             4: [(-1, -1), (-1, 1), (1, -1), (1, 1)], 5: [(-1, -1), (-1, 1), (0, 0), (1, -1), (1, 1)],
+             6: [(-1, -1), (-1, 0), (-1, 1), (1, -1), (1, 0), (1, 1)]}
+
+
+def die_pip_centres(half: float = 1.0) -> np.ndarray:
+    """(21, 3) centres of the die's pips, on its faces (half-side ``half``)."""
+    centres = []
+    for value, (axis, sign) in DIE_FACES.items():
+        others = [a for a in range(3) if a != axis]
+        for u, v in DIE_SPOTS[value]:
+            centre = np.zeros(3)
+            centre[axis] = sign * half
+            centre[others] = np.array([u, v]) * 0.45 * half
+            centres.append(centre)
+    return np.array(centres)
+
+
 def die(half: float = 1.0, rounding: float = 0.25, pip: float = 0.16) -> Shape:
     """The synthetic die of the paper's Figure 4: a rounded cube with spherical pips (dents) 1 to 6.
 
     The pips are hemispheres of radius ``pip`` centred on the faces, so each takes (2/3) pi pip^3 away.
     """
-    spots = {1: [(0, 0)], 2: [(-1, -1), (1, 1)], 3: [(-1, -1), (0, 0), (1, 1)],
-             4: [(-1, -1), (-1, 1), (1, -1), (1, 1)], 5: [(-1, -1), (-1, 1), (0, 0), (1, -1), (1, 1)],
-             6: [(-1, -1), (-1, 0), (-1, 1), (1, -1), (1, 0), (1, 1)]}
-    faces = {1: (2, 1), 6: (2, -1), 2: (0, 1), 5: (0, -1), 3: (1, 1), 4: (1, -1)}
-    centres = []
-    for value, (axis, sign) in faces.items():
-        others = [a for a in range(3) if a != axis]
-        for u, v in spots[value]:
-            centre = np.zeros(3)
-            centre[axis] = sign * half
-            centre[others] = np.array([u, v]) * 0.45 * half
-            centres.append(centre)
-    centres = np.array(centres)
+    centres = die_pip_centres(half)
 
     def function(p):
         q = np.abs(p) - (half - rounding)
@@ -120,6 +128,13 @@ def two_cavity_shell() -> Shape:
                  half_volume(outer[1]) - half_volume(lv[1]) - half_volume(rv[1]), 2)
 
 
+#: the two-cavity heart's ellipsoids, (centre, semi-axes), and the height of its base plane
+HEART_ELLIPSOIDS = dict(lv_outer=((0.0, 0.0, 0.0), (0.62, 0.62, 1.00)), lv_inner=((0.0, 0.0, 0.0), (0.45, 0.45, 0.84)),
+                        rv_outer=((-0.40, 0.0, 0.05), (0.88, 0.74, 0.88)),
+                        rv_inner=((-0.40, 0.0, 0.05), (0.78, 0.64, 0.78)))
+HEART_BASE = 0.40
+
+
 def two_cavity_heart() -> Shape:
     """The biventricular shape of the benchmarks: the union of an LV and an RV ellipsoid minus the two cavities, cut
     by a base plane through which both cavities open.
@@ -129,14 +144,14 @@ def two_cavity_heart() -> Shape:
     wall); kept below z = 0.40.  The RV free wall is 0.10 thick, the LV wall 0.16-0.17.  Its volume, 1.01852, is
     from quasi-Monte Carlo integration (4 x 2^24 scrambled Sobol points, standard deviation 1e-5).
     """
-    lv_outer, lv_inner = ((0.0, 0.0, 0.0), (0.62, 0.62, 1.00)), ((0.0, 0.0, 0.0), (0.45, 0.45, 0.84))
-    rv_outer, rv_inner = ((-0.40, 0.0, 0.05), (0.88, 0.74, 0.88)), ((-0.40, 0.0, 0.05), (0.78, 0.64, 0.78))
+    lv_outer, lv_inner, rv_outer, rv_inner = (HEART_ELLIPSOIDS[name] for name in
+                                              ("lv_outer", "lv_inner", "rv_outer", "rv_inner"))
 
     def function(p):
         outer_lv = ellipsoid_distance(p, *lv_outer)
         rv_cavity = np.minimum(ellipsoid_distance(p, *rv_inner), -outer_lv)
         walls = np.minimum(np.maximum(outer_lv, ellipsoid_distance(p, *rv_outer)), -ellipsoid_distance(p, *lv_inner))
-        return np.minimum(np.minimum(walls, -rv_cavity), 0.40 - p[:, 2])
+        return np.minimum(np.minimum(walls, -rv_cavity), HEART_BASE - p[:, 2])
 
     return Shape("two-cavity heart", function, (-1.28, -0.74, -1.0), (0.62, 0.74, 0.40), 1.01852, 2)
 
