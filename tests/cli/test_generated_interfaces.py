@@ -15,14 +15,18 @@ from bitemesh import algorithms
 from bitemesh.cli import build_parser
 from bitemesh.core import parameters as core
 from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.fem_check import FemParameters
 from bitemesh.core.parameters import AUTOMATIC, is_optional, zero_was_automatic
 
 #: command -> the dataclasses whose every field is a flag of it
+MESH_OPTIONS = (core.TableParameters, core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
+                core.FidelityParameters, core.OptimizeParameters, core.LabelledParameters)
 COMMANDS = {
-    "mesh": (core.TableParameters, core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
-             core.FidelityParameters, core.OptimizeParameters, core.LabelledParameters),
+    "mesh": MESH_OPTIONS,
+    "batch": MESH_OPTIONS,   # the same options as bitemesh mesh
     "demo": (core.OptimizeParameters,),
     "quality": (core.QualityParameters,),
+    "fem": (FemParameters,),
 }
 #: VTK filter -> the dataclasses whose fields it has setters for, in order ((dataclass, names): those fields only)
 FILTERS = {
@@ -40,7 +44,8 @@ FILTERS = {
                        core.FidelityParameters),
 }
 #: the arguments a command needs before its flags parse.
-REQUIRED = {"mesh": ("in.csv", "-o", "out.vtu"), "quality": ("m.vtu",)}
+REQUIRED = {"mesh": ("in.csv", "-o", "out.vtu"), "batch": ("in.csv", "-o", "out"), "quality": ("m.vtu",),
+            "fem": ("m.vtu",)}
 DATACLASSES = [value for value in vars(core).values()
                if isinstance(value, type) and issubclass(value, core.Parameters) and value is not core.Parameters]
 
