@@ -1,7 +1,7 @@
 """The simplicial mesh every step hands on: triangles in 2D, tetrahedra in 3D."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import factorial
 
 import numpy as np
@@ -15,20 +15,34 @@ class Mesh:
     ----------
     points : (n, k) float64, node coordinates (input units), k = 2 or 3
     cells : (m, k + 1) int64, node indices of each triangle or tetrahedron, positively oriented
-    cell_data : name -> (m, ...) arrays, one row per cell
+    cell_data : name -> (m, ...) arrays, one row per cell; ``Region`` (m,) int32 > 0 tags the cells by region
+    facets : (b, k) int64 or None, the tagged facets (triangles in 3D, edges in 2D): every boundary facet, oriented
+        out of the domain, and every interface between two regions, oriented out of the region with the lower tag
+    facet_tags : (b,) int32 > 0 or None, the tag of each facet
+    tag_names : name -> (tag, dimension), as meshio's field_data and gmsh's physical names: dimension k for a region
+        (a value of ``cell_data["Region"]``), k - 1 for a facet tag
     """
 
     points: np.ndarray
     cells: np.ndarray
     cell_data: dict = field(default_factory=dict)
+    facets: np.ndarray | None = None
+    facet_tags: np.ndarray | None = None
+    tag_names: dict = field(default_factory=dict)
 
     @property
     def dim(self) -> int:
         return self.points.shape[1]
 
     def with_cell_data(self, **arrays) -> "Mesh":
-        """A copy that also holds ``arrays`` (each with one row per cell)."""
-        return Mesh(self.points, self.cells, {**self.cell_data, **arrays})
+        """A copy that also holds ``arrays`` (each with one row per cell); the tags stay."""
+        return replace(self, cell_data={**self.cell_data, **arrays})
+
+    def with_tags(self, facets, facet_tags, tag_names, regions=None) -> "Mesh":
+        """A copy with these tagged facets (b, k), their tags (b,), the names and, if given, the cells' regions (m,)."""
+        cell_data = self.cell_data if regions is None else {**self.cell_data, "Region": np.asarray(regions, np.int32)}
+        return replace(self, cell_data=cell_data, facets=np.asarray(facets, np.int64),
+                       facet_tags=np.asarray(facet_tags, np.int32), tag_names=dict(tag_names))
 
 
 def simplex_vertices(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
