@@ -118,7 +118,9 @@ def cluster_client(client=None, scheduler=None, workers=None, worker_memory=None
                 "distributed.worker.profile.enabled": False, "distributed.admin.tick.interval": "1s",
                 "distributed.admin.system-monitor.gil.enabled": False,
                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": TRIM,
-                "distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": TRIM}
+                "distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": TRIM,
+                # a terminal's Ctrl-C reaches every process of the command: the workers leave it to the driver
+                "distributed.worker.preload": ["bitemesh.cohorts.worker_start"]}
     with dask.config.set(settings), \
             LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                          memory_limit=worker_memory or "auto",
@@ -165,8 +167,9 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
     on_client : callable(client), called once the client is up (the CLI prints the dashboard's address)
 
     A case whose output exists and whose record holds the hash of its input and options is skipped (status
-    "skipped", its recorded values).  Ctrl-C (KeyboardInterrupt) cancels the rest, writes the summary (status
-    "cancelled" for the cases not finished) and is raised again.
+    "skipped", its recorded values).  Ctrl-C (KeyboardInterrupt) cancels the rest, closes the cluster, writes the
+    summary (status "cancelled" for the cases not finished; "done" for one that finished as the run stopped) and is
+    raised again.
     """
     from distributed import as_completed
 
@@ -215,10 +218,11 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
             except KeyboardInterrupt:
                 connected.cancel(list(futures))
                 raise
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:   # (an embedded cluster is closed by now) a case whose record is written did finish
         for case in cases:
-            rows.setdefault(case.name, row_of(case, "cancelled", "not finished: the run was interrupted; run the "
-                                              "same command again to mesh it"))
+            if case.name not in rows:
+                rows[case.name] = recorded_row(output_dir, case, digests[case.name]) or row_of(
+                    case, "cancelled", "not finished: the run was interrupted; run the same command again to mesh it")
         finished(rows, cases, output_dir)
         raise
     return finished(rows, cases, output_dir)
