@@ -35,12 +35,15 @@ def test_mesh_round_trip(tmp_path, capfd, extension, make):
         for name, array in mesh.cell_data.items():
             np.testing.assert_array_equal(back.cell_data[name], array)
             assert back.cell_data[name].dtype == array.dtype
-    elif extension == ".msh":
-        assert path.read_text().startswith("$MeshFormat\n2.2 0 8\n")  # gmsh 2.2, ASCII
-        np.testing.assert_array_equal(back.cell_data["gmsh:physical"], mesh.cell_data["Label"])
-        np.testing.assert_array_equal(back.cell_data["gmsh:geometrical"], mesh.cell_data["Label"])
-    elif extension == ".mesh":
-        np.testing.assert_array_equal(back.cell_data["medit:ref"], mesh.cell_data["Label"])
+    elif extension == ".xdmf":  # every array, and the regions (here Label) as Region, dolfinx's cell tags
+        assert set(back.cell_data) == set(mesh.cell_data) | {"Region"}
+        for name, array in mesh.cell_data.items():
+            np.testing.assert_array_equal(back.cell_data[name], array)
+        np.testing.assert_array_equal(back.cell_data["Region"], mesh.cell_data["Label"])
+    else:  # only the regions: gmsh physical tags, MEDIT references, Abaqus element sets REGION_1, REGION_2
+        assert extension != ".msh" or path.read_text().startswith("$MeshFormat\n2.2 0 8\n")  # gmsh 2.2, ASCII
+        assert set(back.cell_data) == {"Region"}
+        np.testing.assert_array_equal(back.cell_data["Region"], mesh.cell_data["Label"])
     assert capfd.readouterr().err == ""  # neither VTK nor meshio printed anything
 
 
@@ -68,9 +71,9 @@ def test_written_vtu_and_vtk_hold_vtk_tetra_and_triangle_cells(tmp_path):
 def test_msh_and_medit_without_labels_get_one_region(tmp_path):
     mesh = Mesh(cube_mesh().points, cube_mesh().cells)
     write_mesh(mesh, tmp_path / "plain.msh")
-    assert read_mesh(tmp_path / "plain.msh").cell_data["gmsh:physical"].tolist() == [1] * 6
+    assert read_mesh(tmp_path / "plain.msh").cell_data["Region"].tolist() == [1] * 6
     write_mesh(mesh.with_cell_data(Quality=np.ones(6)), tmp_path / "plain.mesh")  # a float array is not a label
-    assert read_mesh(tmp_path / "plain.mesh").cell_data["medit:ref"].tolist() == [1] * 6  # meshio default
+    assert read_mesh(tmp_path / "plain.mesh").cell_data["Region"].tolist() == [1] * 6
 
 
 def test_read_mesh_orients_cells_positively(tmp_path):

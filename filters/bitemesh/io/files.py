@@ -55,20 +55,45 @@ def atomic_output(path, what: str = "a mesh"):
 
     Raises InvalidInputError when the folder does not exist or the rename fails.
     """
-    path = Path(path)
-    if not path.parent.is_dir():
-        raise InvalidInputError(f"cannot write {what} to '{path}': the directory '{path.parent}' does not exist")
-    suffix = "".join(path.suffixes[-2:]) if path.name.lower().endswith(".nii.gz") else path.suffix
-    temporary = path.with_name(f".{path.stem}.{secrets.token_hex(4)}.partial{suffix}")
-    try:
+    with atomic_outputs([path], what) as (temporary,):
         yield temporary
-        os.replace(temporary, path)
+
+
+@contextlib.contextmanager
+def atomic_outputs(paths, what: str = "a mesh"):
+    """:func:`atomic_output` for the files of one output written together (a mesh and its facets, an XDMF file and
+    its HDF5 file): yield a list of temporary paths, one beside each of ``paths``; once the block completes, rename
+    each onto its path, one after the other, with no writing in between.  If the block fails or is interrupted,
+    every temporary file is removed and every one of ``paths`` keeps what it held before, or stays absent (an
+    interrupt that falls between two renames, a window of microseconds, leaves the files renamed so far new).
+
+    Raises InvalidInputError when a folder does not exist or a rename fails.
+    """
+    paths = [Path(path) for path in paths]
+    for path in paths:
+        if not path.parent.is_dir():
+            raise InvalidInputError(f"cannot write {what} to '{path}': the directory '{path.parent}' does not exist")
+    temporaries = [_temporary_beside(path) for path in paths]
+    replaced = []
+    try:
+        yield temporaries
+        for temporary, path in zip(temporaries, paths):
+            os.replace(temporary, path)
+            replaced.append(path.name)
     except OSError as error:
-        raise InvalidInputError(f"cannot write {what} to '{path}': {error.strerror or error}; the previous file, if "
-                                "any, is unchanged") from None
+        kept = (f"only {', '.join(replaced)} replaced" if replaced else
+                f"the previous file{'s' if len(paths) > 1 else ''}, if any, unchanged")
+        raise InvalidInputError(f"cannot write {what} to '{paths[0]}': {error.strerror or error}; {kept}") from None
     finally:
-        with contextlib.suppress(OSError):
-            temporary.unlink()
+        for temporary in temporaries:
+            with contextlib.suppress(OSError):
+                temporary.unlink()
+
+
+def _temporary_beside(path: Path) -> Path:
+    """A fresh hidden name beside ``path`` with the same extension (``.nii.gz`` kept whole)."""
+    suffix = "".join(path.suffixes[-2:]) if path.name.lower().endswith(".nii.gz") else path.suffix
+    return path.with_name(f".{path.stem}.{secrets.token_hex(4)}.partial{suffix}")
 
 
 @contextlib.contextmanager

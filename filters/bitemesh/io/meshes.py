@@ -1,92 +1,182 @@
-"""Tetrahedral (and 2D triangle) meshes to and from files, through meshio; every write is atomic.
+"""Tetrahedral (and 2D triangle) meshes with their tags, to and from the files solvers read; every write is atomic.
 
-``.vtu`` (VTK XML), ``.vtk`` (legacy), ``.msh`` (gmsh), ``.inp`` (Abaqus), ``.mesh`` (MEDIT).
+What each format holds of a :class:`~bitemesh.core.mesh.Mesh` ``m`` (regions: ``cell_data["Region"]``; the tagged
+facets; the tag names; in 2D the cells are triangles and the facets edges):
+
+- ``.msh``, gmsh 2.2 ASCII: the cells with physical and elementary tag = region (1 without regions), the facets
+  as triangles (lines in 2D) with physical and elementary tag = facet tag, ``$PhysicalNames`` from the names
+  (volume groups of dimension 3, surface groups of dimension 2); no other cell array.
+- ``.vtu``: ``m.vtu`` the cells with every cell array, and ``m_facets.vtu`` (when there are facets) the same points
+  and the facets with the cell array ``SurfaceTag``; both with the names as field data (name -> [tag, dimension]).
+- ``.xdmf``: ``m.xdmf`` + ``m.h5``, ``m_facets.xdmf`` + ``m_facets.h5``, as dolfinx reads them (:mod:`.xdmf`).
+- ``.inp``, Abaqus: the nodes, ``C3D4`` (``CPS3``) elements, an element set per region, an element-based surface
+  and a node set per facet tag (:mod:`.abaqus`); no cell array.
+- ``.mesh``, MEDIT ASCII: the cells with reference = region (1 without regions), the facets with reference = facet
+  tag.  The format has no place for names: they are not written, and the file reads back without them.
+- ``.vtk``, legacy VTK 4.2 binary: the cells with every cell array; no facets and no names (use ``.vtu``).
+
+Reading joins what writing split (``m.vtu`` with ``m_facets.vtu``) and gives the regions back as ``Region``.
 """
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from ..core.errors import InvalidInputError, check_points
 from ..core.mesh import Mesh, signed_measures
-from .files import atomic_output, existing_file, meshio_warnings, native, supported
+from .abaqus import abaqus_sets, read_abaqus_tags
+from .files import atomic_outputs, existing_file, meshio_warnings, native, supported
+from .xdmf import write_grid
 
-MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh")
+MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf")
 
-#: meshio file format used for each mesh extension (``.msh`` is gmsh 2.2 ASCII, ``.vtk`` legacy 4.2 binary).
+#: meshio file format written for each extension meshio writes (``.msh`` is gmsh 2.2 ASCII, ``.vtk`` legacy 4.2
+#: binary); ``.xdmf`` is written by :mod:`.xdmf` and read by meshio.
 MESHIO_FORMATS = {".vtu": "vtu", ".vtk": "vtk42", ".msh": "gmsh22", ".inp": "abaqus", ".mesh": "medit"}
 
 #: Integer cell arrays taken, in this order, as region labels (gmsh physical tag, medit reference) on writing.
-REGION_ARRAYS = ("Label", "Region", "gmsh:physical", "medit:ref")
+REGION_ARRAYS = ("Region", "Label", "gmsh:physical", "medit:ref")
 
+#: The facet tags' cell array in ``.vtu`` and ``.xdmf`` facet files.
+FACET_ARRAY = "SurfaceTag"
+
+#: The cell array that holds the regions and the facet tags in the files of a format that has one for both.
+_TAG_ARRAYS = {".msh": "gmsh:physical", ".mesh": "medit:ref"}
+
+
+def mesh_files(path, with_facets: bool = True) -> list:
+    """The files :func:`write_mesh` writes for ``path``, ``path`` first: ``m.xdmf`` adds ``m.h5``; with facets,
+    ``m.vtu`` adds ``m_facets.vtu`` and ``m.xdmf`` adds ``m_facets.xdmf`` and ``m_facets.h5``."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    files = [path, path.with_suffix(".h5")] if suffix == ".xdmf" else [path]
+    if with_facets and suffix in (".vtu", ".xdmf"):
+        files += [_facet_file(file) for file in files]
+    return files
+
+
+def _facet_file(path: Path) -> Path:
+    """``m_facets.vtu`` for ``m.vtu``."""
+    return path.with_name(f"{path.stem}_facets{path.suffix}")
 
 
 def write_mesh(mesh: Mesh, path) -> None:
-    """Write a triangle (2D) or tetrahedral (3D) mesh, the format chosen by the extension of ``path``.
+    """Write a triangle (2D) or tetrahedral (3D) mesh with its tags, the format chosen by the extension of ``path``.
 
     ``.vtu`` (VTK XML, binary, zlib), ``.vtk`` (legacy VTK 4.2, binary), ``.msh`` (gmsh 2.2 ASCII), ``.inp``
-    (Abaqus), ``.mesh`` (MEDIT ASCII), all through meshio.  VTK and gmsh get z = 0 for a 2D mesh.
-    Cell data: ``.vtu``/``.vtk`` keep every array; ``.msh`` and ``.mesh`` keep only the region labels, the first
-    1-D integer array named in :data:`REGION_ARRAYS`, as the gmsh physical and elementary tags (1 when there is
-    none) or as the MEDIT reference; ``.inp`` keeps none.
+    (Abaqus), ``.mesh`` (MEDIT ASCII) through meshio, ``.xdmf`` (XDMF 3 with HDF5) through h5py; what each holds:
+    this module's docstring.  VTK and gmsh get z = 0 for a 2D mesh.  Region labels are the first 1-D integer
+    array named in :data:`REGION_ARRAYS`.
 
     Parameters
     ----------
     mesh : Mesh
-        points (n, k) float64 with k = 2 or 3, cells (m, k + 1) int, cell_data name -> (m, ...) arrays.
+        points (n, k) float64 with k = 2 or 3, cells (m, k + 1) int, cell_data name -> (m, ...) arrays, and
+        optionally facets (b, k) int (faces of the cells), facet_tags (b,) int > 0 and tag_names name -> (tag,
+        dimension) with dimension k (a region) or k - 1 (a facet tag).
     path : str or Path
-        The output file; its directory must exist.  Written to a temporary file beside it, then renamed onto it:
-        a failed or interrupted write leaves the previous file as it was (or no file).
-    """
-    import meshio
+        The output file; its directory must exist.  Every file of the output (:func:`mesh_files`) is written to a
+        temporary file beside it, and the temporary files are renamed onto them once all are written whole: a
+        failed or interrupted write leaves the previous files as they were (or none).  A facet file left by an
+        earlier write is removed when this mesh has no facets.
 
+    Raises
+    ------
+    InvalidInputError
+        Unknown extension, a missing directory, or a mesh whose arrays or tags are not as above.
+    """
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix not in MESHIO_FORMATS:
+    if suffix not in MESH_EXTENSIONS:
         raise InvalidInputError(
             f"cannot write a mesh to '{path}': unknown extension {path.suffix or '(none)'!r}; "
             f"supported extensions: {supported(MESH_EXTENSIONS)}")
-    points, cells, cell_data = _checked_mesh(mesh)
-    dim = points.shape[1]
-    if dim == 2 and suffix in (".vtu", ".vtk", ".msh"):
+    if suffix == ".xdmf" and ":" in path.name:
+        raise InvalidInputError(f"cannot write a mesh to '{path}': an XDMF file names its HDF5 file as 'file:path', "
+                                "so the file name cannot hold ':'; choose another name")
+    mesh, regions = _checked_mesh(mesh)
+    files = mesh_files(path, with_facets=len(mesh.facets) > 0)
+    writer = _write_xdmf if suffix == ".xdmf" else _write_with_meshio
+    with atomic_outputs(files) as temporaries, meshio_warnings():
+        writer(mesh, regions, suffix, temporaries, files)
+    for stale in mesh_files(path)[len(files):]:
+        with contextlib.suppress(FileNotFoundError):
+            stale.unlink()
+
+
+def _write_with_meshio(mesh: Mesh, regions, suffix: str, temporaries: list, files: list) -> None:
+    import meshio
+
+    cell_type, facet_type = ("tetra", "triangle") if mesh.dim == 3 else ("triangle", "line")
+    points = mesh.points
+    if mesh.dim == 2 and suffix in (".vtu", ".vtk", ".msh"):
         points = np.column_stack([points, np.zeros(len(points))])
-    regions = _region_labels(cell_data)
+    names = {name: np.array(value) for name, value in mesh.tag_names.items()}
+    tags = regions if regions is not None else np.ones(len(mesh.cells), dtype=np.int32)
+    blocks = [(cell_type, mesh.cells)] + ([(facet_type, mesh.facets)] if len(mesh.facets) else [])
+    pair = [tags, mesh.facet_tags][:len(blocks)]
+    options, appended = {}, ""
     if suffix == ".msh":
         # Only the tags: meshio 5.3 writes ASCII $ElementData values as numpy reprs ("np.int32(1)") under numpy 2,
         # which no reader (meshio included) can parse.
-        tags = regions if regions is not None else np.ones(len(cells), dtype=np.int32)
-        data = {"gmsh:physical": tags, "gmsh:geometrical": tags}
+        contents = meshio.Mesh(points, blocks, cell_data={"gmsh:physical": pair, "gmsh:geometrical": pair},
+                               field_data=names)
+        options = {"binary": False}
     elif suffix == ".mesh":
-        data = {"medit:ref": regions} if regions is not None else {}
+        contents = meshio.Mesh(points, blocks, cell_data={"medit:ref": pair})
     elif suffix == ".inp":
-        data = {}
+        cell_sets, point_sets, appended = abaqus_sets(mesh.cells, regions, mesh.facets, mesh.facet_tags,
+                                                      mesh.tag_names)
+        contents = meshio.Mesh(points, blocks[:1], cell_sets=cell_sets, point_sets=point_sets)
+        options = {"float_fmt": ".12e"}  # Abaqus (and CalculiX) read at most 20 characters a number
     else:
-        data = {name: (array.astype(np.uint8) if array.dtype == bool else array)
-                for name, array in cell_data.items()}
-    cell_type = "triangle" if dim == 2 else "tetra"
-    meshio_mesh = meshio.Mesh(points, [(cell_type, cells)],
-                              cell_data={name: [array] for name, array in data.items()})
-    options = {"binary": False} if suffix == ".msh" else {}
-    with atomic_output(path) as temporary, meshio_warnings():
-        meshio.write(temporary, meshio_mesh, file_format=MESHIO_FORMATS[suffix], **options)
+        data = {name: [array.astype(np.uint8) if array.dtype == bool else array]
+                for name, array in mesh.cell_data.items()}
+        contents = meshio.Mesh(points, blocks[:1], cell_data=data)
+    meshio.write(temporaries[0], contents, file_format=MESHIO_FORMATS[suffix], **options)
+    if appended:
+        with open(temporaries[0], "a", encoding="utf-8") as stream:
+            stream.write(appended)
+    if suffix == ".vtu":
+        _add_field_data(temporaries[0], mesh.tag_names)
+    if len(files) > 1:  # the .vtu facet file
+        meshio.write(temporaries[1], meshio.Mesh(points, blocks[1:], cell_data={FACET_ARRAY: [mesh.facet_tags]}),
+                     file_format="vtu")
+        _add_field_data(temporaries[1], mesh.tag_names)
+
+
+def _add_field_data(path: Path, tag_names: dict) -> None:
+    """Put the names into the .vtu that meshio wrote at ``path``, as VTK field data (one Int32 array [tag,
+    dimension] a name): meshio 5.3 writes no field data to .vtu, but its reader, VTK and ParaView read it."""
+    if not tag_names:
+        return
+    arrays = "".join(f'<DataArray type="Int32" Name={quoteattr(name)} NumberOfTuples="2" format="ascii">'
+                     f"{tag} {dimension}</DataArray>\n" for name, (tag, dimension) in tag_names.items())
+    data = Path(path).read_bytes()
+    at = data.index(b"<UnstructuredGrid>") + len(b"<UnstructuredGrid>")
+    Path(path).write_bytes(data[:at] + f"\n<FieldData>\n{arrays}</FieldData>".encode() + data[at:])
+
+
+def _write_xdmf(mesh: Mesh, regions, suffix: str, temporaries: list, files: list) -> None:
+    regions = regions if regions is not None else np.ones(len(mesh.cells), dtype=np.int32)
+    arrays = {"Region": regions, **{name: array for name, array in mesh.cell_data.items() if name != "Region"}}
+    write_grid(temporaries[0], temporaries[1], files[1].name, mesh.points, mesh.cells, arrays, mesh.tag_names)
+    if len(files) > 2:
+        write_grid(temporaries[2], temporaries[3], files[3].name, mesh.points, mesh.facets,
+                   {FACET_ARRAY: mesh.facet_tags}, mesh.tag_names)
 
 
 def _checked_mesh(mesh):
+    """The mesh with checked, normalised arrays (facets (0, k) when it has none) and its (m,) int32 regions or
+    None."""
     if not all(hasattr(mesh, name) for name in ("points", "cells", "cell_data")):
         raise InvalidInputError(f"mesh must be a bitemesh Mesh (points, cells, cell_data), got {type(mesh).__name__}")
     points = check_points(mesh.points, "mesh.points")
-    cells = np.asarray(mesh.cells)
     dim = points.shape[1]
-    if cells.ndim != 2 or cells.shape[1] != dim + 1 or (cells.size and cells.dtype.kind not in "iu"):
-        raise InvalidInputError(
-            f"mesh.cells must be an (m, {dim + 1}) integer array for {dim}D points, got shape {cells.shape} "
-            f"of {cells.dtype}")
-    cells = cells.astype(np.int64)
-    if cells.size and (cells.min() < 0 or cells.max() >= len(points)):
-        raise InvalidInputError(
-            f"mesh.cells must index mesh.points (0..{len(points) - 1}), got values in "
-            f"[{cells.min()}, {cells.max()}]")
+    cells = _checked_indices(mesh.cells, "mesh.cells", "m", dim + 1, f"cells for {dim}D points", len(points))
     cell_data = {}
     for name, array in (mesh.cell_data or {}).items():
         array = np.asarray(array)
@@ -94,7 +184,44 @@ def _checked_mesh(mesh):
             raise InvalidInputError(
                 f"mesh.cell_data[{name!r}] must have one row per cell ({len(cells)}), got shape {array.shape}")
         cell_data[str(name)] = native(array)
-    return points, cells, cell_data
+    facets, tags = getattr(mesh, "facets", None), getattr(mesh, "facet_tags", None)
+    if facets is None:
+        facets, tags = np.zeros((0, dim), np.int64), np.zeros(0, np.int32)
+    else:
+        facets = _checked_indices(facets, "mesh.facets", "b", dim, f"facets for {dim}D points", len(points))
+        tags = np.asarray(tags if tags is not None else np.zeros(0))
+        if tags.shape != (len(facets),) or (tags.size and tags.dtype.kind not in "iu") or (tags <= 0).any():
+            raise InvalidInputError(
+                f"mesh.facet_tags must be ({len(facets)},) integers > 0, one a facet (0 means 'no tag' to gmsh and "
+                f"MEDIT), got shape {tags.shape} of {tags.dtype}" + (f", min {tags.min()}" if tags.size else "")
+                + "; Mesh.with_tags sets facets and tags together")
+    names = {}
+    for name, value in (getattr(mesh, "tag_names", None) or {}).items():
+        try:
+            tag, dimension = (int(number) for number in value)
+        except (TypeError, ValueError):
+            tag, dimension = 0, -1
+        if not isinstance(name, str) or not name or set(name) & set('"\n\r\t') or tag <= 0 or \
+                dimension not in (dim, dim - 1):
+            raise InvalidInputError(
+                f"mesh.tag_names[{name!r}] = {value!r}: a name must be a non-empty string without quotes or line "
+                f"breaks, mapped to (tag > 0, dimension {dim} for a region or {dim - 1} for a facet tag)")
+        names[name] = (tag, dimension)
+    return (Mesh(points, cells, cell_data, facets, tags.astype(np.int32), names),
+            _region_labels(cell_data))
+
+
+def _checked_indices(array, name: str, rows: str, width: int, what: str, count: int) -> np.ndarray:
+    """``array`` as a (rows, width) int64 array of indices into ``count`` points."""
+    array = np.asarray(array)
+    if array.ndim != 2 or array.shape[1] != width or (array.size and array.dtype.kind not in "iu"):
+        raise InvalidInputError(f"{name} must be an ({rows}, {width}) integer array ({what}), got shape "
+                                f"{array.shape} of {array.dtype}")
+    array = array.astype(np.int64)
+    if array.size and (array.min() < 0 or array.max() >= count):
+        raise InvalidInputError(f"{name} must index mesh.points (0..{count - 1}), got values in "
+                                f"[{array.min()}, {array.max()}]")
+    return array
 
 
 def _region_labels(cell_data):
@@ -107,16 +234,17 @@ def _region_labels(cell_data):
 
 
 def read_mesh(path, *, orient: bool = True) -> Mesh:
-    """Read a tetrahedral mesh, or a planar triangle mesh, with meshio.
+    """Read a tetrahedral mesh, or a planar triangle mesh, with its tags.
 
     Parameters
     ----------
     path : str or Path
-        ``.vtu``, ``.vtk`` (legacy 4.2 or 5.1), ``.msh`` (gmsh 2.2 or 4.x, ASCII or binary; not ANSYS),
-        ``.inp`` (Abaqus), ``.mesh`` (MEDIT).
+        ``.vtu`` (with ``<stem>_facets.vtu`` if it is there), ``.vtk`` (legacy 4.2 or 5.1), ``.msh`` (gmsh 2.2 or
+        4.x, ASCII or binary; not ANSYS), ``.inp`` (Abaqus), ``.mesh`` (MEDIT), ``.xdmf`` (one grid a file, with
+        ``<stem>_facets.xdmf`` if it is there), read with meshio.
     orient : bool
         Reorder the vertices of negatively oriented cells so that every cell is positively oriented (the
-        :class:`Mesh` convention).
+        :class:`Mesh` convention).  Facets keep the orientation the file gives them.
 
     Returns
     -------
@@ -124,42 +252,30 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         The linear tetrahedra of the file (every ``tetra`` block, in file order) and all its points (unused
         points are kept, so indices match the file).  A file with no tetrahedra but triangles whose points are
         2D or share one z value gives a 2D mesh: points (n, 2) (z dropped), triangle cells.  Cell data given by
-        meshio for every selected block are carried over under meshio's names (e.g. ``gmsh:physical``,
-        ``medit:ref``), in native byte order.
+        meshio for every selected block are carried over (in native byte order), the regions as ``Region`` (int32:
+        the gmsh physical tags, the MEDIT references, the Abaqus region sets).  The facets (triangles, edges in 2D)
+        with a tag > 0 become ``facets`` and ``facet_tags`` (None when there are none), the names ``tag_names``.
 
     Raises
     ------
     InvalidInputError
-        Missing, empty or unreadable file, unknown extension, or no tetrahedra / planar triangles.
+        Missing, empty or unreadable file, unknown extension, no tetrahedra / planar triangles, or a facet file
+        that does not fit its mesh.
     """
-    import meshio
-
     path = existing_file(path, "a mesh", MESH_EXTENSIONS)
-    # The per-format readers, not meshio.read: that one prints the error and calls sys.exit(1) on a bad file.
-    readers = {".vtu": meshio.vtu.read, ".vtk": meshio.vtk.read, ".msh": meshio.gmsh.read,
-               ".inp": meshio.abaqus.read, ".mesh": meshio.medit.read}
-    reader = readers[path.suffix.lower()]
-    with meshio_warnings():
-        try:
-            data = reader(str(path))
-        except Exception as error:  # meshio raises ReadError, ValueError, IndexError, ... on bad files
-            data = _read_with_vtk(path) if path.suffix.lower() in (".vtu", ".vtk") else None
-            if data is None:
-                reason = f"{type(error).__name__}: {error}" if str(error).strip() else type(error).__name__
-                raise InvalidInputError(
-                    f"cannot read a mesh from '{path}': meshio could not parse it ({reason}); is the file "
-                    "truncated, or not of the format its extension says?") from error
+    suffix = path.suffix.lower()
+    data = _read_file(path)
     points = np.array(native(data.points), dtype=np.float64)
     if points.ndim != 2 or len(points) == 0:
         raise InvalidInputError(f"cannot read a mesh from '{path}': the file has no points")
     kinds = [block.type for block in data.cells]
     if "tetra" in kinds:
-        cell_type = "tetra"
+        cell_type, facet_type = "tetra", "triangle"
         points = points[:, :3] if points.shape[1] >= 3 else None
         if points is None:
             raise InvalidInputError(f"cannot read a mesh from '{path}': tetrahedra need 3D points")
     elif "triangle" in kinds and (points.shape[1] == 2 or _planar_z(points)):
-        cell_type = "triangle"
+        cell_type, facet_type = "triangle", "line"
         points = points[:, :2]
     else:
         found = ", ".join(sorted(set(kinds))) or "no cells"
@@ -171,17 +287,76 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
     cell_data = {}
     for name, blocks in data.cell_data.items():
         try:
-            arrays = [native(blocks[i]) for i in chosen]
-            cell_data[name] = np.concatenate(arrays)
+            cell_data[name] = np.concatenate([native(blocks[i]) for i in chosen])
         except (IndexError, TypeError, ValueError):
             continue  # this array is missing on some of the chosen blocks
     points = check_points(points, f"points of '{path}'")
     if cells.size and (cells.min() < 0 or cells.max() >= len(points)):
         raise InvalidInputError(f"cannot read a mesh from '{path}': cells index points that do not exist")
+    region_array = _TAG_ARRAYS.get(suffix, "Region")
+    if region_array in cell_data:
+        cell_data["Region"] = cell_data.pop(region_array).astype(np.int32)
+    cell_data.pop("gmsh:geometrical", None)
+    if suffix == ".inp":
+        regions, facets, tags, names = read_abaqus_tags(path, data, chosen, points, cells)
+        if regions is not None:
+            cell_data["Region"] = regions
+    else:
+        facets, tags, names = _tagged_facets(data, facet_type, _TAG_ARRAYS.get(suffix, FACET_ARRAY))
+    if suffix in (".vtu", ".xdmf") and _facet_file(path).is_file():
+        facets, tags, names = _joined(path, _facet_file(path), len(points), facet_type, (facets, tags, names))
+    if facets.size and (facets.min() < 0 or facets.max() >= len(points)):
+        raise InvalidInputError(f"cannot read a mesh from '{path}': facets index points that do not exist")
     if orient and len(cells):
         negative = signed_measures(points, cells) < 0
         cells[negative, :2] = cells[negative, 1::-1]
-    return Mesh(points, cells, cell_data)
+    return Mesh(points, cells, cell_data, facets if len(facets) else None, tags if len(facets) else None, names)
+
+
+def _read_file(path: Path):
+    """What meshio (or, for a VTK file meshio misreads, VTK) reads from ``path``."""
+    import meshio
+
+    # The per-format readers, not meshio.read: that one prints the error and calls sys.exit(1) on a bad file.
+    readers = {".vtu": meshio.vtu.read, ".vtk": meshio.vtk.read, ".msh": meshio.gmsh.read,
+               ".inp": meshio.abaqus.read, ".mesh": meshio.medit.read, ".xdmf": meshio.xdmf.read}
+    with meshio_warnings():
+        try:
+            return readers[path.suffix.lower()](str(path))
+        except Exception as error:  # meshio raises ReadError, ValueError, IndexError, ... on bad files
+            data = _read_with_vtk(path) if path.suffix.lower() in (".vtu", ".vtk") else None
+            if data is None:
+                reason = f"{type(error).__name__}: {error}" if str(error).strip() else type(error).__name__
+                raise InvalidInputError(
+                    f"cannot read a mesh from '{path}': meshio could not parse it ({reason}); is the file "
+                    "truncated, or not of the format its extension says?") from error
+            return data
+
+
+def _tagged_facets(data, facet_type: str, tag_array: str):
+    """(b, k) int64 facets, (b,) int32 tags > 0 and the names {name: (tag, dimension)} of a meshio mesh."""
+    blocks = [i for i, block in enumerate(data.cells) if block.type == facet_type]
+    arrays = data.cell_data.get(tag_array)
+    width = 3 if facet_type == "triangle" else 2
+    facets, tags = np.zeros((0, width), np.int64), np.zeros(0, np.int32)
+    if blocks and arrays is not None:
+        facets = np.concatenate([native(data.cells[i].data) for i in blocks]).astype(np.int64)
+        tags = np.concatenate([native(arrays[i]) for i in blocks]).astype(np.int32)
+        facets, tags = facets[tags > 0], tags[tags > 0]
+    names = {str(name): (int(value[0]), int(value[1])) for name, value in data.field_data.items()
+             if np.size(value) == 2}
+    return facets, tags, names
+
+
+def _joined(path: Path, companion: Path, count: int, facet_type: str, found):
+    """``found`` (facets, tags, names) with those of the facet file ``companion`` added."""
+    data = _read_file(companion)
+    if len(data.points) != count:
+        raise InvalidInputError(
+            f"cannot read a mesh from '{path}': its facet file '{companion.name}' has {len(data.points)} points, "
+            f"the mesh {count}; the two were not written together: write the mesh again, or remove the facet file")
+    facets, tags, names = _tagged_facets(data, facet_type, FACET_ARRAY)
+    return np.concatenate([found[0], facets]), np.concatenate([found[1], tags]), {**found[2], **names}
 
 
 def _read_with_vtk(path: Path):
