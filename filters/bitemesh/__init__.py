@@ -6,7 +6,7 @@ interrupt) costs nothing.
 """
 __version__ = "0.1.0"
 FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFilter", "MeshOptimizer",
-           "QualityFilter", "MeshFromPoints")
+           "QualityFilter", "MeshFromPoints", "FibreField")
 #: name -> the module that defines it.
 _CORE = {"BitemeshError": "core.errors", "BitemeshWarning": "core.errors", "Cancelled": "core.errors",
          "InvalidInputError": "core.errors", "MeshingError": "core.errors", "Mesh": "core.mesh",

@@ -16,15 +16,16 @@ from bitemesh.cli import build_parser
 from bitemesh.core import parameters as core
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.fem_check import FemParameters
+from bitemesh.core.fibres import FibreParameters
 from bitemesh.core.parameters import AUTOMATIC, is_optional, zero_was_automatic
 
 #: command -> the dataclasses whose every field is a flag of it
 MESH_OPTIONS = (core.TableParameters, core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
                 core.FidelityParameters, core.OptimizeParameters, core.LabelledParameters)
 COMMANDS = {
-    "mesh": MESH_OPTIONS,
-    "batch": MESH_OPTIONS,   # the same options as bitemesh mesh
-    "demo": (core.OptimizeParameters,),
+    "mesh": (*MESH_OPTIONS, FibreParameters),
+    "batch": MESH_OPTIONS,   # the same options as bitemesh mesh, but --fibres
+    "demo": (core.OptimizeParameters, FibreParameters),
     "quality": (core.QualityParameters,),
     "fem": (FemParameters,),
 }
@@ -42,6 +43,7 @@ FILTERS = {
     "MeshFromPoints": (core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
                        core.OptimizeParameters, core.LabelledParameters,
                        core.FidelityParameters),
+    "FibreField": ((FibreParameters, ("alpha_endo", "alpha_epi", "beta_endo", "beta_epi")),),   # runs always
 }
 #: the arguments a command needs before its flags parse.
 REQUIRED = {"mesh": ("in.csv", "-o", "out.vtu"), "batch": ("in.csv", "-o", "out"), "quality": ("m.vtu",),

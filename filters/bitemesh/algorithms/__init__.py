@@ -1,6 +1,7 @@
 """The bitemesh VTK filters (VTKPythonAlgorithmBase subclasses); they import only ``vtkmodules``."""
+from .fibres import FibreField
 from .filters import (BitingSampler, DelaunayTetra, MeshFromPoints, MeshOptimizer, PointsToImplicit,
                       QualityFilter, SpuriousCellFilter)
 
-__all__ = ["BitingSampler", "DelaunayTetra", "MeshFromPoints", "MeshOptimizer", "PointsToImplicit",
+__all__ = ["BitingSampler", "DelaunayTetra", "FibreField", "MeshFromPoints", "MeshOptimizer", "PointsToImplicit",
            "QualityFilter", "SpuriousCellFilter"]

@@ -6,7 +6,8 @@ from dataclasses import fields
 from ..cohorts.meshing import OPTION_NAMES, mesh_input
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
 from ..core.pipeline import run as run_pipeline
-from .options import ProgressBar, add_parameter_options, check_output, describe, write_and_report
+from .options import (ProgressBar, add_fibre_options, add_fibres, add_parameter_options, check_output, describe,
+                      fibre_parameters, write_and_report)
 
 
 def add_parser(subcommands) -> None:
@@ -17,10 +18,12 @@ def add_parser(subcommands) -> None:
                     "or labelled contour points (a biv-me GPFile, a table with a label column, a VTP with a Label "
                     "array), meshed as the domain their surfaces bound (--domain); or the labels of a label map "
                     "(.nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, meshed in its physical LPS space). Writes .vtu/.vtk, .msh "
-                    "(gmsh), .inp (Abaqus) or .mesh (MEDIT).")
+                    "(gmsh), .inp (Abaqus) or .mesh (MEDIT). --fibres adds the myocardial fibres of a biventricular "
+                    "heart (labelled contours) as cell vectors (.vtu/.vtk).")
     parser.add_argument("input", help="the scattered points, or a label map")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_mesh_options(parser)
+    add_fibre_options(parser)
     parser.set_defaults(run=run)
 
 
@@ -40,10 +43,11 @@ def add_mesh_options(parser) -> None:
 
 def run(args) -> None:
     check_output(args.output)
+    fibres = fibre_parameters(args)
     bar = ProgressBar()
     try:
         result = mesh_input(args.input, {name: getattr(args, name) for name in OPTION_NAMES}, progress=bar,
                             mesh_points=run_pipeline)
     finally:
         bar.close()
-    write_and_report(result, args.output)
+    write_and_report(add_fibres(result, fibres), args.output)

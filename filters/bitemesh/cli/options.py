@@ -3,10 +3,11 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 
 from ..core.errors import InvalidInputError
+from ..core.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
 from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
 from ..core.quality import quality_summary
 from ..io import MESH_EXTENSIONS, write_mesh
@@ -47,6 +48,44 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
                 kind, help = or_automatic(kind), f"{help}; {AUTOMATIC} or auto: automatic (the default)"
             group.add_argument(flag, dest=item.name, type=kind, choices=item.metadata.get("choices"),
                                default=item.default, help=help)
+
+
+#: the mesh formats that keep no cell arrays but the regions (see bitemesh.io.meshes): the fibres cannot go there.
+NO_CELL_ARRAYS = (".msh", ".inp", ".mesh")
+
+
+def add_fibre_options(parser) -> None:
+    """``--fibres`` and the angles of the rule (FibreParameters)."""
+    add_parameter_options(parser, (FibreParameters,))
+
+
+def fibre_parameters(args):
+    """The FibreParameters of ``--fibres`` and the angles, checked (ranges) before any work, or None without
+    ``--fibres``; an output that would drop the fibres is refused."""
+    parameters = parameters_from_args(args, (FibreParameters,))[0]
+    if not parameters.fibres:
+        return None
+    suffix = Path(args.output).suffix.lower()
+    if suffix in NO_CELL_ARRAYS:
+        raise InvalidInputError(f"--fibres: a {suffix} file keeps no cell arrays but the regions, so the fibres "
+                                f"would be lost; write .vtu or .vtk, which keep {', '.join(FIBRE_ARRAYS)}")
+    return parameters
+
+
+def add_fibres(result, parameters):
+    """``result`` with its mesh carrying the rule-based fibres (:func:`bitemesh.core.fibres.with_fibres`) and their
+    time among the steps'; ``result`` itself when ``parameters`` is None (no ``--fibres``)."""
+    if parameters is None:
+        return result
+    bar = ProgressBar()
+    try:
+        mesh, seconds = with_fibres(result.mesh, parameters, bar)
+    except InvalidInputError as error:
+        raise InvalidInputError(f"--fibres: {error}") from None
+    finally:
+        bar.close()
+    print(f"fibres: cell arrays {', '.join(FIBRE_ARRAYS)} (Bayer et al. 2012)")
+    return replace(result, mesh=mesh, seconds={**result.seconds, "fibres": seconds})
 
 
 def or_automatic(kind):
