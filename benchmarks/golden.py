@@ -70,7 +70,7 @@ def benchmark_shape(name: str, cells: int, optimize: int = 1):
 
 def label_map_ball(cells: int = 10000, optimize: int = 1):
     """Two labels of a voxel ball (an inner ball and its shell), anisotropic voxels, a rotated direction, meshed as
-    their union by :func:`bitemesh.labelmap.mesh_label_grid`."""
+    two regions (their union's mesh, the interface sampled and snapped) by :func:`bitemesh.labelmap.mesh_label_grid`."""
     from bitemesh.core.parameters import BitingParameters, OptimizeParameters
     from bitemesh.labelmap import mesh_label_grid
     index = np.indices((48, 40, 56)).transpose(1, 2, 3, 0) - np.array([24, 20, 28])

@@ -28,3 +28,40 @@ def centroid(mesh) -> np.ndarray:
     corners = mesh.points[mesh.cells]
     volumes = signed_measures(mesh.points, mesh.cells)
     return (corners.mean(axis=1) * volumes[:, None]).sum(axis=0) / volumes.sum()
+
+
+def oriented_rows(facets) -> set:
+    """The facets (b, k) as a set of tuples that keeps their orientation: each triangle turned (cyclically) to start
+    at its smallest vertex; edges (2D) as they are."""
+    facets = np.asarray(facets)
+    if facets.shape[1] == 3:
+        start = np.argmin(facets, axis=1)
+        facets = facets[np.arange(len(facets))[:, None], (start[:, None] + np.arange(3)) % 3]
+    return set(map(tuple, facets.tolist()))
+
+
+def assert_tagged(mesh):
+    """Fail unless ``mesh`` carries tags as :class:`bitemesh.core.mesh.Mesh` says: every boundary facet once,
+    oriented out of the domain, and every interface facet (cells of two regions on its sides) once, oriented out of
+    the region with the lower tag; tags > 0, each named (dimension k - 1); every cell in a named region (dimension k).
+
+    Returns the interface facets' rows (a set of oriented tuples)."""
+    from bitemesh.core.topology import boundary_facets, facet_table
+    assert mesh.facets is not None and mesh.facet_tags is not None
+    assert mesh.facet_tags.dtype == np.int32 and mesh.facets.shape == (len(mesh.facet_tags), mesh.dim)
+    assert (mesh.facet_tags > 0).all()
+    regions = mesh.cell_data["Region"]
+    assert regions.dtype == np.int32 and (regions > 0).all()
+    facets, inverse, _ = facet_table(mesh.cells)
+    side = np.repeat(regions, mesh.cells.shape[1])
+    order = np.argsort(inverse, kind="stable")
+    same = np.flatnonzero(inverse[order[1:]] == inverse[order[:-1]])   # the two rows of each interior facet
+    a, b = order[same], order[same + 1]
+    lower = np.where(side[a] < side[b], a, b)[side[a] != side[b]]
+    interfaces = facets[lower]
+    expected = oriented_rows(boundary_facets(mesh.cells)) | oriented_rows(interfaces)
+    assert oriented_rows(mesh.facets) == expected and len(mesh.facets) == len(expected)
+    named = {(tag, dim) for tag, dim in mesh.tag_names.values()}
+    assert {(int(tag), mesh.dim - 1) for tag in np.unique(mesh.facet_tags)} <= named
+    assert {(int(tag), mesh.dim) for tag in np.unique(regions)} <= named
+    return oriented_rows(interfaces)

@@ -32,11 +32,13 @@ import numpy as np
 
 from .core.errors import InvalidInputError, check_number
 from .core.grid import ImplicitGrid
+from .core.interfaces import LabelRegions
 from .core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                               STEP_PARAMETERS, SpuriousParameters, parameters_from_keywords)
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.source import Frame, Source
 from .core.spine import MeshingResult, mesh_source, timed
+from .core.tags import region_labels
 # the label map files, imported from here as before (re-exported)
 from .io.labelmaps import (LABEL_MAP_EXTENSIONS, LabelMap, import_simpleitk,  # noqa: F401 (re-exported)
                            index_to_physical_matrix, read_label_map)
@@ -195,7 +197,9 @@ def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     voxel grid (cropped to the labels' box, smoothed, :func:`label_map_to_grid`) in the local frame (index x
     spacing), the voxel faces as samples, and the frame to physical space that ``ijk_to_physical`` gives.
 
-    See :func:`mesh_label_grid` for the parameters; ``implicit.max_memory_mb`` bounds the distance's memory.
+    See :func:`mesh_label_grid` for the parameters; ``implicit.max_memory_mb`` bounds the distance's memory.  With
+    several labels each label's own distance is made too (the same filter), for the regions
+    (:class:`~bitemesh.core.interfaces.LabelRegions`: the source's tagging and interfaces).
     """
     labels_ijk = np.asarray(labels_ijk)
     dim = labels_ijk.ndim
@@ -211,23 +215,33 @@ def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     # Crop to the domain's bounding box: the distance and the grid need not cover empty image.
     box = [np.flatnonzero(mask.any(axis=tuple(a for a in range(dim) if a != axis))) for axis in range(dim)]
     first = np.array([b[0] for b in box])
-    mask = mask[tuple(slice(b[0], b[-1] + 1) for b in box)]
+    crop = tuple(slice(b[0], b[-1] + 1) for b in box)
+    mask, cropped = mask[crop], labels_ijk[crop]
+    regions = region_labels(cropped[mask])
     smoothing = check_number(smoothing, "smoothing", low=0, high=10, hint="in voxels; 1 is the default, 0 is off")
     padding = 2 * (PAD_VOXELS + _filter_padding(smoothing))
-    needed_mb = np.prod(np.array(mask.shape, float) + padding) * DISTANCE_BYTES_PER_VOXEL / 2**20
+    # one distance at a time; with several labels each label's distance is kept too (8 bytes a voxel)
+    per_voxel = DISTANCE_BYTES_PER_VOXEL + (8 * len(regions) if len(regions) > 1 else 0)
+    needed_mb = np.prod(np.array(mask.shape, float) + padding) * per_voxel / 2**20
     if needed_mb > implicit.max_memory_mb:
         raise InvalidInputError(
-            f"the labels span {' x '.join(map(str, mask.shape))} voxels; their signed distance needs about "
-            f"{needed_mb:.0f} MiB, more than max_memory_mb = {implicit.max_memory_mb:g}; raise max_memory_mb or "
-            "resample the label map to coarser voxels")
+            f"the labels span {' x '.join(map(str, mask.shape))} voxels; their signed distance"
+            f"{f's ({len(regions)} labels and their union)' if len(regions) > 1 else ''} need about "
+            f"{needed_mb:.0f} MiB, more than max_memory_mb = {implicit.max_memory_mb:g}; raise max_memory_mb, "
+            "resample the label map to coarser voxels" + (" or mesh fewer labels" if len(regions) > 1 else ""))
 
     report(progress, 0.5, "signed distance of the labels")
     grid = label_map_to_grid(mask, first * spacing, spacing, smoothing=smoothing)
+    several = None if len(regions) == 1 else LabelRegions({
+        int(label): label_map_to_grid(cropped == label, first * spacing, spacing, smoothing=smoothing)
+        for label in regions})
     # Local frame (index x spacing) -> physical: the unit columns of the matrix, then its translation.
     frame = Frame(matrix[:dim, :dim] / spacing[None, :], matrix[:dim, dim])
     voxel = float(np.max(spacing))
     return Source(grid, grid.origin, grid.upper, frame, grid=grid, samples=mask_faces(mask, first * spacing, spacing),
-                  noise=STAIRCASE_NOISE * voxel, gap=float(np.linalg.norm(spacing)), labels=chosen)
+                  noise=STAIRCASE_NOISE * voxel, gap=float(np.linalg.norm(spacing)), labels=chosen,
+                  tagging=LabelRegions({int(regions[0]): grid}) if several is None else several,
+                  interfaces=several)
 
 
 def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
@@ -245,7 +259,8 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     labels_ijk : (n_i, n_j, n_k) (or (n_i, n_j)) integer array indexed [i, j, k]
     ijk_to_physical : (k + 1, k + 1) float64, voxel index -> physical point (spacing included: its columns have
         the voxel sizes as lengths), e.g. ITK's ``[direction @ diag(spacing) | origin]`` or Slicer's IJK-to-RAS
-    labels : None (every nonzero voxel), one int, or a set of ints (their union)
+    labels : None (every nonzero voxel), one int, or a set of ints: the domain is their union, meshed as one mesh
+        with a region per label (see Returns)
     implicit : ImplicitParameters or None (defaults); its grid_spacing (the grid I; default R / 4, or the voxels
         when their largest size is between R / 8 and R / 4) and max_memory_mb are used; method, error_bound and
         margin do not apply to label maps
@@ -257,7 +272,11 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     Returns
     -------
     LabelMapMeshingResult: mesh (positively oriented cells, quality arrays) and nodes in physical space; implicit
-    in the local frame (index x spacing), which ``to_physical`` maps to physical space.
+    in the local frame (index x spacing), which ``to_physical`` maps to physical space.  The mesh's cells carry
+    ``Region`` = their label (``REGION_<label>``: the label whose smoothed distance is largest at the centroid);
+    its facets the tags of :func:`~bitemesh.core.tags.region_tags` (``BOUNDARY_<label>``, ``INTERFACE_<a>_<b>``).
+    With several labels the regions share the nodes of their interfaces, which the biting samples and
+    :func:`~bitemesh.core.interfaces.snap_interfaces` moves onto f_a = f_b.
 
     The grid I is axis-aligned in the local frame; the mesh is made there and then mapped to physical space, so
     the image's direction costs nothing.  A reflection (direction with negative determinant) would turn every
@@ -279,7 +298,8 @@ def label_map_mesh(label_map, *, labels=None, ras=False, smoothing=SMOOTHING_VOX
     Parameters
     ----------
     label_map : LabelMap, or the path of a file that :func:`read_label_map` reads
-    labels : None (every nonzero voxel), one int, or a set of ints (the union of those labels)
+    labels : None (every nonzero voxel), one int, or a set of ints: their union, a region per label (as
+        :func:`mesh_label_grid`)
     ras : False: points in ITK's LPS (the file's physical space); True: in RAS (x and y negated), as in Slicer
     smoothing : standard deviation (voxels) of the staircase filter (see :func:`label_map_to_grid`); 0 is off
     progress : callable(fraction, message), optional
@@ -290,7 +310,8 @@ def label_map_mesh(label_map, *, labels=None, ras=False, smoothing=SMOOTHING_VOX
 
     Returns
     -------
-    LabelMapMeshingResult; ``.mesh`` has cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
+    LabelMapMeshingResult; ``.mesh`` has cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and
+    Region, and its tagged facets (see :func:`mesh_label_grid`).
     """
     if isinstance(label_map, (str, Path)):
         label_map = read_label_map(label_map)

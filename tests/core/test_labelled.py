@@ -279,7 +279,7 @@ def test_mesh_from_labelled_points_is_deterministic(shell):
     meshes = [mesh_from_labelled_points(points, labels, domain=SHELL_DOMAIN, base_plane=BASE, slices=slices,
                                         cells=3000, seed=4) for _ in range(2)]
     assert np.array_equal(meshes[0].points, meshes[1].points) and np.array_equal(meshes[0].cells, meshes[1].cells)
-    assert set(meshes[0].cell_data) == {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume"}
+    assert set(meshes[0].cell_data) == {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume", "Region"}
 
 
 def test_every_labelled_parameter_reaches_the_fit_with_the_dataclass_default():

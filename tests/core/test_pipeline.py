@@ -35,7 +35,7 @@ def test_scattered_points_give_a_valid_mesh_of_the_shape(samples, name, with_nor
     distance = np.abs(shape.function(mesh.points[on_boundary])) / spacing
     assert np.median(distance) < 0.02
     assert distance.max() < (0.25 if name in ("sphere", "torus") else 1.5)
-    assert set(mesh.cell_data) == {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume"}
+    assert set(mesh.cell_data) == {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume", "Region"}
 
 
 def test_a_2d_shape_with_a_hole_gives_valid_triangles():

@@ -59,8 +59,24 @@ def project_to_surface(grid: ImplicitGrid, points: np.ndarray, *, steps: int = 4
     return points
 
 
+def interface_border(grid: ImplicitGrid, alive: np.ndarray, interfaces) -> np.ndarray:
+    """The Alive grid nodes with an Alive axis neighbour in another region (``interfaces.node_regions``)."""
+    inside = np.flatnonzero(alive.ravel())
+    region = np.full(alive.shape, -1)
+    region.ravel()[inside] = interfaces.node_regions(grid.node_coordinates(inside))
+    border = np.zeros(alive.shape, bool)
+    for axis in range(alive.ndim):
+        ahead, behind = [slice(None)] * alive.ndim, [slice(None)] * alive.ndim
+        ahead[axis], behind[axis] = slice(1, None), slice(None, -1)
+        ahead, behind = tuple(ahead), tuple(behind)
+        differ = alive[ahead] & alive[behind] & (region[ahead] != region[behind])
+        border[ahead] |= differ
+        border[behind] |= differ
+    return border
+
+
 def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: int = 0, jitter: float = 0.15,
-         progress: ProgressCallback = None) -> np.ndarray:
+         progress: ProgressCallback = None, interfaces=None) -> np.ndarray:
     """Place mesh nodes at least about ``radius`` apart inside {f > 0}.
 
     Parameters
@@ -70,6 +86,10 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     order : ``"boundary"`` (border first, then inward) or ``"random"``
     seed : seed of the generator that breaks ties and jitters the nodes
     jitter : interior nodes move by up to ``jitter`` grid spacings per axis, so qhull never sees an exact lattice
+    interfaces : regions inside {f > 0} whose interfaces are sampled like the boundary (a
+        :class:`~bitemesh.core.interfaces.LabelRegions`: ``node_regions(points)``, ``onto_interfaces(points,
+        reach, surface)``), or None.  Given, the grid nodes next to another region's join the border layer, and
+        their nodes go onto the interface (those on the border too: onto where the interface meets f = 0)
 
     Returns
     -------
@@ -95,7 +115,8 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     padded = np.pad(alive, pad)
     offsets = ball_offsets(radius, spacing, padded.shape)
     border = alive & ~ndimage.binary_erosion(alive, border_value=0)
-    ordered = selection_order(grid, border, order, rng)
+    between = None if interfaces is None else interface_border(grid, alive, interfaces)
+    ordered = selection_order(grid, border if between is None else border | between, order, rng)
     padded_index = np.ravel_multi_index(
         tuple(i + pad for i in np.unravel_index(ordered, alive.shape)), padded.shape)
 
@@ -120,6 +141,11 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     nodes = grid.node_coordinates(chosen) + rng.uniform(-jitter, jitter, (chosen.size, grid.dim)) * spacing
     on_border = border.ravel()[chosen]   # the nodes of the border layer go onto f = 0
     nodes[on_border] = project_to_surface(grid, nodes[on_border])
+    if between is not None:   # and those next to another region onto the interface (on the border: where the
+        reach = 4 * float(np.max(spacing))    # interface meets f = 0), as far as the border's go
+        for layer, surface in ((between & ~border, None), (between & border, grid)):
+            chosen_layer = layer.ravel()[chosen]
+            nodes[chosen_layer] = interfaces.onto_interfaces(nodes[chosen_layer], reach, surface)
     if not np.isfinite(nodes).all():
         raise MeshingError("projecting the border nodes onto f = 0 failed (non-finite coordinates); "
                            "the implicit function may be flat there: try a finer grid_spacing")

@@ -147,7 +147,8 @@ def mesh_from_points(points, normals=None, *, progress: ProgressCallback = None,
 
     Returns
     -------
-    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
+    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and Region (1, ``DOMAIN``), its
+    boundary facets tagged one tag per connected piece (:func:`~bitemesh.core.tags.component_tags`).
     """
     implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(parameters, STEP_PARAMETERS)
     return run(points, normals, implicit, biting, spurious, progress, optimize, fidelity).mesh

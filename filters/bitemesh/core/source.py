@@ -6,7 +6,7 @@ a :class:`Source`; :func:`bitemesh.core.spine.mesh_source` meshes it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import numpy as np
@@ -85,15 +85,17 @@ class Frame:
                             values=grid.values * self.scale)
 
     def mesh_to_user(self, mesh: Mesh) -> Mesh:
-        """``mesh`` (local frame, positively oriented, quality arrays) in user coordinates: a reflection swaps two
-        vertices of every cell back to positive, and the quality arrays are recomputed when angles change."""
+        """``mesh`` (local frame, positively oriented, quality arrays, tags) in user coordinates: a reflection swaps
+        two vertices of every cell and facet back to positive (facets out of the domain), and the quality arrays are
+        recomputed when angles change."""
         if self.is_identity():
             return mesh
-        cells = mesh.cells
-        if np.linalg.det(self.linear) < 0:
-            cells = cells.copy()
-            cells[:, [0, 1]] = cells[:, [1, 0]]
-        moved = Mesh(self.to_user(mesh.points), cells, dict(mesh.cell_data))
+        cells, facets = mesh.cells, mesh.facets
+        if np.linalg.det(self.linear) < 0:   # a reflection turns cells and facets inside out: swap two vertices
+            cells, facets = (None if rows is None else rows[:, [1, 0, *range(2, rows.shape[1])]]
+                             for rows in (cells, facets))
+        moved = replace(mesh, points=self.to_user(mesh.points), cells=cells, facets=facets,
+                        cell_data=dict(mesh.cell_data))
         if not self.is_similarity:
             return moved.with_cell_data(**cell_quality(moved))
         factor = abs(np.linalg.det(self.linear))
@@ -126,6 +128,11 @@ class Source:
         radius_note : the sentence that says so when it is used
     handles : what SpuriousParameters.handles "auto" means for this data ("keep", or "remove" for a myocardium)
     labels : the labels meshed, for a label map
+    tagging : callable (mesh, f) -> mesh, the valid mesh (local frame) with its tags, given the f that was meshed
+        (:mod:`bitemesh.core.tags`), or None for one tag per boundary component
+        (:func:`~bitemesh.core.tags.component_tags`)
+    interfaces : regions whose interfaces the biting samples like the boundary (a label map of several labels:
+        :class:`~bitemesh.core.interfaces.LabelRegions`), or None
     """
 
     function: Callable[[np.ndarray], np.ndarray]
@@ -143,6 +150,8 @@ class Source:
     radius_note: str = ""
     handles: str = "keep"
     labels: tuple = ()
+    tagging: Optional[Callable[[Mesh, Callable], Mesh]] = None
+    interfaces: Optional[object] = None
 
     @property
     def size(self) -> float:

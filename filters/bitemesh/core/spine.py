@@ -15,6 +15,7 @@ import time
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Callable, Optional
 
 import numpy as np
@@ -33,6 +34,7 @@ from .parameters import (BitingParameters, FidelityParameters, ImplicitParameter
 from .progress import ProgressCallback, report, sub_progress
 from .quality import cell_quality
 from .source import Frame, Source
+from .tags import component_tags
 
 logger = logging.getLogger("bitemesh")
 
@@ -100,18 +102,23 @@ def timed(seconds: dict, name: str):
 
 def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: SpuriousParameters = SpuriousParameters(),
                    progress: ProgressCallback = None, seconds: dict | None = None,
-                   optimize: OptimizeParameters = OptimizeParameters()) -> MeshingResult:
+                   optimize: OptimizeParameters = OptimizeParameters(),
+                   tagging: Callable[[Mesh], Mesh] = component_tags, interfaces=None) -> MeshingResult:
     """Mesh {f > 0} of a sampled implicit function; R is ``biting.radius`` or chosen for ``biting.cells`` cells.
 
     With ``optimize.optimize`` 1 (the default), the MeshOptimizer step (relaxation, sliver removal) runs on the
-    valid domain; 0 gives the paper's plain method.
+    valid domain; 0 gives the paper's plain method.  ``tagging`` tags the valid mesh before its quality is measured
+    (it may move interface nodes, :mod:`bitemesh.core.interfaces`); by default one tag per boundary component.
+    ``interfaces`` (a :class:`~bitemesh.core.interfaces.LabelRegions`, or None): regions whose interfaces the
+    biting samples like the boundary.
     """
     seconds = {} if seconds is None else seconds
     radius = biting.radius or radius_on_grid(grid, biting.cells)
     optimize = switched_optimizer(optimize)
     carved = 0.9 if optimize is None else 0.6
     with timed(seconds, "biting"):
-        nodes = bite(grid, radius, order=biting.order, seed=biting.seed, progress=sub_progress(progress, 0, 0.3))
+        nodes = bite(grid, radius, order=biting.order, seed=biting.seed, progress=sub_progress(progress, 0, 0.3),
+                     interfaces=interfaces)
     with timed(seconds, "delaunay"):
         cells = delaunay(nodes)
     report(progress, 0.45, "delaunay")
@@ -120,6 +127,8 @@ def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: Spuri
     if optimize is not None:
         with timed(seconds, "optimize"):
             mesh = optimize_mesh(grid, mesh, optimize, progress=sub_progress(progress, carved, 0.97))
+    with timed(seconds, "tags"):
+        mesh = tagging(mesh)
     with timed(seconds, "quality"):
         mesh = mesh.with_cell_data(**cell_quality(mesh))
     report(progress, 1.0, "quality")
@@ -320,7 +329,8 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
                 optimize: OptimizeParameters = OptimizeParameters(), progress: ProgressCallback = None,
                 seconds: dict | None = None, fidelity: FidelityParameters = FidelityParameters()) -> MeshingResult:
     """Mesh a source: choose R and sample the grid I (:func:`grid_for_source`), bite, Delaunay, carve the valid
-    domain, optimize (when ``optimize.optimize`` is 1), quality, measure the fidelity to the source's samples (refused
+    domain, optimize (when ``optimize.optimize`` is 1), tag (the source's :attr:`~bitemesh.core.source.Source.tagging`,
+    by default one tag per boundary component), quality, measure the fidelity to the source's samples (refused
     beyond the bounds of ``fidelity``, see :func:`~bitemesh.core.fidelity.check_fidelity`), and map the mesh to
     user coordinates.
 
@@ -333,7 +343,9 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     with timed(seconds, "implicit sampling"):
         grid, radius, function, notes = grid_for_source(source, implicit, biting, sub_progress(progress, 0.0, 0.3))
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
-    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 0.97), seconds, optimize)
+    tagging = component_tags if source.tagging is None else partial(source.tagging, function=function)
+    result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 0.97), seconds, optimize, tagging,
+                            source.interfaces)
     frame = source.frame
     measured = None
     if source.samples is not None:

@@ -17,6 +17,7 @@ from ..parameters import (STEP_PARAMETERS, BitingParameters, FidelityParameters,
 from ..progress import ProgressCallback, sub_progress
 from ..source import Frame, Source
 from ..spine import MeshingResult, mesh_source, timed
+from ..tags import DOMAIN, MYOCARDIUM, surface_tags
 from .cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, LV_DOMAIN, check_heart
 from .fit import labelled_implicit
 from .function import LabelledImplicit
@@ -46,6 +47,20 @@ def is_myocardium(function: LabelledImplicit) -> bool:
             and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
 
 
+def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
+    """``mesh`` of ``function``'s domain (its frame) with every boundary triangle tagged by the surface it lies on
+    (:func:`~bitemesh.core.tags.surface_tags`: tag = position in ``function.names`` + 1; biv-me EPI 1, LV_ENDO 2,
+    RV_ENDO 3, BASE 4), one region (MYOCARDIUM for a heart's myocardium, else DOMAIN).
+
+    The valve openings are no triangles of a myocardium: its cavities open through the base plane, so each valve
+    is a hole in the BASE ring, bounded where the LV_ENDO or RV_ENDO triangles meet the base.  The base plane is
+    one plane through the valves' centres, not the valve rings, so a cavity's domain (a blood pool) has one BASE
+    cap for all its valves; splitting that cap by valve is not done.
+    """
+    return surface_tags(mesh, function.active_surface, function.names,
+                        MYOCARDIUM if is_myocardium(function) else DOMAIN)
+
+
 def labelled_keywords(parameters: LabelledParameters, given_only: bool = False) -> dict:
     """LabelledParameters as keywords of :func:`run_labelled` (the CLI, the VTK filters and Slicer all pass them so):
     an empty domain is None (the default domain), base_plane "none" None (no cut), allow_implausible a bool.
@@ -69,7 +84,8 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
     centred on the points' bounding box (in mm still), the thinnest wall following R unless ``min_wall`` is given
     (:func:`thinnest_wall`), R = 2 mm by default for biv-me surfaces
     (:data:`~bitemesh.core.contours.cardiac.CARDIAC_RADIUS`), handles removed from a myocardium, and the surface points
-    below the base plane as the samples (the base plane's cap and derived surfaces left out of the fidelity)."""
+    below the base plane as the samples (the base plane's cap and derived surfaces left out of the fidelity), the
+    boundary tagged by surface (:func:`labelled_tags`)."""
     points = check_points(points, dims=(3,))
     frame = Frame.around(points, scaled=False)   # millimetres stay millimetres: the defaults are in mm
     if base_plane is not None and not isinstance(base_plane, str):
@@ -91,7 +107,7 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
                   open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
                   notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
                   radius_note=f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)"
-                  if cardiac else "", handles="remove" if is_myocardium(function) else "keep")
+                  if cardiac else "", handles="remove" if is_myocardium(function) else "keep", tagging=labelled_tags)
 
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
@@ -147,7 +163,8 @@ def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto",
 
     Returns
     -------
-    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle and Volume.
+    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and Region, its boundary triangles
+    tagged by surface (:func:`labelled_tags`).
     """
     names = {item.name for cls in STEP_PARAMETERS for item in fields(cls)}
     steps = {name: options.pop(name) for name in list(options) if name in names}
