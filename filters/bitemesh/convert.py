@@ -1,4 +1,4 @@
-"""numpy <-> VTK for the data the filters exchange: point sets, the implicit image, simplicial meshes.
+"""numpy <-> VTK for the data the filters exchange: point sets, the implicit image, simplicial meshes and their tags.
 
 Only ``vtkmodules`` imports and API present in VTK 9.2, so that ParaView 5.11 loads the same code.
 """
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray, vtkPoints, vtkVersion
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray, vtkPoints, vtkStringArray, vtkVersion
 from vtkmodules.vtkCommonDataModel import (VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkImageData, vtkPolyData,
                                            vtkUnstructuredGrid)
 
@@ -140,7 +140,8 @@ def image_to_grid(image: vtkImageData, name: str = IMPLICIT_ARRAY) -> ImplicitGr
 
 
 def mesh_to_unstructured(mesh: Mesh, grid: vtkUnstructuredGrid | None = None) -> vtkUnstructuredGrid:
-    """A vtkUnstructuredGrid of VTK_TETRA (VTK_TRIANGLE in 2D) cells with the mesh's cell data."""
+    """A vtkUnstructuredGrid of VTK_TETRA (VTK_TRIANGLE in 2D) cells with the mesh's cell data (the regions as the
+    int32 cell array ``Region``) and, when the mesh has them, its tag names as field data (:func:`add_tag_names`)."""
     grid = vtkUnstructuredGrid() if grid is None else grid
     grid.SetPoints(vtk_points(mesh.points))
     cell_type = VTK_TETRA if mesh.cells.shape[1] == 4 else VTK_TRIANGLE
@@ -149,6 +150,8 @@ def mesh_to_unstructured(mesh: Mesh, grid: vtkUnstructuredGrid | None = None) ->
         array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values), deep=True)
         array.SetName(name)
         grid.GetCellData().AddArray(array)
+    if mesh.tag_names:
+        add_tag_names(grid, mesh.tag_names)
     return grid
 
 
@@ -224,3 +227,98 @@ def add_field_values(dataset, values: dict, prefix: str = "") -> None:
     for name, value in values.items():
         camel = "".join(part.capitalize() for part in name.split("_"))
         dataset.GetFieldData().AddArray(field_array(prefix + camel, [float(value)]))
+
+
+# --- tags: the meshing filters' second output -----------------------------------------------------------------------
+
+#: the cell array of the tagged facets' vtkPolyData: each facet's tag (int32 > 0).
+SURFACE_TAG_ARRAY = "SurfaceTag"
+#: the cell array of the regions on the mesh's vtkUnstructuredGrid (int32 > 0).
+REGION_ARRAY = "Region"
+#: the field-data arrays naming the tags, parallel, one entry a name: ``TagNames`` (vtkStringArray), ``TagValues``
+#: and ``TagDimensions`` (vtkIntArray): dimension k (3, 2 in 2D) for a region, k - 1 for a facet tag.
+TAG_NAME_ARRAYS = ("TagNames", "TagValues", "TagDimensions")
+
+
+def add_tag_names(dataset, tag_names: dict) -> None:
+    """Put ``tag_names`` (name -> (tag, dimension)) on ``dataset``'s field data as :data:`TAG_NAME_ARRAYS`."""
+    names = vtkStringArray()
+    names.SetName(TAG_NAME_ARRAYS[0])
+    for name in tag_names:
+        names.InsertNextValue(name)
+    data = dataset.GetFieldData()
+    data.AddArray(names)
+    for column, array_name in enumerate(TAG_NAME_ARRAYS[1:]):
+        data.AddArray(field_array(array_name, [int(value[column]) for value in tag_names.values()], integer=True))
+
+
+def tag_names_of(dataset) -> dict:
+    """name -> (tag, dimension) from ``dataset``'s field data (:data:`TAG_NAME_ARRAYS`); {} without them.
+
+    Raises InvalidInputError when they are there but not parallel (or not a string and two integer arrays)."""
+    data = dataset.GetFieldData()
+    arrays = [data.GetAbstractArray(name) for name in TAG_NAME_ARRAYS]
+    if all(array is None for array in arrays):
+        return {}
+    counts = [None if array is None else array.GetNumberOfValues() for array in arrays]
+    kinds = [array is not None and array.IsA(kind) for array, kind in zip(arrays, ("vtkStringArray", "vtkDataArray",
+                                                                                    "vtkDataArray"))]
+    if not all(kinds) or len(set(counts)) != 1:
+        raise InvalidInputError(f"the field data {', '.join(TAG_NAME_ARRAYS)} must be a vtkStringArray and two "
+                                f"integer arrays of the same length, got {dict(zip(TAG_NAME_ARRAYS, counts))}; "
+                                "make them with bitemesh.convert.add_tag_names")
+    names, values, dimensions = arrays
+    return {names.GetValue(i): (int(values.GetTuple1(i)), int(dimensions.GetTuple1(i))) for i in range(counts[0])}
+
+
+def tags_to_polydata(mesh: Mesh, polydata: vtkPolyData | None = None) -> vtkPolyData:
+    """The tagged facets of a mesh as a vtkPolyData that shares every point of the mesh (point id = node id):
+    triangles (lines in 2D) with the int32 cell array ``SurfaceTag``, and the names of every tag, regions
+    included, as field data (:func:`add_tag_names`).  A mesh without tags gives the points and no cells."""
+    polydata = vtkPolyData() if polydata is None else polydata
+    polydata.SetPoints(vtk_points(mesh.points))
+    facets = np.zeros((0, mesh.dim), np.int64) if mesh.facets is None else mesh.facets
+    (polydata.SetPolys if mesh.dim == 3 else polydata.SetLines)(cell_array(facets))
+    tags = numpy_support.numpy_to_vtk(np.ascontiguousarray(
+        np.zeros(0, np.int32) if mesh.facet_tags is None else mesh.facet_tags, dtype=np.int32), deep=True)
+    tags.SetName(SURFACE_TAG_ARRAY)
+    polydata.GetCellData().AddArray(tags)
+    polydata.GetCellData().SetActiveScalars(SURFACE_TAG_ARRAY)
+    add_tag_names(polydata, mesh.tag_names)
+    return polydata
+
+
+def polydata_to_tags(polydata: vtkPolyData, mesh: Mesh):
+    """The tags that :func:`tags_to_polydata` put on ``polydata``, checked against ``mesh`` (the mesh they tag).
+
+    Returns
+    -------
+    facets : (b, k) int64 node ids of ``mesh``; facet_tags : (b,) int32; tag_names : name -> (tag, dimension)
+
+    Raises InvalidInputError naming what is wrong (another mesh's points, facets that are not triangles (lines in
+    2D), no ``SurfaceTag``), with the hint to connect the meshing filter's second output.
+    """
+    hint = "connect the tagged facets of this mesh (the meshing filter's second output, port 1)"
+    count = 0 if polydata is None else polydata.GetNumberOfPoints()
+    if count != len(mesh.points):
+        raise InvalidInputError(f"the tagged facets hold {count} points and the mesh {len(mesh.points)}: they must "
+                                f"share the mesh's points (point id = node id); {hint}")
+    scale = float(np.ptp(mesh.points, axis=0).max()) if len(mesh.points) else 1.0
+    if not np.allclose(point_coordinates(polydata)[:, :mesh.dim], mesh.points, rtol=0, atol=1e-9 * scale):
+        raise InvalidInputError(f"the tagged facets' points are not the mesh's (point id = node id); {hint}")
+    cells = polydata.GetPolys() if mesh.dim == 3 else polydata.GetLines()
+    offsets = numpy_support.vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
+    if len(offsets) - 1 != polydata.GetNumberOfCells() or np.any(np.diff(offsets) != mesh.dim):
+        kind = "triangles" if mesh.dim == 3 else "lines"
+        raise InvalidInputError(f"the tagged facets of a {mesh.dim}D mesh must be {kind} and nothing else; {hint}")
+    tags = polydata.GetCellData().GetArray(SURFACE_TAG_ARRAY)
+    if tags is None or tags.GetNumberOfTuples() != len(offsets) - 1:
+        raise InvalidInputError(f"the tagged facets have no cell array {SURFACE_TAG_ARRAY} (one tag a facet); {hint}")
+    facets = numpy_support.vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64).reshape(-1, mesh.dim)
+    return facets, numpy_support.vtk_to_numpy(tags).astype(np.int32), tag_names_of(polydata)
+
+
+def with_polydata_tags(mesh: Mesh, polydata: vtkPolyData) -> Mesh:
+    """``mesh`` (e.g. from :func:`unstructured_to_mesh` of a meshing filter's port 0, with its ``Region``) with the
+    tags of ``polydata`` (its port 1, :func:`polydata_to_tags`)."""
+    return mesh.with_tags(*polydata_to_tags(polydata, mesh))

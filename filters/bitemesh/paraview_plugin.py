@@ -70,7 +70,7 @@ INT_MAX = 2**31 - 1
 
 #: class name -> (label in ParaView, input port names, output port names); the order of the menu.
 FILTERS = {
-    "MeshFromPoints": ("Volume Mesh From Points", ("Input",), ("Mesh",)),
+    "MeshFromPoints": ("Volume Mesh From Points", ("Input",), ("Mesh", "Surfaces")),
     "PointsToImplicit": ("Points To Implicit", ("Input",), ("Implicit",)),
     "BitingSampler": ("Biting Sampler", ("Input",), ("Nodes",)),
     "DelaunayTetra": ("Delaunay Tetra", ("Input",), ("Mesh",)),

@@ -33,7 +33,7 @@ from pathlib import Path
 import bitemesh
 import numpy as np
 from bitemesh import algorithms
-from bitemesh.convert import nodes_to_polydata, unstructured_to_mesh
+from bitemesh.convert import nodes_to_polydata, tag_names_of, unstructured_to_mesh, with_polydata_tags
 from bitemesh.core.fidelity import distances_to_facets
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
@@ -79,6 +79,14 @@ def one_shot(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
     check("one-shot field data Radius = run's R", radius == result.radius, f"{radius} vs {result.radius}")
     for key, values in result.mesh.cell_data.items():
         check(f"one-shot cell data {key} = run's", np.array_equal(mesh.cell_data.get(key), values), key)
+
+    ports = [proxy.GetOutputPortName(port) for port in range(proxy.GetNumberOfOutputPorts())]
+    check("one-shot surfaces: the output ports are Mesh and Surfaces", ports == ["Mesh", "Surfaces"], ports)
+    tagged = with_polydata_tags(mesh, updated(proxy, 1))
+    check("one-shot surfaces: the tagged facets, their tags and names = run's",
+          np.array_equal(tagged.facets, result.mesh.facets)
+          and np.array_equal(tagged.facet_tags, result.mesh.facet_tags) and tagged.tag_names == result.mesh.tag_names,
+          tagged.tag_names)
 
     vtk_filter = algorithms.MeshFromPoints()
     vtk_filter.SetInputData(nodes_to_polydata(xyz))
@@ -223,6 +231,9 @@ def labelled(args, out: Path) -> None:
     error = proxy.GetClientSideObject().last_error
     check("labelled: the right domain then meshes the contours", error is None and grid.GetNumberOfCells() > 0,
           f"{grid.GetNumberOfCells()} cells, error {error!r}")
+    names = tag_names_of(updated(proxy, 1))
+    check("labelled: the Surfaces port names the surfaces", names == {"EPI": (1, 2), "LV_ENDO": (2, 2),
+                                                                     "RV_ENDO": (3, 2), "MYOCARDIUM": (1, 3)}, names)
     SaveData(str(out / "labelled.vtu"), proxy=proxy)
     facts["labelled"] = {"points": grid.GetNumberOfPoints(), "cells": grid.GetNumberOfCells(),
                          "radius": grid.GetFieldData().GetArray("Radius").GetValue(0), "file": "labelled.vtu"}

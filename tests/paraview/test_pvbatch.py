@@ -148,6 +148,10 @@ def test_one_shot_filter_gives_the_mesh_of_bitemesh_run_and_the_vtk_filter_in_pv
     assert_checks(pvbatch_run, "one-shot = ", "one-shot field data", "one-shot cell data")
 
 
+def test_the_one_shot_filter_gives_runs_tagged_surfaces_on_its_second_port(pvbatch_run):
+    assert_checks(pvbatch_run, "one-shot surfaces:", "labelled: the Surfaces port")
+
+
 def test_five_filter_chain_gives_the_mesh_of_the_vtk_filters_and_run_in_pvbatch(pvbatch_run):
     assert_checks(pvbatch_run, "chain = ", "chain cell data", "chain: histogram", "chain: implicit image")
 

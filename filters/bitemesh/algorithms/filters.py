@@ -30,7 +30,7 @@ from ..core.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
 from ..convert import (add_field_values, attach_samples, attached_samples, field_array, grid_to_image, image_to_grid,
                        mesh_to_unstructured, nodes_to_polydata, point_array, point_coordinates, point_labels,
-                       unstructured_to_mesh)
+                       tags_to_polydata, unstructured_to_mesh)
 
 
 def scattered_points(dataset):
@@ -323,15 +323,25 @@ class MeshOptimizer(MeshWithImplicitFilter):
 @with_parameters(ImplicitParameters, BitingParameters, SpuriousParameters, OptimizeParameters,
                  LabelledParameters, FidelityParameters)
 class MeshFromPoints(BitemeshAlgorithm):
-    """The whole method in one filter: scattered points -> a valid mesh with its quality arrays.
+    """The whole method in one filter: scattered points -> a valid mesh with its quality arrays and its tags.
 
     As ``bitemesh.run``: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by default;
     the MeshOptimizer runs unless ``SetOptimize(0)``.  Points with a ``Label`` point array are labelled contours,
     meshed as ``bitemesh.core.labelled.run_labelled`` does (``Domain``, ``BasePlane``, ``MinWall``).
+
+    Port 0: the mesh (vtkUnstructuredGrid), with the cell array ``Region``.  Port 1: its tagged boundary
+    (vtkPolyData sharing every point of the mesh, point id = node id; triangles, lines in 2D; cell array
+    ``SurfaceTag``; field data ``TagNames``, ``TagValues``, ``TagDimensions``: see
+    :func:`bitemesh.convert.tags_to_polydata`): contours by surface (EPI, LV_ENDO, RV_ENDO, BASE), scattered points
+    one tag per boundary piece (BOUNDARY_1, ... by decreasing area).
     """
 
     def __init__(self):
-        super().__init__(nInputPorts=1, inputType="vtkPointSet", nOutputPorts=1, outputType="vtkUnstructuredGrid")
+        super().__init__(nInputPorts=1, inputType="vtkPointSet", nOutputPorts=2, outputType="vtkUnstructuredGrid")
+
+    def FillOutputPortInformation(self, port, info):
+        info.Set(vtkDataObject.DATA_TYPE_NAME(), "vtkUnstructuredGrid" if port == 0 else "vtkPolyData")
+        return 1
 
     def execute(self, request, inInfo, outInfo):
         source = vtkPointSet.GetData(inInfo[0])
@@ -346,11 +356,12 @@ class MeshFromPoints(BitemeshAlgorithm):
             points, labels, slices = contours
             result = run_labelled(points, labels, slices=slices,
                                   **labelled_keywords(self.parameters(LabelledParameters)), **steps)
-        output = vtkUnstructuredGrid.GetData(outInfo)
+        output = vtkUnstructuredGrid.GetData(outInfo, 0)
         mesh_to_unstructured(result.mesh, output)
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))
         if result.fidelity is not None:
             add_field_values(output, asdict(result.fidelity), "Fidelity")
+        tags_to_polydata(result.mesh, vtkPolyData.GetData(outInfo, 1))
 
 
 def planar_as_2d(points: np.ndarray) -> np.ndarray:

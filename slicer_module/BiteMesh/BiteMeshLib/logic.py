@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from .contours import labelledPoints, loadLabelledPoints, modelLabels
-from .outputs import BiteMeshResult, writeOutputs
+from .outputs import BiteMeshResult, writeOutputs, writeSurfaces
 from .parameters import coreParameters, coreSettings, parameterSpecs
 from .points import scatteredPoints
 from .requirements import installRequirements, missingRequirements, requireBitemesh
@@ -56,8 +56,10 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
 
     ``process(inputNode, outputModelNode, **parameters)`` takes a markups point list, one or more markups closed
     curves (contours), a model (its points and normals) or a segmentation (one segment), and writes into
-    ``outputModelNode`` a vtkUnstructuredGrid of tetrahedra coloured by radius ratio, with the radius-ratio
-    histogram as a table node and a bar plot.  Labelled contours (a model with a point array ``Label``, as
+    ``outputModelNode`` a vtkUnstructuredGrid of tetrahedra coloured by radius ratio (cell array ``Region``), with
+    one model node per surface tag of its boundary (labelled contours: EPI, LV_ENDO, RV_ENDO, BASE; other inputs:
+    BOUNDARY_1, ... by decreasing area, or the segment's BOUNDARY_1) and the radius-ratio histogram as a table node
+    and a bar plot.  Labelled contours (a model with a point array ``Label``, as
     :meth:`loadLabelledPoints` makes from a biv-me GPFile, or closed curves named after their surfaces with a
     ``domain``) are meshed as the domain their surfaces bound.  It needs no GUI.
     """
@@ -153,6 +155,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         summary = bitemesh.quality_summary(mesh)
         table, series, chart = writeOutputs(mesh, radius, summary, result.fidelity, outputModelNode,
                                                   quality.bins)
+        surfaces = writeSurfaces(mesh, outputModelNode)
         seconds["total"] = time.perf_counter() - clock
         logger.info("BiteMesh: %d tetrahedra, %d nodes, R = %.4g mm, mean radius ratio %.3f, in %.1f s",
                     summary.n_cells, summary.n_points, radius, summary.q_mean, seconds["total"])
@@ -162,7 +165,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             report(progress, 1.0, "done")
         except Cancelled:   # too late: the output is written, and a run that wrote it is not a cancelled one
             pass
-        return BiteMeshResult(mesh, radius, summary, table, series, chart, seconds, result.fidelity, result.notes)
+        return BiteMeshResult(mesh, radius, summary, table, series, chart, seconds, result.fidelity, result.notes,
+                              surfaces)
 
     @staticmethod
     def _inputNodes(inputNode) -> list:

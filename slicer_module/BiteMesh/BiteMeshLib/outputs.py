@@ -1,9 +1,11 @@
-"""What the logic writes: the mesh into its model node (coloured by radius ratio), the radius-ratio histogram
-into table and plot nodes, and the result it returns."""
+"""What the logic writes: the mesh into its model node (coloured by radius ratio), one model node per surface tag
+(its tagged boundary triangles, named by the tag, coloured apart), the radius-ratio histogram into table and plot
+nodes, and the result it returns."""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
+import numpy as np
 from vtkmodules.vtkCommonDataModel import vtkTable
 from vtkmodules.vtkFiltersCore import vtkAssignAttribute
 
@@ -21,6 +23,7 @@ class BiteMeshResult:
     seconds : step -> wall-clock seconds
     fidelity : bitemesh.core.fidelity.Fidelity, how closely the boundary follows the input (mm), or None
     notes : what was done to the input on the way (points dropped as outliers, ...)
+    surfaceNodes : the model nodes of the surface tags (:func:`writeSurfaces`), by tag
     """
 
     mesh: object
@@ -32,10 +35,17 @@ class BiteMeshResult:
     seconds: dict = field(default_factory=dict)
     fidelity: object = None
     notes: tuple = ()
+    surfaceNodes: list = field(default_factory=list)
 
 
 #: node references from the output model to its histogram nodes (reused by the next run).
 TABLE_ROLE, SERIES_ROLE, CHART_ROLE = "BiteMeshQualityTable", "BiteMeshQualitySeries", "BiteMeshQualityChart"
+#: node references from the output model to its surface models, one per facet tag (reused by the next run).
+SURFACE_ROLE = "BiteMeshSurface"
+#: the surface models' colours (RGB in [0, 1], Okabe and Ito's colour-blind safe set), by tag: tag t takes entry
+#: (t - 1) modulo its length.
+SURFACE_COLOURS = ((0.90, 0.62, 0.00), (0.34, 0.71, 0.91), (0.00, 0.62, 0.45), (0.94, 0.89, 0.26),
+                   (0.00, 0.45, 0.70), (0.84, 0.37, 0.00), (0.80, 0.47, 0.65), (0.60, 0.60, 0.60))
 #: colour tables for the radius ratio, the first one present in the scene is used.
 COLOR_NODE_IDS = ("vtkMRMLColorTableNodeFileViridis.txt", "vtkMRMLColorTableNodeRainbow")
 
@@ -104,3 +114,47 @@ def referenced(owner, role: str, className: str, name: str):
         owner.SetNodeReferenceID(role, node.GetID())
     return node
 
+
+
+def writeSurfaces(mesh, outputModelNode) -> list:
+    """One model node per facet tag of ``mesh`` (in world coordinates, as the output model): the tag's triangles on
+    the mesh's points (bitemesh.convert.tags_to_polydata, cell array ``SurfaceTag``), named "<output> <tag name>"
+    (e.g. "mesh LV_ENDO"), coloured by :data:`SURFACE_COLOURS`, with the attributes ``BiteMesh.SurfaceTag`` and
+    ``BiteMesh.SurfaceName``.  The nodes of the output's previous run are reused in order, those left over removed.
+
+    Returns the model nodes, by increasing tag.
+    """
+    from bitemesh.convert import tags_to_polydata
+
+    scene = outputModelNode.GetScene()
+    base = outputModelNode.GetName() or "BiteMesh"
+    named = {tag: name for name, (tag, dimension) in mesh.tag_names.items() if dimension == mesh.dim - 1}
+    tags = [] if mesh.facet_tags is None else [int(tag) for tag in np.unique(mesh.facet_tags)]
+    previous = [outputModelNode.GetNthNodeReference(SURFACE_ROLE, i)
+                for i in range(outputModelNode.GetNumberOfNodeReferences(SURFACE_ROLE))]
+    previous = [node for node in previous if node is not None and node.IsA("vtkMRMLModelNode")
+                and node.GetScene() is scene]
+    nodes = []
+    for index, tag in enumerate(tags):
+        name = named.get(tag, f"TAG_{tag}")
+        node = previous[index] if index < len(previous) else scene.AddNewNodeByClass("vtkMRMLModelNode")
+        node.SetName(f"{base} {name}")
+        chosen = mesh.facet_tags == tag
+        node.SetAndObservePolyData(tags_to_polydata(replace(mesh, facets=mesh.facets[chosen],
+                                                            facet_tags=mesh.facet_tags[chosen],
+                                                            tag_names={name: (tag, mesh.dim - 1)})))
+        node.SetAttribute("BiteMesh.SurfaceTag", str(tag))
+        node.SetAttribute("BiteMesh.SurfaceName", name)
+        if node.GetDisplayNode() is None:
+            node.CreateDefaultDisplayNodes()
+        display = node.GetDisplayNode()
+        display.SetScalarVisibility(False)
+        display.SetColor(*SURFACE_COLOURS[(tag - 1) % len(SURFACE_COLOURS)])
+        display.SetVisibility2D(True)
+        nodes.append(node)
+    for node in previous[len(tags):]:
+        scene.RemoveNode(node)
+    outputModelNode.RemoveNodeReferenceIDs(SURFACE_ROLE)
+    for node in nodes:
+        outputModelNode.AddNodeReferenceID(SURFACE_ROLE, node.GetID())
+    return nodes

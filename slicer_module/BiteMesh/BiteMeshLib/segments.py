@@ -1,5 +1,8 @@
-"""A segment of a segmentation node: its binary labelmap, meshed in its voxel frame and carried to world."""
+"""A segment of a segmentation node: its binary labelmap, meshed in its voxel frame and carried to world with its
+tags (the segment is one region, its boundary BOUNDARY_1)."""
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import slicer
@@ -55,7 +58,7 @@ def meshSegment(node, segmentId, implicit, biting, spurious, optimize, fidelity,
     """Mesh one segment: its binary labelmap through bitemesh.labelmap.mesh_label_grid (the path the bitemesh
     command takes for label map files), which meshes in the voxel frame and places the mesh with the labelmap's
     IJK-to-RAS matrix; then the segmentation's parent transforms carry it to world."""
-    from bitemesh.core.mesh import Mesh, signed_measures
+    from bitemesh.core.mesh import signed_measures
     from bitemesh.core.quality import cell_quality
     from bitemesh.labelmap import mesh_label_grid
 
@@ -67,10 +70,11 @@ def meshSegment(node, segmentId, implicit, biting, spurious, optimize, fidelity,
     transform = toWorld(node)
     if transform is None:
         return result.mesh, result
-    points = transformPoints(transform, result.mesh.points)
-    cells = result.mesh.cells.copy()
-    if np.sum(signed_measures(points, cells)) < 0:   # a parent transform that reflects
-        cells[:, [1, 2]] = cells[:, [2, 1]]
-    mesh = Mesh(points, cells)
-    return mesh.with_cell_data(**cell_quality(mesh)), result
+    mesh = result.mesh
+    points = transformPoints(transform, mesh.points)
+    cells, facets = mesh.cells, mesh.facets
+    if np.sum(signed_measures(points, cells)) < 0:   # a parent transform that reflects: cells and facets turn back
+        cells, facets = cells[:, [0, 2, 1, 3]], facets[:, [0, 2, 1]]
+    moved = replace(mesh, points=points, cells=cells, facets=facets)
+    return moved.with_cell_data(**cell_quality(moved)), result
 
