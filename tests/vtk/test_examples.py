@@ -16,10 +16,10 @@ ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "vtk_pipeline.py"
 
 
-def run_example(*arguments, timeout=180) -> subprocess.CompletedProcess:
+def run_example(*arguments, timeout=180, script=EXAMPLE) -> subprocess.CompletedProcess:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT / "filters"), env.get("PYTHONPATH")]))
-    done = subprocess.run([sys.executable, str(EXAMPLE), *arguments], cwd=ROOT, env=env, capture_output=True,
+    done = subprocess.run([sys.executable, str(script), *arguments], cwd=ROOT, env=env, capture_output=True,
                           text=True, timeout=timeout, check=False)
     assert done.returncode == 0, done.stderr
     assert "ERROR" not in done.stderr and "Warning" not in done.stderr and "WARN" not in done.stderr, done.stderr
@@ -72,3 +72,25 @@ def test_the_vtk_pipeline_example_reads_points_from_a_file(tmp_path):
 
 def test_the_example_explains_itself():
     assert "scattered points" in run_example("--help").stdout
+
+
+def test_the_heart_fibres_example_renders_the_helix_from_endocardium_to_epicardium(tmp_path):
+    from bitemesh.core.fibres import with_fibres
+    from bitemesh.io import write_mesh
+
+    from tests.fibrecheck import tagged_shell
+
+    mesh = tmp_path / "shell.vtu"
+    write_mesh(with_fibres(tagged_shell())[0], mesh)
+    picture = tmp_path / "fibres.png"
+    done = run_example(str(mesh), "-o", str(picture), script=ROOT / "examples" / "heart_fibres.py")
+    assert f"wrote {picture}" in done.stdout
+    pixels = read_png(picture)[..., :3]
+    assert pixels.shape == (700, 1000, 3)
+    heart = pixels[:, :860].reshape(-1, 3).astype(int)   # the heart's view, left of the legend's (x > 870)
+    saturated = heart[heart.max(axis=1) - heart.min(axis=1) > 80]
+    # the fibres' colours span the helix: red to yellow (endocardium, about +40 deg) and blue (epicardium, -50);
+    # fibres of one angle (all green at 0 deg, say) would give neither
+    warm = (saturated[:, 0] > 200) & (saturated[:, 2] < 100)
+    cold = (saturated[:, 2] > 200) & (saturated[:, 0] < 100)
+    assert warm.sum() > 500 and cold.sum() > 500, (warm.sum(), cold.sum())
