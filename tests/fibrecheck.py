@@ -1,13 +1,12 @@
-"""The fibre tests' heart meshes (tagged by surface) and what they measure on them: the cells along wall-normal
-lines across the LV free wall, and the helix angle of their fibres in a frame of the geometry (the line, the LV's
-long axis), not in the frame of the Laplace solutions under test."""
+"""The fibre tests' heart mesh (the two-cavity shell, tagged by surface) and what they measure on heart meshes: the
+cells along wall-normal lines across the LV free wall, and the helix angle of their fibres in a frame of the
+geometry (the line, the LV's long axis), not in the frame of the Laplace solutions under test."""
 from __future__ import annotations
 
 from functools import cache
 
 import numpy as np
 from bitemesh.core import fibres
-from bitemesh.core.contours.function import boundary_surfaces
 from bitemesh.core.contours.run import run_labelled
 from bitemesh.core.mesh import Mesh
 from bitemesh.core.parameters import BitingParameters
@@ -16,21 +15,14 @@ from scipy.spatial import cKDTree
 from tests.builders import SHELL_DOMAIN, sample_shell
 
 
-def tagged(result) -> Mesh:
-    """The mesh of a labelled run with its boundary triangles tagged by surface (tag = position in the names + 1,
-    as the meshing spine tags them)."""
-    facets, surface = boundary_surfaces(result.mesh, result.function)
-    return result.mesh.with_tags(facets, surface + 1, {name: (number + 1, 2)
-                                                       for number, name in enumerate(result.function.names)})
-
-
 @cache
 def tagged_shell() -> Mesh:
-    """The two-cavity shell from its sparse contours cut at z = 0, about 3,000 cells (the default, optimised): the
-    LV free wall (15 mm) is two to three cells thick.  Built once; the tests only read it."""
+    """The two-cavity shell from its sparse contours cut at z = 0, about 3,000 cells (the default, optimised), its
+    boundary tagged EPI, LV_ENDO, RV_ENDO and BASE: the LV free wall (15 mm) is two to three cells thick.  Built
+    once; the tests only read it."""
     points, labels, slices = sample_shell()
-    return tagged(run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane=((0.0, 0, 0), (0, 0, 1.0)),
-                               slices=slices, biting=BitingParameters(cells=4000)))
+    return run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane=((0.0, 0, 0), (0, 0, 1.0)), slices=slices,
+                        biting=BitingParameters(cells=4000)).mesh
 
 
 def tagged_nodes(mesh, name) -> np.ndarray:
