@@ -77,6 +77,7 @@ FILTERS = {
     "SpuriousCellFilter": ("Spurious Cell Filter", ("Mesh", "Implicit"), ("Mesh",)),
     "MeshOptimizer": ("Mesh Optimizer", ("Mesh", "Implicit"), ("Mesh",)),
     "QualityFilter": ("Quality Filter", ("Input",), ("Mesh", "Histogram")),
+    "FibreField": ("Fibre Field", ("Mesh", "Surfaces"), ("Mesh",)),
 }
 
 

@@ -49,7 +49,7 @@ from vtkmodules.vtkCommonDataModel import vtkImageData
 #: bitemesh class name -> the plugin's filter in paraview.simple
 FILTERS = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
            "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
-           "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter"}
+           "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter", "FibreField": "FibreField"}
 #: the README's Programmable Filter script (Output Data Set Type: vtkUnstructuredGrid); CELLS is substituted.
 PROGRAMMABLE_SCRIPT = """
 import bitemesh
@@ -253,6 +253,24 @@ def gpfile(args, out: Path) -> None:
           f"{grid.GetNumberOfCells()} cells, error {error!r}")
     SaveData(str(out / "gpfile.vtu"), proxy=proxy)
     facts["gpfile"] = {"cells": grid.GetNumberOfCells(), "file": "gpfile.vtu"}
+
+    # the README's fibres: Fibre Field on the mesh and its tagged surfaces (the two outputs of the mesher)
+    fibres = getattr(simple, FILTERS["FibreField"])(Mesh=proxy, Surfaces=simple.OutputPort(proxy, 1))
+    labels = [fibres.GetProperty(name).GetXMLLabel() for name in ("AlphaEndo", "AlphaEpi", "BetaEndo", "BetaEpi")]
+    check("gpfile: Fibre Field shows the four angles", labels == ["Alpha Endo", "Alpha Epi", "Beta Endo", "Beta Epi"]
+          and (fibres.AlphaEndo, fibres.AlphaEpi) == (40, -50), labels)
+    fibred = updated(fibres)
+    error = fibres.GetClientSideObject().last_error
+    arrays = fibred.GetCellData()
+    vectors = {name: numpy_support.vtk_to_numpy(arrays.GetArray(name)) if arrays.GetArray(name) else None
+               for name in ("Fibre", "Sheet", "SheetNormal")}
+    unit = [v is not None and v.shape == (grid.GetNumberOfCells(), 3) and
+            np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-6) for v in vectors.values()] == [True] * 3
+    check("gpfile: Fibre Field gives unit Fibre, Sheet, SheetNormal per cell and the HelixAngle",
+          error is None and unit and arrays.GetArray("HelixAngle") is not None and
+          arrays.GetVectors() is not None and arrays.GetVectors().GetName() == "Fibre", f"error {error!r}")
+    SaveData(str(out / "fibres.vtu"), proxy=fibres)
+    facts["fibres"] = {"file": "fibres.vtu"}
 
 
 @guarded("programmable filter")

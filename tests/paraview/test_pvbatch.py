@@ -209,6 +209,25 @@ def test_a_gpfile_read_as_a_table_gives_the_myocardium_of_run_labelled(pvbatch_r
     assert_valid_domain(mesh, components=1)
 
 
+def test_fibre_field_in_paraview_gives_the_fibres_of_the_core_on_the_same_mesh(pvbatch_run):
+    """Fibre Field on Volume Mesh From Points' two outputs (the GPFile's mesh and its tagged surfaces) gives the
+    fibres that bitemesh.core.fibres computes here on run_labelled's mesh of the same file (the same cells, points
+    equal to rounding: a cell at the method's free-wall jump may take the other branch, so 0.1 % may differ)."""
+    from bitemesh.core.fibres import FIBRE_ARRAYS, with_fibres
+    from bitemesh.io import read_labelled_points
+    assert_checks(pvbatch_run, "gpfile: Fibre Field")
+    points, labels, slices = read_labelled_points(GPFILE)
+    with pytest.warns(BitemeshWarning, match="not plausible"):
+        expected = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=LABELLED_CELLS),
+                                allow_implausible=True).mesh
+    expected = with_fibres(expected)[0]
+    fibred = read_back(pvbatch_run, "fibres")
+    assert np.array_equal(fibred.cells, expected.cells)
+    for name in FIBRE_ARRAYS:
+        difference = np.abs(fibred.cell_data[name] - expected.cell_data[name]).reshape(len(fibred.cells), -1)
+        assert np.mean(difference.max(axis=1) > 1e-6) <= 1e-3, name
+
+
 def test_labelled_contours_give_the_mesh_of_run_labelled_here(pvbatch_run, contours):
     """A VTP with Label and Slice arrays, read by ParaView: Volume Mesh From Points with Domain, Base Plane none and
     Cells gives run_labelled's mesh (in this Python: the same cells, the coordinates equal to rounding; measured

@@ -71,6 +71,7 @@ VTK_9_2_API = {
     "DisplayText", "PassData",  # vtkOutputWindow (VTK 4), vtkFieldData (VTK 5)
     # string point arrays (Label): run in ParaView 5.11's pvpython (VTK 9.2.20230111)
     "GetAbstractArray", "GetNumberOfComponents", "GetNumberOfTuples", "IsA", "GetValue",
+    "SetActiveVectors",  # vtkDataSetAttributes (FibreField's Fibre for glyphs): in ParaView 5.11's pvpython
 }
 
 
