@@ -205,12 +205,12 @@ def small():
 
 def test_same_input_same_output_and_the_input_is_not_modified(small):
     grid, mesh, _ = small
-    points, cells = mesh.points.copy(), mesh.cells.copy()
+    points, cells, names = mesh.points.copy(), mesh.cells.copy(), set(mesh.cell_data)
     first = optimize_mesh(grid, mesh)
     again = optimize_mesh(grid, mesh)
     assert np.array_equal(first.points, again.points) and np.array_equal(first.cells, again.cells)
     assert np.array_equal(mesh.points, points) and np.array_equal(mesh.cells, cells)
-    assert set(mesh.cell_data) == {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume"}
+    assert {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume"} <= set(mesh.cell_data) == names
 
 
 def test_without_relaxation_flips_and_smoothing_alone_remove_the_slivers(small):

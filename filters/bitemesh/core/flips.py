@@ -70,8 +70,9 @@ def _sorted_keys(rows: np.ndarray):
     return order, keys[order]
 
 
-def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING) -> dict:
-    """The interior edges of a tetrahedral mesh with the cells around them in order.
+def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING, nodes: np.ndarray | None = None) -> dict:
+    """The interior edges of a tetrahedral mesh with the cells around them in order; with ``nodes`` ((n,) bool),
+    only the edges whose two ends are among them (the others are not sorted at all).
 
     Returns
     -------
@@ -84,6 +85,9 @@ def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING) -> dict:
     swap = a > b  # (b, a, x, y) has the other orientation: the ring runs the other way
     a, b, x, y = np.where(swap, b, a), np.where(swap, a, b), np.where(swap, y, x), np.where(swap, x, y)
     owner = np.repeat(np.arange(len(cells)), len(EDGE_PAIRS))
+    if nodes is not None:
+        near = np.flatnonzero(nodes[a] & nodes[b])
+        a, b, x, y, owner = a[near], b[near], x[near], y[near], owner[near]
     order, keys = _sorted_keys(np.stack([a, b], axis=1))
     start = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1], [True]]))
     counts = np.diff(start)
@@ -107,9 +111,14 @@ def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING) -> dict:
     return rings
 
 
-def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray):
+def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, fresh: np.ndarray | None = None):
     """The flips that raise the worst radius ratio of the cells they replace by more than ``FLIP_GAIN``, among
-    the groups of cells whose worst radius ratio is below ``FLIP_QUALITY``.
+    the groups of cells whose worst radius ratio is below ``FLIP_QUALITY``; with ``fresh`` ((m,) bool), only among
+    the groups that hold a fresh cell.
+
+    After a pass of :func:`flip`, every candidate either flipped or lost a cell to a flip, so a group of cells
+    that were all there before gives no candidate now (the nodes do not move): only the groups with a cell made by
+    the pass need testing, and they give the same candidates, in the same order, as testing all.
 
     3D: edge removal (the n cells around an interior edge by the 2 (n - 2) cells of the best triangulation of
     their ring joined to both ends of the edge; n = 3 is the 3-2 flip, n = 4 the 4-4 flip) and 2-3 flips (the two
@@ -122,10 +131,16 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray):
     """
     k = points.shape[1]
     found = []
+    nodes = None  # the vertices of the fresh cells: the edges and facets of the groups to test have theirs among them
+    if fresh is not None:
+        nodes = np.zeros(len(points), bool)
+        nodes[cells[fresh].ravel()] = True
     if k == 3:
-        for n, (a, b, ring, around) in edge_rings(cells).items():
+        for n, (a, b, ring, around) in edge_rings(cells, nodes=nodes).items():
             worst_old = quality[around].min(axis=1)
             poor = worst_old < FLIP_QUALITY
+            if fresh is not None:
+                poor &= fresh[around].any(axis=1)
             a, b, ring, around, worst_old = a[poor], b[poor], ring[poor], around[poor], worst_old[poor]
             triangles, triangulations = RING_TRIANGULATIONS[n]
             x, y, z = (ring[:, triangles[:, i]] for i in range(3))
@@ -139,12 +154,15 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray):
             chosen = new[np.flatnonzero(keep)[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
             found.append((around[keep], chosen, gain[keep]))
     facets = facets_of(cells).reshape(-1, k)
-    order, keys = _sorted_keys(facets)  # the rows that are the same facet, paired as by neighbour_pairs
+    rows = np.arange(len(facets)) if fresh is None else np.flatnonzero(nodes[facets].all(axis=1))
+    order, keys = _sorted_keys(facets[rows])  # the rows that are the same facet, paired as by neighbour_pairs
     same = keys[1:] == keys[:-1]
-    first, second = order[:-1][same], order[1:][same]
+    first, second = rows[order[:-1][same]], rows[order[1:][same]]
     cell_a, cell_b = first // (k + 1), second // (k + 1)
     worst_old = np.minimum(quality[cell_a], quality[cell_b])
     poor = worst_old < FLIP_QUALITY
+    if fresh is not None:
+        poor &= fresh[cell_a] | fresh[cell_b]
     first, second, cell_a, cell_b, worst_old = first[poor], second[poor], cell_a[poor], cell_b[poor], worst_old[poor]
     a, b = cells[cell_a, first % (k + 1)], cells[cell_b, second % (k + 1)]
     facet = facets[first]  # oriented out of cell_a, towards b
@@ -201,8 +219,9 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
     (m', k + 1) int64, the new cells, positively oriented
     """
     quality = signed_radius_ratio(points, cells)
+    fresh = None  # the first pass tests every group, each next one those with a cell the pass before made
     for pass_ in range(passes):
-        candidates = flip_candidates(points, cells, quality)
+        candidates = flip_candidates(points, cells, quality, fresh)
         found = sum(len(gain) for _, _, gain in candidates)
         report(progress, pass_ / passes, f"flip pass {pass_ + 1}: {found} improving flips")
         if not found:
@@ -217,5 +236,6 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
             removed[old[take].ravel()] = True
             added.append(new[take].reshape(-1, cells.shape[1]))
         cells = np.concatenate([cells[~removed]] + added)
+        fresh = np.arange(len(cells)) >= len(cells) - sum(len(new) for new in added)
         quality = np.concatenate([quality[~removed]] + [signed_radius_ratio(points, new) for new in added])
     return cells

