@@ -183,7 +183,7 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     # --- requirements ------------------------------------------------------------------------------------------------
 
     def _ensureRequirements(self) -> bool:
-        """On first use, install what bitemesh needs and Slicer lacks (scipy only; never VTK or SimpleITK)."""
+        """On first use, install what bitemesh needs and Slicer lacks (scipy, numba; never VTK or SimpleITK)."""
         missing = self.logic.missingRequirements()
         if not missing:
             return True

@@ -35,7 +35,7 @@ def test_requirements_install_only_scipy(monkeypatch):
     state = {"installed": False}
 
     def find_spec(name, *arguments):
-        if name == "scipy" and not state["installed"]:
+        if name in ("scipy", "numba") and not state["installed"]:
             return None
         return real_find_spec(name, *arguments)
 
@@ -44,12 +44,12 @@ def test_requirements_install_only_scipy(monkeypatch):
         state["installed"] = True
 
     monkeypatch.setattr(importlib.util, "find_spec", find_spec)
-    assert lib_requirements.missingRequirements() == ["scipy>=1.9"]
+    assert lib_requirements.missingRequirements() == ["scipy>=1.9", "numba>=0.56"]
     with pytest.raises(lib_requirements.MissingRequirementError, match="not installed"):
         lib_requirements.installRequirements(pipInstall=pip, confirm=lambda missing: False)
     assert calls == []
-    assert lib_requirements.installRequirements(pipInstall=pip) == ["scipy>=1.9"]
-    assert calls == [["scipy>=1.9", f"numpy=={np.__version__}"]]   # numpy pinned as bundled, never upgraded
+    assert lib_requirements.installRequirements(pipInstall=pip) == ["scipy>=1.9", "numba>=0.56"]
+    assert calls == [["scipy>=1.9", "numba>=0.56", f"numpy=={np.__version__}"]]   # numpy pinned as bundled, never upgraded
     assert not any(name in " ".join(calls[0]).lower() for name in ("vtk", "simpleitk", "itk"))
 
 
