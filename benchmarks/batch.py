@@ -82,12 +82,15 @@ def two_plain_processes(files, options, folder: Path) -> float:
 
 
 def warm_up() -> None:
-    """What a worker's first case would load once (the meshing modules, matplotlib for the cut's picture): a
-    fixed cost of each worker per run, timed with the cluster's start rather than charged to the cases."""
+    """What a worker's first case loads once (the meshing modules, numba's cached kernels, matplotlib for the cut's
+    picture), by meshing and picturing a small sphere: a fixed cost of each worker per run, timed with the cluster's
+    start rather than charged to the cases (the plain loop's process is warm from its first round on)."""
     from bitemesh.cohorts import run
-    from bitemesh.core.mesh import Mesh
+    from bitemesh.core.parameters import BitingParameters
+    from bitemesh.core.pipeline import run as mesh
 
-    run.render_cut(Mesh(np.eye(4, 3), np.array([[0, 1, 2, 3]])))
+    points, normals = sample_surface(sphere(), 0.1, seed=0)
+    run.render_cut(mesh(points, normals, biting=BitingParameters(cells=500)).mesh)
 
 
 def started(client, marks) -> None:
@@ -174,7 +177,8 @@ def main() -> None:
         f"({pair:.1f} s): the most two cores of this machine gave two independent processes in this run.",
         f"- Overhead per case against the plain loop: **{100 * overhead:+.1f} %** ({(run1 - loop) / len(files):+.2f} s "
         "a case: the task's hash, the record and the picture of the cut, Dask's scheduling; the goal: at most 5 %), "
-        f"and once per run the cluster's start and each worker's warm-up (imports, matplotlib), {start1:.1f} s. "
+        "and once per run the cluster's start and each worker's warm-up "
+        f"(imports, numba's cached kernels, matplotlib: one small sphere meshed), {start1:.1f} s. "
         "In CPU seconds, steadier on a shared machine: "
         f"**{100 * (sum(cpu1) - loop_cpu) / loop_cpu:+.1f} %** (workers and driver against the loop; the workers' "
         f"CPU includes their start and imports, {cpu1[0] - loop_cpu:+.1f} s in all).",
