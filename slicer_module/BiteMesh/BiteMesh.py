@@ -58,7 +58,11 @@ array (LPS coordinates, as Slicer's files) into a model; or name closed curves a
 ...) and give a <b>Domain</b> such as EPI - LV_ENDO - RV_ENDO. One surface per label, combined by the domain and
 closed by the base plane.<br>
 <b>Output</b>: a model node holding the tetrahedra (an unstructured grid) coloured by radius ratio
-(1 = regular tetrahedron), and the radius-ratio histogram as a table and a plot.<br>
+(1 = regular tetrahedron), one model per tagged boundary surface, and the radius-ratio histogram as a table and a
+plot.<br>
+<b>Fibres</b>: for labelled biventricular contours (a biv-me GPFile), <i>Add fibres</i> adds the rule-based
+myocardial fibres (Bayer et al. 2012) as cell arrays Fibre, Sheet, SheetNormal and HelixAngle, and colours the
+mesh by helix angle.<br>
 <b>Radius R</b> sets the element size; leave it automatic to aim for <b>Cells</b> cells. The mesh is in RAS
 (world) coordinates, where the input is.
 """)
@@ -363,11 +367,14 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def _showResult(self, result):
         summary = result.summary
         self.ui.progressBar.value = 100
-        self.ui.statusLabel.text = _(
+        text = _(
             "{cells} tetrahedra, {points} nodes, R = {radius:.3g} mm; radius ratio mean {mean:.3f}, "
             "min {low:.3f}; {seconds:.1f} s").format(cells=summary.n_cells, points=summary.n_points,
                                                      radius=result.radius, mean=summary.q_mean, low=summary.q_min,
                                                      seconds=result.seconds.get("total", 0.0))
+        if "fibres" in result.seconds:
+            text += _("; fibres added (coloured by helix angle)")
+        self.ui.statusLabel.text = text
         plots = getattr(slicer.modules, "plots", None)
         if plots is not None:
             plots.logic().ShowChartInLayout(result.chartNode)

@@ -49,7 +49,8 @@ def test_requirements_install_only_scipy(monkeypatch):
         lib_requirements.installRequirements(pipInstall=pip, confirm=lambda missing: False)
     assert calls == []
     assert lib_requirements.installRequirements(pipInstall=pip) == ["scipy>=1.9", "numba>=0.56"]
-    assert calls == [["scipy>=1.9", "numba>=0.56", f"numpy=={np.__version__}"]]   # numpy pinned as bundled, never upgraded
+    # numpy pinned as bundled, never upgraded
+    assert calls == [["scipy>=1.9", "numba>=0.56", f"numpy=={np.__version__}"]]
     assert not any(name in " ".join(calls[0]).lower() for name in ("vtk", "simpleitk", "itk"))
 
 

@@ -17,6 +17,7 @@ from xml.etree import ElementTree
 import pytest
 from bitemesh import InvalidInputError
 from bitemesh.core import parameters as core
+from bitemesh.core.fibres import FibreParameters
 
 from tests.slicer.module import MODULE
 from BiteMeshLib import parameters as lib_parameters  # on sys.path from tests.slicer.module
@@ -31,7 +32,7 @@ WIDGET_CLASSES = {"choices": "QComboBox", str: "QLineEdit", int: "QSpinBox", flo
 def core_field(name):
     """The dataclass field behind a panel parameter."""
     dataclass_name, field_name = lib_parameters.PARAMETERS[name]
-    return {item.name: item for item in fields(getattr(core, dataclass_name))}[field_name]
+    return {item.name: item for item in fields(lib_parameters.coreDataclass(dataclass_name))}[field_name]
 
 
 def ui_sections():
@@ -61,12 +62,13 @@ def properties(widget) -> dict:
 # --- the parameters and their specs ---------------------------------------------------------------------------------
 
 def test_the_panel_has_every_field_of_its_dataclasses():
-    """The labelled contours' and the optimizer's parameters included: nothing left only to scripts."""
+    """The labelled contours', the optimizer's and the fibres' parameters included: nothing left only to scripts."""
     used = set(lib_parameters.KEYWORDS.values())
-    assert {"LabelledParameters", "OptimizeParameters", "ImplicitParameters"} <= used
+    assert {"LabelledParameters", "OptimizeParameters", "ImplicitParameters", "FibreParameters"} <= used
+    assert lib_parameters.coreDataclass("FibreParameters") is FibreParameters
     claimed = set(lib_parameters.PARAMETERS.values())
     for dataclass_name in used:
-        for item in fields(getattr(core, dataclass_name)):
+        for item in fields(lib_parameters.coreDataclass(dataclass_name)):
             assert (dataclass_name, item.name) in claimed, f"{dataclass_name}.{item.name} has no panel parameter"
     assert {lib_parameters.PARAMETERS[name] for name in ("iterations", "minDihedral", "minQuality")} == \
         {("OptimizeParameters", "iterations"), ("OptimizeParameters", "min_dihedral"),
@@ -102,11 +104,19 @@ def test_parameter_specs_follow_the_core_dataclasses():
         (20.0, 60.0, "degrees")
     assert (specs["rvWall"].default, specs["rvWall"].lowOpen) == (3.0, True)
     assert specs["basePlane"].choices == ("auto", "valves", "none") and specs["basePlane"].default == "auto"
+    # the fibres: a check box, off, and the four angles of Bayer et al. in [-90, 90] degrees
+    assert (specs["fibres"].kind, specs["fibres"].default, specs["fibres"].core) == (bool, False, "fibres")
+    assert {name: (specs[name].core, specs[name].kind, specs[name].default, specs[name].low, specs[name].high,
+                   specs[name].unit) for name in ("alphaEndo", "alphaEpi", "betaEndo", "betaEpi")} == {
+        "alphaEndo": ("alpha_endo", float, 40.0, -90.0, 90.0, "degrees"),
+        "alphaEpi": ("alpha_epi", float, -50.0, -90.0, 90.0, "degrees"),
+        "betaEndo": ("beta_endo", float, -65.0, -90.0, 90.0, "degrees"),
+        "betaEpi": ("beta_epi", float, 25.0, -90.0, 90.0, "degrees")}
     # "automatic" is never a valid value of the core, so it cannot be confused with one
     for spec in specs.values():
         if spec.automatic is not None:
             with pytest.raises(InvalidInputError):
-                getattr(core, lib_parameters.PARAMETERS[spec.name][0])(**{spec.core: spec.automatic})
+                lib_parameters.coreDataclass(lib_parameters.PARAMETERS[spec.name][0])(**{spec.core: spec.automatic})
 
 
 # --- the .ui file ---------------------------------------------------------------------------------------------------
@@ -149,6 +159,8 @@ def test_keywords_split_by_dataclass_and_unknown_names_are_refused():
     assert split["ImplicitParameters"] == {"margin": 2.0, "method": "rbf"}
     assert split["LabelledParameters"] == {"rv_wall": 4.0, "allow_implausible": 1}
     assert split["SpuriousParameters"] == {"handles": "keep"}
+    assert lib_parameters.splitParameters({"fibres": 1, "alpha_epi": -60.0, "margin": 2.0}, "mpu")[
+        "FibreParameters"] == {"fibres": 1, "alpha_epi": -60.0}
     with pytest.raises(InvalidInputError, match=r"unknown parameter\(s\) min_dihedrals; known: .*min_dihedral"):
         lib_parameters.splitParameters({"min_dihedrals": 25.0}, "mpu")
     with pytest.raises(InvalidInputError, match="unknown parameter.* minDihedral"):   # a panel name, not a keyword
@@ -159,6 +171,9 @@ def test_keywords_split_by_dataclass_and_unknown_names_are_refused():
     assert lib_parameters.coreParameters({"radius": 0.0, "errorBound": 0.0}) == {"radius": None, "error_bound": None}
     assert lib_parameters.coreParameters({"minWall": -1.0, "margin": 0.0, "minDihedral": 25.0, "iterations": 0}) == \
         {"min_wall": None, "margin": 0.0, "min_dihedral": 25.0, "iterations": 0}
+    assert lib_parameters.coreParameters({"fibres": True, "alphaEndo": 60.0, "alphaEpi": -60.0, "betaEndo": 0.0,
+                                          "betaEpi": -90.0}) == \
+        {"fibres": True, "alpha_endo": 60.0, "alpha_epi": -60.0, "beta_endo": 0.0, "beta_epi": -90.0}
     with pytest.raises(InvalidInputError, match="unknown panel parameter.* min_dihedral"):
         lib_parameters.coreParameters({"min_dihedral": 25.0})
 
@@ -177,6 +192,18 @@ def test_settings_hold_the_values_and_the_optimizer_follows_its_switch():
         lib_parameters.coreSettings({"optimize": 0, "min_dihedral": 60.0}, "mpu")
     with pytest.raises(InvalidInputError, match="iterations"):
         lib_parameters.coreSettings({"optimize": 1, "iterations": -1}, "mpu")
+
+
+def test_settings_hold_the_fibre_switch_and_angles_and_check_them_when_off():
+    assert lib_parameters.coreSettings({}, "mpu")["FibreParameters"] == FibreParameters()   # off by default
+    assert FibreParameters().fibres == 0
+    angles = {"alpha_endo": 60.0, "alpha_epi": -60.0, "beta_endo": 0.0, "beta_epi": -90.0}
+    assert lib_parameters.coreSettings({"fibres": True, **angles}, "mpu")["FibreParameters"] == \
+        FibreParameters(fibres=1, **angles)
+    with pytest.raises(InvalidInputError, match=r"alpha_endo must be in \[-90, 90\], got 100"):
+        lib_parameters.coreSettings({"fibres": 0, "alpha_endo": 100.0}, "mpu")
+    with pytest.raises(InvalidInputError, match=r"beta_epi must be in \[-90, 90\]"):
+        lib_parameters.coreSettings({"fibres": 1, "beta_epi": -90.5}, "mpu")
 
 
 # --- the parameter node (BiteMesh.py, with stand-ins for what only the Slicer application has) ------------------------
@@ -248,3 +275,8 @@ def test_parameter_node_has_each_dataclass_range_and_default():
             high = INT_MAX if high is None else min(high, INT_MAX)
         expected = ("Minimum", (low,)) if high is None or high == float("inf") else ("WithinRange", (low, high))
         assert validators == [expected], name
+    # the fibres, pinned: a check box, off, and the angles' defaults within [-90, 90] degrees
+    assert node["fields"]["fibres"] == ("bool", [], False)
+    assert {name: node["fields"][name] for name in ("alphaEndo", "alphaEpi", "betaEndo", "betaEpi")} == {
+        name: ("float", [("WithinRange", (-90.0, 90.0))], default)
+        for name, default in (("alphaEndo", 40.0), ("alphaEpi", -50.0), ("betaEndo", -65.0), ("betaEpi", 25.0))}

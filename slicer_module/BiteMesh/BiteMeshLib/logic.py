@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from .contours import labelledPoints, loadLabelledPoints, modelLabels
-from .outputs import BiteMeshResult, writeOutputs, writeSurfaces
+from .outputs import BiteMeshResult, writeFibres, writeOutputs, writeSurfaces
 from .parameters import coreParameters, coreSettings, parameterSpecs
 from .points import scatteredPoints
 from .requirements import installRequirements, missingRequirements, requireBitemesh
@@ -59,9 +59,10 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
     ``outputModelNode`` a vtkUnstructuredGrid of tetrahedra coloured by radius ratio (cell array ``Region``), with
     one model node per surface tag of its boundary (labelled contours: EPI, LV_ENDO, RV_ENDO, BASE; other inputs:
     BOUNDARY_1, ... by decreasing area, or the segment's BOUNDARY_1) and the radius-ratio histogram as a table node
-    and a bar plot.  Labelled contours (a model with a point array ``Label``, as
-    :meth:`loadLabelledPoints` makes from a biv-me GPFile, or closed curves named after their surfaces with a
-    ``domain``) are meshed as the domain their surfaces bound.  It needs no GUI.
+    and a bar plot; with ``fibres=1``, the heart's myocardial fibres as cell arrays, coloured by helix angle.
+    Labelled contours (a model with a point array ``Label``, as :meth:`loadLabelledPoints` makes from a biv-me
+    GPFile, or closed curves named after their surfaces with a ``domain``) are meshed as the domain their surfaces
+    bound.  It needs no GUI.
     """
 
     def __init__(self, parent=None):
@@ -100,6 +101,14 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         wall, mm) and allow_implausible (1: keep a heart that fails the plausibility checks) do not apply to
         other inputs.
 
+        Fibres: ``fibres`` 1 adds bitemesh's rule-based myocardial fibres (bitemesh.core.fibres.with_fibres, Bayer
+        et al. 2012, with ``alpha_endo``, ``alpha_epi``, ``beta_endo`` and ``beta_epi`` in degrees) to the mesh:
+        the cell vectors Fibre (the active vectors), Sheet and SheetNormal and the cell scalar HelixAngle, by which
+        the model is then coloured.  They need a mesh whose boundary is tagged EPI, LV_ENDO, RV_ENDO and BASE, as
+        that of labelled biventricular contours (a biv-me GPFile) is; any other mesh is refused (InvalidInputError
+        naming the surfaces it lacks) after meshing, and nothing is written.  The angles are checked (range
+        [-90, 90]) before anything runs, also when ``fibres`` is 0.
+
         Returns
         -------
         BiteMeshResult
@@ -123,6 +132,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         spurious, quality = settings["SpuriousParameters"], settings["QualityParameters"]
         fidelity, labelled = settings["FidelityParameters"], settings["LabelledParameters"]
         optimize = settings["OptimizeParameters"]   # the core runs the MeshOptimizer when optimize.optimize is 1
+        fibres = settings["FibreParameters"] if settings["FibreParameters"].fibres else None
+        meshed = 0.85 if fibres is not None else 0.95   # the progress at the end of meshing
         domain = (labelled.domain or "").strip()   # "" (or None) stands for the default domain
 
         report(progress, 0.0, "reading the input")
@@ -135,26 +146,34 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
                 raise InvalidInputError(f"domain: {labelled.domain!r} combines labelled contours, and a segmentation "
                                         "has none; clear domain to mesh the segment")
             mesh, result = meshSegment(nodes[0], segmentId, implicit, biting, spurious, optimize, fidelity,
-                                             sub_progress(progress, 0.0, 0.95))
+                                       sub_progress(progress, 0.0, meshed))
         elif domain or any(node.IsA("vtkMRMLModelNode") and modelLabels(node)[0] is not None for node in nodes):
             points, labels, slices = labelledPoints(nodes)
             report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")
             result = run_labelled(points, labels, slices=slices, **labelled_keywords(labelled), implicit=implicit,
                                   biting=biting, spurious=spurious, optimize=optimize, fidelity=fidelity,
-                                  progress=sub_progress(progress, 0.02, 0.95))
+                                  progress=sub_progress(progress, 0.02, meshed))
             mesh = result.mesh
         else:
             points, normals, slices = scatteredPoints(nodes, implicit.method)
             report(progress, 0.02, f"meshing {len(points)} points")
-            result = bitemesh.run(points, normals, implicit, biting, spurious, sub_progress(progress, 0.02, 0.95),
+            result = bitemesh.run(points, normals, implicit, biting, spurious, sub_progress(progress, 0.02, meshed),
                                   optimize=optimize, fidelity=fidelity, slices=slices)
             mesh = result.mesh
         radius, seconds = result.radius, dict(result.seconds)
+        if fibres is not None:   # before anything is written: a refusal leaves the output as it was
+            from bitemesh.core.fibres import with_fibres
+            report(progress, meshed, "adding the fibres")
+            try:
+                mesh, seconds["fibres"] = with_fibres(mesh, fibres, sub_progress(progress, meshed, 0.95))
+            except InvalidInputError as error:
+                raise InvalidInputError(f"fibres: {error}") from None
 
         report(progress, 0.95, "writing the mesh")
         summary = bitemesh.quality_summary(mesh)
         table, series, chart = writeOutputs(mesh, radius, summary, result.fidelity, outputModelNode,
                                                   quality.bins)
+        writeFibres(outputModelNode, fibres)
         surfaces = writeSurfaces(mesh, outputModelNode)
         seconds["total"] = time.perf_counter() - clock
         logger.info("BiteMesh: %d tetrahedra, %d nodes, R = %.4g mm, mean radius ratio %.3f, in %.1f s",

@@ -1,9 +1,9 @@
-"""What the logic writes: the mesh into its model node (coloured by radius ratio), one model node per surface tag
-(its tagged boundary triangles, named by the tag, coloured apart), the radius-ratio histogram into table and plot
-nodes, and the result it returns."""
+"""What the logic writes: the mesh into its model node (coloured by radius ratio, or by helix angle when it carries
+the fibres), one model node per surface tag (its tagged boundary triangles, named by the tag, coloured apart), the
+radius-ratio histogram into table and plot nodes, and the result it returns."""
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 from vtkmodules.vtkCommonDataModel import vtkTable
@@ -20,7 +20,7 @@ class BiteMeshResult:
     radius : R used (mm)
     summary : bitemesh.core.quality.QualitySummary
     tableNode, seriesNode, chartNode : the radius-ratio histogram and its bar plot
-    seconds : step -> wall-clock seconds
+    seconds : step -> wall-clock seconds ("fibres" when the fibres were added)
     fidelity : bitemesh.core.fidelity.Fidelity, how closely the boundary follows the input (mm), or None
     notes : what was done to the input on the way (points dropped as outliers, ...)
     surfaceNodes : the model nodes of the surface tags (:func:`writeSurfaces`), by tag
@@ -48,6 +48,11 @@ SURFACE_COLOURS = ((0.90, 0.62, 0.00), (0.34, 0.71, 0.91), (0.00, 0.62, 0.45), (
                    (0.00, 0.45, 0.70), (0.84, 0.37, 0.00), (0.80, 0.47, 0.65), (0.60, 0.60, 0.60))
 #: colour tables for the radius ratio, the first one present in the scene is used.
 COLOR_NODE_IDS = ("vtkMRMLColorTableNodeFileViridis.txt", "vtkMRMLColorTableNodeRainbow")
+#: colour tables for the helix angle (diverging: negative, epicardial, blue; positive, endocardial, red), the first
+#: one present in the scene is used.
+FIBRE_COLOR_NODE_IDS = ("vtkMRMLColorTableNodeFileDivergingBlueRed.txt", "vtkMRMLColorTableNodeRainbow")
+#: the model attribute prefix of the fibre rule's angles (degrees), set when the mesh carries the fibres.
+FIBRE_ATTRIBUTE = "BiteMesh.Fibres"
 
 
 def writeOutputs(mesh, radius, summary, fidelity, outputModelNode, bins):
@@ -61,26 +66,12 @@ def writeOutputs(mesh, radius, summary, fidelity, outputModelNode, bins):
         grid.GetFieldData().AddArray(field_array(name, [value]))
     figures = {} if fidelity is None else asdict(fidelity)
     add_field_values(grid, figures, "Fidelity")
-    scene = outputModelNode.GetScene()
     outputModelNode.SetAndObserveMesh(grid)
     outputModelNode.SetAttribute("BiteMesh.Radius", f"{radius:.6g}")
     outputModelNode.SetAttribute("BiteMesh.MeanRadiusRatio", f"{summary.q_mean:.6g}")
     for name, value in figures.items():
         outputModelNode.SetAttribute(f"BiteMesh.Fidelity.{name}", f"{value:.6g}")
-    display = outputModelNode.GetDisplayNode()
-    if display is None:
-        outputModelNode.CreateDefaultDisplayNodes()
-        display = outputModelNode.GetDisplayNode()
-    if display is not None:
-        display.SetActiveScalar("RadiusRatio", vtkAssignAttribute.CELL_DATA)
-        display.SetScalarVisibility(True)
-        display.SetScalarRangeFlag(display.UseManualScalarRange)
-        display.SetScalarRange(0.0, 1.0)
-        display.SetVisibility2D(True)
-        for colorId in COLOR_NODE_IDS:
-            if scene.GetNodeByID(colorId) is not None:
-                display.SetAndObserveColorNodeID(colorId)
-                break
+    showCellScalar(outputModelNode, "RadiusRatio", (0.0, 1.0), COLOR_NODE_IDS)
 
     counts, edges = quality_histogram(mesh.cell_data["RadiusRatio"], bins)
     table = vtkTable()
@@ -104,6 +95,43 @@ def writeOutputs(mesh, radius, summary, fidelity, outputModelNode, bins):
     chart.SetYAxisTitle("cells")
     chart.SetLegendVisibility(False)
     return tableNode, series, chart
+
+
+def showCellScalar(modelNode, name: str, scalarRange, colorIds) -> None:
+    """Colour the model by its cell array ``name`` over ``scalarRange`` (manual range) with the first colour table
+    of ``colorIds`` that the scene has (the display node's active scalar, as Slicer's Models module sets it)."""
+    display = modelNode.GetDisplayNode()
+    if display is None:
+        modelNode.CreateDefaultDisplayNodes()
+        display = modelNode.GetDisplayNode()
+    display.SetActiveScalar(name, vtkAssignAttribute.CELL_DATA)
+    display.SetScalarVisibility(True)
+    display.SetScalarRangeFlag(display.UseManualScalarRange)
+    display.SetScalarRange(*scalarRange)
+    display.SetVisibility2D(True)
+    for colorId in colorIds:
+        if modelNode.GetScene().GetNodeByID(colorId) is not None:
+            display.SetAndObserveColorNodeID(colorId)
+            break
+
+
+def writeFibres(outputModelNode, parameters) -> None:
+    """After :func:`writeOutputs`, for a mesh with the fibres (``parameters``: its FibreParameters): the model
+    coloured by the cell scalar HelixAngle over +-(the larger of the rule's two helix angles) on a diverging colour
+    table, Fibre the active cell vectors (for glyphs), and the rule's angles as the attributes
+    ``BiteMesh.Fibres.alpha_endo`` etc. (degrees).  ``parameters`` None (no fibres) removes those attributes of a
+    previous run."""
+    from bitemesh.core.fibres import FibreParameters
+    angles = [item.name for item in fields(FibreParameters) if item.name != "fibres"]
+    if parameters is None:
+        for name in angles:
+            outputModelNode.RemoveAttribute(f"{FIBRE_ATTRIBUTE}.{name}")
+        return
+    outputModelNode.GetMesh().GetCellData().SetActiveVectors("Fibre")
+    widest = max(abs(parameters.alpha_endo), abs(parameters.alpha_epi)) or 90.0
+    showCellScalar(outputModelNode, "HelixAngle", (-widest, widest), FIBRE_COLOR_NODE_IDS)
+    for name in angles:
+        outputModelNode.SetAttribute(f"{FIBRE_ATTRIBUTE}.{name}", f"{getattr(parameters, name):.6g}")
 
 
 def referenced(owner, role: str, className: str, name: str):

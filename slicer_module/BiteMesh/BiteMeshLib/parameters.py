@@ -1,10 +1,12 @@
-"""The panel's parameters, read from bitemesh.core.parameters (the single source of names, defaults, ranges and
-help), and the keywords of BiteMeshLogic.process turned into the core's parameter objects.
+"""The panel's parameters, read from the core's dataclasses (bitemesh.core.parameters, and FibreParameters of
+bitemesh.core.fibres: the single source of names, defaults, ranges and help), and the keywords of
+BiteMeshLogic.process turned into the core's parameter objects.
 
 Nothing here imports slicer (only bitemesh), so that the panel can be checked against the dataclasses anywhere.
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass, fields
 
 #: the panel's sections (the object names of the .ui's collapsible buttons), each with its parameters in panel
@@ -31,6 +33,13 @@ SECTIONS = {
         "baseOffset": ("LabelledParameters", "base_offset"),
         "resolution": ("LabelledParameters", "resolution"),
     },
+    "fibresCollapsibleButton": {   # "Fibres (labelled heart contours)", open
+        "fibres": ("FibreParameters", "fibres"),
+        "alphaEndo": ("FibreParameters", "alpha_endo"),
+        "alphaEpi": ("FibreParameters", "alpha_epi"),
+        "betaEndo": ("FibreParameters", "beta_endo"),
+        "betaEpi": ("FibreParameters", "beta_epi"),
+    },
     "optimizerCollapsibleButton": {   # "Optimizer", collapsed
         "iterations": ("OptimizeParameters", "iterations"),
         "minDihedral": ("OptimizeParameters", "min_dihedral"),
@@ -55,6 +64,8 @@ PARAMETERS = {name: where for section in SECTIONS.values() for name, where in se
 #: the keywords of :meth:`BiteMeshLogic.process` (the core's field names) -> their core dataclass.
 KEYWORDS = {fieldName: dataclassName for dataclassName, fieldName in PARAMETERS.values()}
 assert len(KEYWORDS) == len(PARAMETERS), "two panel parameters share a core keyword"
+#: the module of bitemesh.core holding each panel dataclass that is not in bitemesh.core.parameters.
+DATACLASS_MODULES = {"FibreParameters": "bitemesh.core.fibres"}
 
 
 @dataclass(frozen=True)
@@ -93,12 +104,19 @@ def _core():
     return core
 
 
+def coreDataclass(name: str) -> type:
+    """The core's parameter dataclass of that name (bitemesh.core.parameters, or the module
+    :data:`DATACLASS_MODULES` names for it)."""
+    _core()
+    return getattr(importlib.import_module(DATACLASS_MODULES.get(name, "bitemesh.core.parameters")), name)
+
+
 def parameterSpecs() -> tuple:
-    """The :class:`ParameterSpec` of every panel parameter, in panel order, from bitemesh.core.parameters."""
+    """The :class:`ParameterSpec` of every panel parameter, in panel order, from the core's dataclasses."""
     core = _core()
     specs = []
     for name, (dataclassName, fieldName) in PARAMETERS.items():
-        item = {f.name: f for f in fields(getattr(core, dataclassName))}[fieldName]
+        item = {f.name: f for f in fields(coreDataclass(dataclassName))}[fieldName]
         metadata = item.metadata
         if "choices" in metadata or metadata.get("text"):
             choices = tuple(metadata["choices"]) if "choices" in metadata else None
@@ -133,7 +151,7 @@ def _zeroWasAutomatic(name: str) -> bool:
     (bitemesh.core.parameters.zero_was_automatic of the panel parameter's field)."""
     core = _core()
     dataclassName, fieldName = PARAMETERS[name]
-    return core.zero_was_automatic({f.name: f for f in fields(getattr(core, dataclassName))}[fieldName])
+    return core.zero_was_automatic({f.name: f for f in fields(coreDataclass(dataclassName))}[fieldName])
 
 
 def coreParameters(values: dict) -> dict:
@@ -165,6 +183,5 @@ def splitParameters(parameters: dict, method: str) -> dict:
 def coreSettings(parameters: dict, method: str) -> dict:
     """Keyword parameters of :meth:`BiteMeshLogic.process` -> the core's parameter objects, each checked by its
     dataclass: dataclass name -> instance for every dataclass of the panel (OptimizeParameters with its switch,
-    ``optimize``, which the core reads)."""
-    core = _core()
-    return {name: getattr(core, name)(**values) for name, values in splitParameters(parameters, method).items()}
+    ``optimize``, which the core reads; FibreParameters with its switch ``fibres``, which the logic reads)."""
+    return {name: coreDataclass(name)(**values) for name, values in splitParameters(parameters, method).items()}
