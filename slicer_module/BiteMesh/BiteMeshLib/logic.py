@@ -167,7 +167,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             try:
                 mesh, seconds["fibres"] = with_fibres(mesh, fibres, sub_progress(progress, meshed, 0.95))
             except InvalidInputError as error:
-                raise InvalidInputError(f"fibres: {error}") from None
+                raise InvalidInputError(f"Add fibres (the Fibres option): {error}") from None
 
         report(progress, 0.95, "writing the mesh")
         summary = bitemesh.quality_summary(mesh)
