@@ -44,13 +44,14 @@ def previous(tmp_path):
     return path, path.read_bytes()
 
 
-def bitemesh_process(*arguments, limit=None):
-    """Start ``python -m bitemesh.cli arguments`` (optionally under a file size limit, in bytes)."""
+def bitemesh_process(*arguments, limit=None, numba_cache=None):
+    """Start ``python -m bitemesh.cli arguments`` (optionally under a file size limit, in bytes; with
+    ``numba_cache``, numba's kernels cached in that folder)."""
     def restrict():
         import resource
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)   # a write past the limit then fails with EFBIG
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-    env = {**os.environ, "PYTHONPATH": str(FILTERS)}
+    env = {**os.environ, "PYTHONPATH": str(FILTERS), **({"NUMBA_CACHE_DIR": str(numba_cache)} if numba_cache else {})}
     return subprocess.Popen([sys.executable, "-m", "bitemesh.cli", *map(str, arguments)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=restrict if limit else None)
@@ -58,8 +59,11 @@ def bitemesh_process(*arguments, limit=None):
 
 @POSIX
 def test_a_full_disk_leaves_the_previous_file(points_file, previous, tmp_path):
+    """The disk is full for the mesh and for numba's cache of the compiled kernels (an empty cache folder: every
+    kernel compiles and fails to save, as on the first run after install): the kernels run, the write fails."""
     path, before = previous
-    process = bitemesh_process("mesh", points_file, "-o", path, "--cells", "3000", limit=64 * 1024)
+    process = bitemesh_process("mesh", points_file, "-o", path, "--cells", "3000", limit=64 * 1024,
+                               numba_cache=tmp_path.parent / f"{tmp_path.name}_numba")
     _, err = process.communicate(timeout=120)
     assert process.returncode == 1, err
     assert "cannot write a mesh" in err and "previous file" in err and "Traceback" not in err

@@ -9,8 +9,8 @@ from functools import cached_property
 from typing import Callable
 
 import numpy as np
-from numba import njit
 
+from .kernels import kernel
 from .errors import InvalidInputError, check_number
 from .progress import ProgressCallback, report
 
@@ -98,7 +98,7 @@ def _multilinear(grids: np.ndarray, index: np.ndarray) -> np.ndarray:
     return (_bilinear if index.shape[1] == 2 else _trilinear)(grids, index)
 
 
-@njit(cache=True)
+@kernel
 def _corners(index, p, shape, low, high, weight) -> bool:
     """The lower and upper node and their weights along each axis at point p of ``index``; False for NaN.  The
     weights are 1 - t and 1 - (1 - t), the nodes beyond the grid its nearest (scipy's mode "nearest")."""
@@ -116,7 +116,7 @@ def _corners(index, p, shape, low, high, weight) -> bool:
     return True
 
 
-@njit(cache=True)
+@kernel
 def _bilinear(grids, index):
     out = np.zeros((index.shape[0], grids.shape[2]))
     shape = np.array(grids.shape[:2])
@@ -135,7 +135,7 @@ def _bilinear(grids, index):
     return out
 
 
-@njit(cache=True)
+@kernel
 def _trilinear(grids, index):
     out = np.zeros((index.shape[0], grids.shape[3]))
     shape = np.array(grids.shape[:3])

@@ -12,12 +12,12 @@ from __future__ import annotations
 from itertools import chain
 
 import numpy as np
-from numba import njit
 from scipy.spatial import cKDTree
 
+from .kernels import kernel
 from .errors import InvalidInputError, check_number, check_points
 from .grid import bounding_box
-from .mpu_function import MPUImplicit, _bspline, _quadric, _quadric_gradient
+from .mpu_function import MPUImplicit, _bspline_weights, _quadric, _quadric_gradient
 from .normals import unit_normals
 from .progress import ProgressCallback, report
 
@@ -44,7 +44,7 @@ def _monomials(y: np.ndarray) -> np.ndarray:
     return np.stack([a * a, b * b, c * c, a * b, a * c, b * c, a, b, c, np.ones_like(a)], axis=-1)
 
 
-@njit(cache=True)
+@kernel
 def _normal_matrices(design: np.ndarray, weight: np.ndarray, cell: np.ndarray, cells: int) -> np.ndarray:
     """(cells, q, q) sums of weight * design_i design_j^T over the rows of each cell; ``design`` is (rows, q).
 
@@ -137,7 +137,7 @@ def _fit_cells(points, normals, tree, centres, radii, half_side):
     cell = np.repeat(np.arange(len(centres)), sizes)
     starts = np.r_[0, np.cumsum(sizes)[:-1]]   # every support holds min_points >= 1 points
     y = (points[index] - centres[cell]) / radii[cell, None]
-    weight = _bspline(1.5 * np.linalg.norm(y, axis=1))
+    weight = _bspline_weights(1.5 * np.linalg.norm(y, axis=1))
     axis = np.stack([np.bincount(cell, weight * column, minlength=len(centres)) for column in normals[index].T], 1)
     length = np.linalg.norm(axis, axis=1)
     cancelled = length <= 1e-9 * np.bincount(cell, weight, minlength=len(centres))

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numba import njit, vectorize
 from scipy.spatial import cKDTree
 
+from .kernels import kernel
 from .errors import check_points
 from .grid import box_depth, box_depth_gradient
 
@@ -22,7 +22,7 @@ _BUCKET_SIDE = 1.0
 _BUCKETS_PER_POINT = 8
 
 
-@vectorize(["float64(float64)"], cache=True)
+@kernel
 def _bspline(t):
     """The quadratic B-spline b(t) for t >= 0, supported on [0, 1.5)."""
     if t <= 0.5:
@@ -30,7 +30,16 @@ def _bspline(t):
     return 0.5 * np.square(max(1.5 - t, 0.0))
 
 
-@njit(cache=True)
+@kernel
+def _bspline_weights(t):
+    """:func:`_bspline` of each of the (n,) values ``t``."""
+    weights = np.empty_like(t)
+    for i in range(len(t)):
+        weights[i] = _bspline(t[i])
+    return weights
+
+
+@kernel
 def _bspline_slope_ratio(t):
     """b'(t) / t for t >= 0 (finite at t = 0), so that grad b(1.5 |y|) = 2.25 b'(t)/t y."""
     if t <= 0.5:
@@ -38,7 +47,7 @@ def _bspline_slope_ratio(t):
     return (t - 1.5) / t if t < 1.5 else 0.0
 
 
-@njit(cache=True)
+@kernel
 def _quadric(a, b, z, c):
     """Value of the quadric with coefficients c[0..9] (in the _monomials basis) at y = (a, b, z): scalars, or arrays
     with c (10, ...)."""
@@ -46,7 +55,7 @@ def _quadric(a, b, z, c):
             + z * (c[2] * z + c[8]) + c[9])
 
 
-@njit(cache=True)
+@kernel
 def _quadric_gradient(a, b, z, c):
     """The gradient (three components) with respect to y of :func:`_quadric` at y = (a, b, z)."""
     return (2 * c[0] * a + c[3] * b + c[4] * z + c[6],
@@ -54,7 +63,7 @@ def _quadric_gradient(a, b, z, c):
             2 * c[2] * z + c[4] * a + c[5] * b + c[8])
 
 
-@njit(cache=True)
+@kernel
 def _buckets(x, side):
     """The (m, 3) points in cubic buckets of ``side`` from their lower corner: (lower, shape (3,), start (B + 1,),
     order (m,)); the points of bucket (i, j, l) (C order, number u) are order[start[u]:start[u + 1]]."""
@@ -82,7 +91,7 @@ def _buckets(x, side):
     return lower, shape, start, order
 
 
-@njit(cache=True)
+@kernel
 def _blend_sums(x, centres, radii, coefficients, gradient, side):
     """(2 or 11, m) the sums at the (m, 3) points x of w, w Q (and w grad Q, grad w, Q grad w) over the leaves
     whose support holds them, leaf after leaf: each leaf visits the buckets (:func:`_buckets`) its ball overlaps."""

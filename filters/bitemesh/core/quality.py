@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
-from numba import njit
 
+from .kernels import kernel
 from .errors import InvalidInputError, check_number
 from .mesh import Mesh, facets_of, signed_measures
 from .topology import (boundary_facets, connected_components, distinct_faces, euler_characteristic,  # noqa: F401
@@ -94,13 +94,13 @@ def signed_radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return kernel(points, flat).reshape(np.shape(cells)[:-1])
 
 
-@njit(cache=True)
+@kernel
 def _dot3(a0, a1, a2, b0, b1, b2):
     """a . b summed as numpy's einsum sums three terms: (a0 b0 + a2 b2) + a1 b1."""
     return (a0 * b0 + a2 * b2) + a1 * b1
 
 
-@njit(cache=True)
+@kernel
 def _radius_ratios_3d(points, cells):
     """:func:`signed_radius_ratio` of tetrahedra, one cell at a time, in the order of operations of the numpy
     formulas it replaced (the same bits)."""
@@ -127,7 +127,7 @@ def _radius_ratios_3d(points, cells):
     return out
 
 
-@njit(cache=True)
+@kernel
 def _radius_ratios_2d(points, cells):
     """:func:`signed_radius_ratio` of triangles (see :func:`_radius_ratios_3d`)."""
     out = np.zeros(len(cells))
@@ -180,7 +180,7 @@ _TET_FACETS = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
 _TET_EDGE_FACETS = _ridge_facets(4)
 
 
-@njit(cache=True)
+@kernel
 def _dihedral_angles_3d(points, cells):
     """(m, 6) :func:`dihedral_angles` of tetrahedra, one cell at a time: the facets' area normals
     0.5 (q - p) x (r - p), then per edge atan2(|a x b|, -a . b) in degrees, NaN where a normal is zero; the order of
