@@ -158,8 +158,12 @@ def test_an_interrupted_run_resumed_meshes_only_the_rest(client, inputs, tmp_pat
     with pytest.raises(KeyboardInterrupt):
         batch([manifest], OPTIONS, client, output_dir=output, progress=interrupt)
     first = read_summary(output)
-    assert len(first) == 5 and [row["status"] for row in first.values()].count("done") == 1
+    # the case that stopped the run, and any other whose record its worker wrote before the summary (the two
+    # workers run two cases at a time): done; the rest cancelled
+    done = [name for name, row in first.items() if row["status"] == "done"]
+    assert len(first) == 5 and 1 <= len(done) <= 2, first
     assert {row["status"] for row in first.values()} == {"done", "cancelled"}
+    assert all((output / RECORDS / f"{name}.json").exists() for name in done)
     idle(client)
     meshed = {name: (output / f"{name}.vtu").stat().st_mtime_ns for name in first
               if (output / RECORDS / f"{name}.json").exists()}
