@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from .kernels import kernel
 from .errors import InvalidInputError, MeshingError, check_choice, check_number
-from .grid import ImplicitGrid
+from .grid import SampledGrid, inside_extents
 from .progress import ProgressCallback, report
 
 ORDERS = ("boundary", "random")
@@ -27,7 +28,8 @@ def ball_offsets(radius: float, spacing: np.ndarray, padded_shape: tuple) -> np.
     return index[inside] @ strides
 
 
-def selection_order(grid: ImplicitGrid, border: np.ndarray, order: str, rng: np.random.Generator) -> np.ndarray:
+def selection_order(grid: SampledGrid, alive: np.ndarray, border: np.ndarray, order: str,
+                    rng: np.random.Generator) -> np.ndarray:
     """The flat indices of the Alive nodes in the order SelectNode visits them.
 
     ``boundary``: first the border layer (Alive nodes with a Dead axis neighbour) as a front that advances over the
@@ -35,18 +37,64 @@ def selection_order(grid: ImplicitGrid, border: np.ndarray, order: str, rng: np.
     increasing f, a front advancing inward.  Every pick is on the border between Alive and Dead.
     ``random``: a seeded shuffle.  Ties are broken by the seeded generator.
     """
-    candidates = np.flatnonzero(grid.values > 0)
+    candidates = np.flatnonzero(alive)
     tie_break = rng.random(candidates.size)
     if order == "random":
         return candidates[np.argsort(tie_break)]
     on_border = border.ravel()[candidates]
-    start = grid.node_coordinates(candidates[on_border][rng.integers(np.count_nonzero(on_border))][None])
-    key = grid.values.ravel()[candidates]
-    key[on_border] = np.linalg.norm(grid.node_coordinates(candidates[on_border]) - start, axis=1)
-    return candidates[np.lexsort((tie_break, key, ~on_border))]
+    layer = np.flatnonzero(on_border)   # the border layer first, by distance from a seeded start
+    start = grid.node_coordinates(candidates[layer[rng.integers(layer.size)]][None])
+    distance = np.linalg.norm(grid.node_coordinates(candidates[layer]) - start, axis=1)
+    ordered = np.empty_like(candidates)
+    _sort_into(ordered[:layer.size], candidates[layer], distance, tie_break[layer])
+    first, layer = layer.size, np.flatnonzero(~on_border)   # then the others by f
+    inner, tie_break = candidates[layer], tie_break[layer]
+    del candidates, layer   # the sort's memory, 48 bytes an Alive node at most, is the biting's largest
+    _sort_into(ordered[first:], inner, grid.node_values(inner), tie_break)
+    return ordered
 
 
-def project_to_surface(grid: ImplicitGrid, points: np.ndarray, *, steps: int = 4) -> np.ndarray:
+def _sort_into(out: np.ndarray, items: np.ndarray, key: np.ndarray, tie: np.ndarray) -> None:
+    """``out`` (n,) = ``items`` (n,) ordered by ``key``, equal keys by ``tie``, then by position (what
+    ``items[np.lexsort((tie, key))]`` gives), sorted by one quicksort and the runs of equal keys put in order after."""
+    order = np.argsort(key)
+    _order_runs(order, key, tie)
+    np.take(items, order, out=out)
+
+
+@kernel
+def _order_runs(order, key, tie) -> None:
+    """Within each run of equal ``key[order]``, order ``order`` (n,) by (tie, index), in place."""
+    start = 0
+    for end in range(1, order.size + 1):
+        if end < order.size and key[order[end]] == key[order[start]]:
+            continue
+        if end - start > 1:
+            run = np.sort(order[start:end])   # by index, then stably by tie
+            order[start:end] = run[np.argsort(tie[run], kind="mergesort")]
+        start = end
+
+
+@kernel
+def _bite_block(ordered, start, stop, shape, padded_shape, pads, alive, offsets):
+    """SelectNode and KillNodes over ``ordered[start:stop]`` (C-order flat indices of a grid of ``shape`` (3,)): the
+    positions in ``ordered`` of the nodes still Alive in ``alive``, the flat padded grid (``pads`` (3,) nodes added
+    on each side of each axis), each killing the Alive nodes at ``offsets`` from it."""
+    selected = np.empty(stop - start, np.int64)
+    count = 0
+    for position in range(start, stop):
+        x, rest = divmod(ordered[position], shape[1] * shape[2])
+        y, z = divmod(rest, shape[2])
+        node = ((x + pads[0]) * padded_shape[1] + y + pads[1]) * padded_shape[2] + z + pads[2]
+        if alive[node]:
+            selected[count] = position
+            count += 1
+            for offset in offsets:
+                alive[node + offset] = False
+    return selected[:count]
+
+
+def project_to_surface(grid: SampledGrid, points: np.ndarray, *, steps: int = 4) -> np.ndarray:
     """Move (m, k) points onto f = 0 by Newton steps along grad f, each step at most one grid spacing long."""
     limit = float(np.max(grid.spacing))
     for _ in range(steps):
@@ -59,7 +107,7 @@ def project_to_surface(grid: ImplicitGrid, points: np.ndarray, *, steps: int = 4
     return points
 
 
-def interface_border(grid: ImplicitGrid, alive: np.ndarray, interfaces) -> np.ndarray:
+def interface_border(grid: SampledGrid, alive: np.ndarray, interfaces) -> np.ndarray:
     """The Alive grid nodes with an Alive axis neighbour in another region (``interfaces.node_regions``)."""
     inside = np.flatnonzero(alive.ravel())
     region = np.full(alive.shape, -1)
@@ -75,7 +123,7 @@ def interface_border(grid: ImplicitGrid, alive: np.ndarray, interfaces) -> np.nd
     return border
 
 
-def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: int = 0, jitter: float = 0.15,
+def bite(grid: SampledGrid, radius: float, *, order: str = "boundary", seed: int = 0, jitter: float = 0.15,
          progress: ProgressCallback = None, interfaces=None) -> np.ndarray:
     """Place mesh nodes at least about ``radius`` apart inside {f > 0}.
 
@@ -98,11 +146,11 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     check_choice(order, "order", ORDERS)
     check_number(jitter, "jitter", low=0, high=0.5)
     spacing = grid.spacing
-    alive = grid.values > 0
+    alive = grid.inside()
     if not alive.any():
         raise InvalidInputError("the implicit function is positive nowhere on the grid (nothing is inside); "
                                 "check the normals' orientation and the grid's extent")
-    extent = float(np.min(np.ptp(np.argwhere(alive), axis=0) * spacing)) + float(np.max(spacing))
+    extent = float(np.min(inside_extents(alive) * spacing)) + float(np.max(spacing))
     check_number(radius, "radius", low=0, low_open=True, high=extent,
                  hint="radius is R, the node spacing; it cannot exceed the extent of the shape")
     check_number(radius, "radius", low=2 * float(np.max(spacing)),
@@ -116,23 +164,17 @@ def bite(grid: ImplicitGrid, radius: float, *, order: str = "boundary", seed: in
     offsets = ball_offsets(radius, spacing, padded.shape)
     border = alive & ~ndimage.binary_erosion(alive, border_value=0)
     between = None if interfaces is None else interface_border(grid, alive, interfaces)
-    ordered = selection_order(grid, border if between is None else border | between, order, rng)
-    padded_index = np.ravel_multi_index(
-        tuple(i + pad for i in np.unravel_index(ordered, alive.shape)), padded.shape)
-
-    alive_flat = padded.ravel()
-    selected = []
-    chunk = 4096
+    ordered = selection_order(grid, alive, border if between is None else border | between, order, rng)
+    missing = 3 - alive.ndim   # the kernel sees a 2D grid as 3D, with a last axis of one node and no padding
+    shape3, padded3 = (np.array(a.shape + (1,) * missing, np.int64) for a in (alive, padded))
+    pads = np.array([pad] * alive.ndim + [0] * missing, np.int64)
+    selected, chunk = [], 1 << 20
     for start in range(0, ordered.size, chunk):
         report(progress, start / ordered.size, "biting")
-        block = slice(start, start + chunk)
-        for position in np.flatnonzero(alive_flat[padded_index[block]]) + start:
-            node = padded_index[position]
-            if alive_flat[node]:
-                selected.append(position)
-                alive_flat[node + offsets] = False
+        selected.append(_bite_block(ordered, start, min(start + chunk, ordered.size), shape3, padded3, pads,
+                                    padded.ravel(), offsets))
     report(progress, 1.0, "biting")
-    chosen = ordered[np.array(selected, dtype=np.int64)]
+    chosen = ordered[np.concatenate(selected)]
     if chosen.size < MIN_NODES:
         raise InvalidInputError(
             f"radius is too large for the shape: it leaves only {chosen.size} nodes "

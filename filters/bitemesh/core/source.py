@@ -81,8 +81,7 @@ class Frame:
         must be a uniform scaling and a shift, as the frames of scattered points, contours and images are."""
         if not np.allclose(self.linear, self.scale * np.eye(self.dim), rtol=0, atol=1e-12 * self.scale):
             raise ValueError("grid_to_user needs a frame that is a uniform scaling and a shift, not a rotation")
-        return ImplicitGrid(origin=self.to_user(grid.origin[None])[0], spacing=grid.spacing * self.scale,
-                            values=grid.values * self.scale)
+        return grid.scaled(self.to_user(grid.origin[None])[0], self.scale)
 
     def mesh_to_user(self, mesh: Mesh) -> Mesh:
         """``mesh`` (local frame, positively oriented, quality arrays, tags) in user coordinates: a reflection swaps

@@ -25,8 +25,8 @@ from .delaunay import delaunay
 from .repair import carve_domain
 from .errors import BitemeshWarning, InvalidInputError, check_number
 from .fidelity import Fidelity, check_fidelity, measure_fidelity
-from .grid import (BYTES_PER_NODE, EXACT_WITHIN, ImplicitGrid, available_memory_mb, grid_shape_unchecked,
-                   sample_function)
+from .grid import (BYTES_PER_NODE, EXACT_WITHIN, SampledGrid, available_memory_mb, grid_shape_unchecked,
+                   inside_extents, sample_function)
 from .mesh import Mesh
 from .optimize import optimize_mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
@@ -71,7 +71,7 @@ class MeshingResult:
     """
 
     mesh: Mesh
-    implicit: ImplicitGrid
+    implicit: SampledGrid
     nodes: np.ndarray
     radius: float
     seconds: dict = field(default_factory=dict)
@@ -100,7 +100,7 @@ def timed(seconds: dict, name: str):
     seconds[name] = seconds.get(name, 0.0) + time.perf_counter() - clock
 
 
-def mesh_from_grid(grid: ImplicitGrid, biting: BitingParameters, spurious: SpuriousParameters = SpuriousParameters(),
+def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: SpuriousParameters = SpuriousParameters(),
                    progress: ProgressCallback = None, seconds: dict | None = None,
                    optimize: OptimizeParameters = OptimizeParameters(),
                    tagging: Callable[[Mesh], Mesh] = component_tags, interfaces=None) -> MeshingResult:
@@ -154,7 +154,7 @@ def switched_optimizer(optimize: OptimizeParameters) -> OptimizeParameters | Non
     return None
 
 
-def radius_on_grid(grid: ImplicitGrid, cells: int) -> float:
+def radius_on_grid(grid: SampledGrid, cells: int) -> float:
     """R for about ``cells`` cells in {f > 0} of a sampled f, from its volume counted on the grid."""
     return radius_for_cells(grid.inside_volume(), cells, grid.dim)
 
@@ -254,16 +254,16 @@ def check_memory(source: Source, radius: float | None, implicit: ImplicitParamet
             + (" or raise max_memory_mb" if limit == implicit.max_memory_mb else ""))
 
 
-def check_inside(grid: ImplicitGrid, radius: float, scale: float, biting: BitingParameters) -> None:
+def check_inside(grid: SampledGrid, radius: float, scale: float, biting: BitingParameters) -> None:
     """Refuse a grid I with nothing inside, or a shape thinner than R along some axis, in user units: the biting
     could place no meaningful nodes there."""
-    inside = grid.values > 0
+    inside = grid.inside()
     if not inside.any():
         raise InvalidInputError(
             f"nothing is inside the surface on the grid I (spacing {np.max(grid.spacing) * scale:.3g}): the "
             "normals may point inward or disagree, or the shape is thinner than the grid spacing or the samples' "
             "spacing; give outward normals, or a finer grid_spacing")
-    extent = float(np.min(np.ptp(np.argwhere(inside), axis=0) * grid.spacing)) + float(np.max(grid.spacing))
+    extent = float(np.min(inside_extents(inside) * grid.spacing)) + float(np.max(grid.spacing))
     if radius > extent:
         given = biting.radius is not None
         needed = biting.cells * (radius / (extent / 2)) ** grid.dim
@@ -274,7 +274,7 @@ def check_inside(grid: ImplicitGrid, radius: float, scale: float, biting: Biting
 
 
 def sample_grid(source: Source, function, radius: float, implicit: ImplicitParameters,
-                progress: ProgressCallback = None) -> ImplicitGrid:
+                progress: ProgressCallback = None) -> SampledGrid:
     """The grid I for node spacing R (local units, see :func:`grid_layout`), exact near f = 0; a source's own grid
     when its spacing is between R / 8 and R / 4 (and grid_spacing is not given), else resampled from it."""
     if source.grid is not None:

@@ -23,6 +23,7 @@ import warnings
 import numpy as np
 
 from ..errors import BitemeshWarning, InvalidInputError, MeshingError, check_number
+from ..grid import ImplicitGrid
 from ..parameters import LabelledParameters
 
 #: biv-me guide-point labels -> the surfaces they sample (see bitemesh.core.contours.fit for the septum).  biv-me splits
@@ -154,8 +155,8 @@ def grown(grid, thickness: float):
     """The ImplicitGrid of ``grid``'s region grown by ``thickness`` (input units): f / |grad f| + thickness, f / |grad
     f| being about the signed distance near f = 0 (|grad f| bounded to [0.5, 2])."""
     slope = np.sqrt(sum(component ** 2 for component in np.gradient(grid.values, *grid.spacing)))
-    return type(grid)(origin=grid.origin, spacing=grid.spacing,
-                      values=grid.values / np.clip(slope, 0.5, 2.0) + float(thickness))
+    return ImplicitGrid(origin=grid.origin, spacing=grid.spacing,
+                        values=grid.values / np.clip(slope, 0.5, 2.0) + float(thickness))
 
 
 def short_axis_stack(points, labels, slices, planes):

@@ -1,0 +1,213 @@
+"""Compiled kernels of the grid I (:mod:`bitemesh.core.grid`): f at a node, its multilinear interpolation and that
+of its central-difference gradient, from either storage.
+
+Every kernel sees the grid as three dimensional (a 2D grid has a last axis of one node) and its storage as
+``(coarse, slots, bricks)``: the nodes are cut into bricks of 2 ** BRICK_SHIFT nodes a side; brick ``b`` holds its f
+exactly in ``bricks[slots[b]]``, and where ``slots[b] < 0`` f is the multilinear refinement of ``coarse``, a grid
+twice as coarse (node 2 i of the grid is node i of ``coarse``).  A dense grid is one brick, ``slots == [[[0]]]``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from numba import njit
+
+from .kernels import kernel
+
+#: the bricks of a banded grid have 2 ** BRICK_SHIFT nodes a side (a 2D grid's: one along its last axis)
+BRICK_SHIFT = 3
+_MASK = (1 << BRICK_SHIFT) - 1
+#: helpers compiled into the kernels that call them (numba inlines them: a call per node costs more than the read)
+inline = njit(inline="always")
+
+
+@inline
+def _refined_0(coarse, x, cy, cz):
+    """f at fine x, coarse y and z: node x / 2 of coarse, or the mean of its two neighbours along axis 0."""
+    if x % 2 == 0:
+        return coarse[x // 2, cy, cz]
+    return 0.5 * (coarse[x // 2, cy, cz] + coarse[x // 2 + 1, cy, cz])
+
+
+@inline
+def _refined_1(coarse, x, y, cz):
+    if y % 2 == 0:
+        return _refined_0(coarse, x, y // 2, cz)
+    return 0.5 * (_refined_0(coarse, x, y // 2, cz) + _refined_0(coarse, x, y // 2 + 1, cz))
+
+
+@inline
+def refined_value(coarse, x, y, z):
+    """f at node (x, y, z) of the grid with every cell of ``coarse`` halved, refined along axis 0, then 1, then 2,
+    each new node the mean of its two neighbours (the arithmetic of refining the whole array axis after axis)."""
+    if z % 2 == 0:
+        return _refined_1(coarse, x, y, z // 2)
+    return 0.5 * (_refined_1(coarse, x, y, z // 2) + _refined_1(coarse, x, y, z // 2 + 1))
+
+
+@inline
+def node_value(coarse, slots, bricks, x, y, z):
+    """f at node (x, y, z)."""
+    if slots.size == 1:   # a dense grid
+        return bricks[0, x, y, z]
+    slot = slots[x >> BRICK_SHIFT, y >> BRICK_SHIFT, z >> BRICK_SHIFT]
+    if slot >= 0:
+        return bricks[slot, x & _MASK, y & _MASK, z & _MASK]
+    return _far_refined(coarse, x, y, z)
+
+
+@kernel
+def _far_refined(coarse, x, y, z):
+    """:func:`refined_value` called, not inlined: the callers' loops stay short (inlined, 5x slower)."""
+    return refined_value(coarse, x, y, z)
+
+
+@inline
+def _difference(coarse, slots, bricks, shape, x, y, z, axis, step):
+    """The derivative of f along ``axis`` at node (x, y, z) as numpy.gradient takes it: central inside, one-sided
+    (first order) at the first and the last node."""
+    at = x if axis == 0 else y if axis == 1 else z
+    ahead, behind = int(at < shape[axis] - 1), int(at > 0)
+    dx, dy, dz = int(axis == 0), int(axis == 1), int(axis == 2)
+    difference = (node_value(coarse, slots, bricks, x + ahead * dx, y + ahead * dy, z + ahead * dz)
+                  - node_value(coarse, slots, bricks, x - behind * dx, y - behind * dy, z - behind * dz))
+    return difference / (2.0 * step) if ahead and behind else difference / step
+
+
+@inline
+def _corners(index, p, shape, low, high, weight) -> bool:
+    """The lower and upper node and their weights along each axis at point p of ``index``; False for NaN.  The
+    weights are 1 - t and 1 - (1 - t), the nodes beyond the grid its nearest (scipy's mode "nearest")."""
+    for d in range(3):
+        n = shape[d]
+        cc = index[p, d]
+        if not cc == cc:
+            return False
+        start = np.floor(cc)
+        node = int(min(max(start, -1.0), n - 1.0))  # beyond the grid: its nearest node
+        low[d] = min(max(node, 0), n - 1)
+        high[d] = min(max(node + 1, 0), n - 1)
+        weight[d, 0] = 1.0 - (cc - start)
+        weight[d, 1] = 1.0 - weight[d, 0]
+    return True
+
+
+@kernel
+def interpolate(coarse, slots, bricks, shape, index):
+    """(m,) f multilinear at (m, 3) fractional node indices of the grid of ``shape`` (3,); NaN where the index is
+    NaN.  The arithmetic of ``scipy.ndimage.map_coordinates(values, index.T, order=1, mode="nearest")`` (scipy 1.17),
+    bit for bit: the corners summed in C order, each corner's value times its weights in axis order."""
+    out = np.empty(index.shape[0])
+    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
+    for p in range(index.shape[0]):
+        if not _corners(index, p, shape, low, high, weight):
+            out[p] = np.nan
+            continue
+        total = 0.0
+        for corner in range(8):
+            i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
+            value = node_value(coarse, slots, bricks, low[0] if i == 0 else high[0], low[1] if j == 0 else high[1],
+                               low[2] if h == 0 else high[2])
+            total += value * weight[0, i] * weight[1, j] * weight[2, h]
+        out[p] = total
+    return out
+
+
+@kernel
+def _far_difference(coarse, slots, bricks, shape, x, y, z, axis, step):
+    """:func:`_difference` called, not inlined: the rare path of :func:`interpolate_gradient` stays out of its loop
+    (inlined, it makes the loop 5x slower)."""
+    return _difference(coarse, slots, bricks, shape, x, y, z, axis, step)
+
+
+@kernel
+def interpolate_gradient(coarse, slots, bricks, gradients, shape, spacing, index):
+    """(m, k) the central-difference gradient of f (``numpy.gradient(values, *spacing)``; k = len(spacing))
+    multilinear at (m, 3) fractional node indices, as :func:`interpolate` takes f; ``gradients`` is
+    :func:`brick_gradients`."""
+    out = np.empty((index.shape[0], len(spacing)))
+    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
+    for p in range(index.shape[0]):
+        if not _corners(index, p, shape, low, high, weight):
+            out[p] = np.nan
+            continue
+        for q in range(len(spacing)):
+            total = 0.0
+            for corner in range(8):
+                i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
+                x, y, z = low[0] if i == 0 else high[0], low[1] if j == 0 else high[1], low[2] if h == 0 else high[2]
+                if slots.size == 1:   # a dense grid
+                    value = gradients[0, x, y, z, q]
+                else:   # kept in the bricks kept, else from the neighbours
+                    slot = slots[x >> BRICK_SHIFT, y >> BRICK_SHIFT, z >> BRICK_SHIFT]
+                    if slot < 0:
+                        value = _far_difference(coarse, slots, bricks, shape, x, y, z, q, spacing[q])
+                    else:
+                        value = gradients[slot, x & _MASK, y & _MASK, z & _MASK, q]
+                total += value * weight[0, i] * weight[1, j] * weight[2, h]
+            out[p, q] = total
+    return out
+
+
+@kernel
+def brick_gradients(coarse, slots, bricks, shape, spacing):
+    """(m, B_0, B_1, B_2, k) the central-difference gradient of f on the nodes of each brick kept (0 beyond the
+    grid of ``shape`` (3,)): what :func:`interpolate_gradient` reads there."""
+    gradients = np.zeros((*bricks.shape, len(spacing)))
+    index = np.full(bricks.shape[0], -1, np.int64)
+    flat = slots.ravel()
+    for b in range(flat.size):
+        if flat[b] >= 0:
+            index[flat[b]] = b
+    counts = slots.shape
+    for s in range(bricks.shape[0]):
+        bx, rest = divmod(index[s], counts[1] * counts[2])
+        by, bz = divmod(rest, counts[2])
+        for i in range(bricks.shape[1]):
+            x = bx * bricks.shape[1] + i
+            for j in range(bricks.shape[2]):
+                y = by * bricks.shape[2] + j
+                for h in range(bricks.shape[3]):
+                    z = bz * bricks.shape[3] + h
+                    if x < shape[0] and y < shape[1] and z < shape[2]:
+                        for q in range(len(spacing)):
+                            gradients[s, i, j, h, q] = _difference(coarse, slots, bricks, shape, x, y, z, q,
+                                                                   spacing[q])
+    return gradients
+
+
+@kernel
+def node_values(coarse, slots, bricks, shape, flat):
+    """(m,) f at the nodes with C-order flat indices ``flat`` (m,) of the grid of ``shape`` (3,)."""
+    out = np.empty(flat.size)
+    for p in range(flat.size):
+        x, rest = divmod(flat[p], shape[1] * shape[2])
+        y, z = divmod(rest, shape[2])
+        out[p] = node_value(coarse, slots, bricks, x, y, z)
+    return out
+
+
+@kernel
+def plane_values(coarse, slots, bricks, shape, first, last):
+    """(last - first, n_1, n_2) f on the nodes of the planes ``first`` to ``last`` - 1 along axis 0."""
+    out = np.empty((last - first, shape[1], shape[2]))
+    for x in range(first, last):
+        for y in range(shape[1]):
+            for z in range(shape[2]):
+                out[x - first, y, z] = node_value(coarse, slots, bricks, x, y, z)
+    return out
+
+
+@kernel
+def fill_bricks(coarse, bricks, brick_index, shape):
+    """Fill ``bricks`` (m, b_0, b_1, b_2) with the refinement of ``coarse`` over the bricks of (m, 3) indices
+    ``brick_index``, nodes beyond the grid of ``shape`` (3,) left at 0."""
+    for s in range(brick_index.shape[0]):
+        for i in range(bricks.shape[1]):
+            x = brick_index[s, 0] * bricks.shape[1] + i
+            for j in range(bricks.shape[2]):
+                y = brick_index[s, 1] * bricks.shape[2] + j
+                for h in range(bricks.shape[3]):
+                    z = brick_index[s, 2] * bricks.shape[3] + h
+                    inside = x < shape[0] and y < shape[1] and z < shape[2]
+                    bricks[s, i, j, h] = refined_value(coarse, x, y, z) if inside else 0.0
