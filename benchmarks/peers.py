@@ -1,8 +1,8 @@
 #!/usr/bin/env python
 """bitemesh (its default, and --no-optimize) beside gmsh and TetGen, side by side in one run (issues #5, #12).
 
-Cases: sphere, torus, die and two-cavity heart (``bitemesh.core.shapes``) at about 10,000 tets; the heart and the
-sphere at about 136,000; the sphere at about 1,000,000.  Each mesher x case runs in its own process
+Cases: sphere, torus, die and two-cavity heart (``bitemesh.core.shapes``) at about 10,000 tets; the heart, the die
+and the sphere at about 136,000; the sphere at about 1,000,000, and at 10,000,000 by bitemesh alone.  Each mesher x case runs in its own process
 (``peers_meshers.py``), which reports its times and its peak memory and saves its first mesh:
 
 * bitemesh: noisy scattered surface points with normals (``shape_worker.make_input``, seed 0), then the whole
@@ -47,10 +47,12 @@ from peers_meshers import MESHERS, ONE_RUN_CELLS, SINGLE_RUN_LIMIT  # noqa: E402
 from shape_worker import SHAPES  # noqa: E402
 
 #: the sizes of the cases, full and --quick
-SIZES = {"10k": 10_000, "136k": 136_000, "1M": 1_000_000}
-QUICK = {"10k": 2_000, "136k": 8_000, "1M": 60_000}
+SIZES = {"10k": 10_000, "136k": 136_000, "1M": 1_000_000, "10M": 10_000_000}
+QUICK = {"10k": 2_000, "136k": 8_000, "1M": 60_000, "10M": 120_000}
 CASES = [("sphere", "10k"), ("torus", "10k"), ("die", "10k"), ("two-cavity-heart", "10k"),
-         ("two-cavity-heart", "136k"), ("sphere", "136k"), ("sphere", "1M")]
+         ("two-cavity-heart", "136k"), ("die", "136k"), ("sphere", "136k"), ("sphere", "1M"), ("sphere", "10M")]
+#: the sizes that bitemesh meshes alone (issue #12: "10M for bitemesh alone")
+ALONE = {"10M"}
 #: issue #12's targets: (shape, size, mesher, against, at most): a time ratio against a peer, or peak memory (MiB)
 TARGETS = [("two-cavity-heart", "136k", "bitemesh", "tetgen", 2.0),
            ("two-cavity-heart", "136k", "bitemesh", "gmsh", 0.5),
@@ -59,8 +61,6 @@ TARGETS = [("two-cavity-heart", "136k", "bitemesh", "tetgen", 2.0),
            ("sphere", "1M", "bitemesh-no-optimize", "tetgen", 1.0),
            ("sphere", "1M", "bitemesh", "tetgen", 2.0),
            ("sphere", "1M", "bitemesh", "memory", 1024.0)]
-#: bitemesh's grid costs about this many bytes per grid node (f, its gradient grids and the biting's state)
-GRID_BYTES_PER_NODE = 48
 WORKER_TIMEOUT = 3 * 3600
 
 
@@ -216,22 +216,25 @@ def targets(results: dict) -> list:
 
 
 def ten_million(results: dict, cells: int) -> list:
-    """The estimate of bitemesh's 10M-cell sphere from its run at ``cells`` (grid nodes and peak memory scale with
-    the cell count, the grid spacing being R / 4)."""
+    """The 10M-cell sphere (bitemesh alone): measured, or estimated from its run at ``cells`` (grid nodes and peak
+    memory scale with the cell count, the grid spacing being R / 4) when it was not run."""
+    lines = ["## 10,000,000 cells (bitemesh alone)", ""]
+    measured = results.get(("sphere", "10M"), {})
+    for mesher in ("bitemesh-no-optimize", "bitemesh"):
+        r = measured.get(mesher)
+        if r:
+            m = r["metrics"]
+            lines.append(f"- {label(mesher, r)}: completed in {np.median(r['seconds']):,.0f} s, {m['cells']:,} tets, "
+                         f"grid of {r['grid_nodes']:,} nodes, peak {r['peak_mb']:,.0f} MiB of this machine's "
+                         f"{memory_total_mb():,.0f}; mean Q {m['q_mean']:.3f}, min dihedral {m['angle_min']:.1f} deg, "
+                         f"valid: {'yes' if m['valid'] else 'NO'}.")
     r = results.get(("sphere", "1M"), {}).get("bitemesh")
-    if not r:
-        return []
-    factor = 10_000_000 / cells
-    nodes, peak, total = factor * r["grid_nodes"], factor * r["peak_mb"], memory_total_mb()
-    grid = nodes * GRID_BYTES_PER_NODE / 2**20
-    verdict = ("more than 80 % of this machine's memory, which three other users share: not run here"
-               if peak > 0.8 * total else "within this machine's memory")
-    return ["## 10,000,000 cells (bitemesh alone)", "",
-            f"Estimated from the sphere at {cells:,} (default), whose grid had {r['grid_nodes']:,} nodes and whose "
-            f"process peaked at {r['peak_mb']:,.0f} MiB: at {factor:g}x the cells the grid has ~{factor:g}x the "
-            f"nodes ({nodes:,.0f}, ~{grid:,.0f} MiB at {GRID_BYTES_PER_NODE} bytes per node, above the default "
-            f"--max-memory-mb 4096) and the peak would be ~{peak:,.0f} MiB against this machine's {total:,.0f} MiB: "
-            f"{verdict}.", ""]
+    if len(lines) == 2 and r:
+        factor = 10_000_000 / cells
+        lines.append(f"Not run; estimated from the sphere at {cells:,} (default, grid of {r['grid_nodes']:,} nodes, "
+                     f"peak {r['peak_mb']:,.0f} MiB): ~{factor * r['peak_mb']:,.0f} MiB against this machine's "
+                     f"{memory_total_mb():,.0f} MiB.")
+    return lines + [""]
 
 
 def main(argv=None) -> int:
@@ -241,6 +244,8 @@ def main(argv=None) -> int:
     parser.add_argument("--cases", nargs="+", metavar="SHAPE:SIZE", help="instead of the table's cases, e.g. "
                         "sphere:10k die:2000 (sizes: a number or 10k, 136k, 1M)")
     parser.add_argument("--meshers", nargs="+", default=list(MESHERS), choices=MESHERS)
+    parser.add_argument("--alone-meshers", nargs="+", default=["bitemesh-no-optimize", "bitemesh"],
+                        choices=MESHERS[:2], help="the meshers of the sizes bitemesh meshes alone (10M)")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs per mesher and case (median)")
     parser.add_argument("--output", type=Path)
     args = parser.parse_args(argv)
@@ -257,7 +262,7 @@ def main(argv=None) -> int:
     for name, size in cases:
         cells = sizes[size] if size in sizes else int(size)
         records = {}
-        for mesher in args.meshers:
+        for mesher in args.alone_meshers if size in ALONE else args.meshers:
             r = run_case(mesher, name, cells, args.repeat)
             notes.append(note(name, cells, mesher, r))
             print(notes[-1], flush=True)
