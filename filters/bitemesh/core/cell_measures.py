@@ -8,6 +8,7 @@ from math import factorial
 import numpy as np
 
 from .grid import ImplicitGrid
+from .kernels import kernel
 from .quality import cross, dihedral_angles, dot, edge_lengths, signed_radius_ratio  # noqa: F401 (re-exported)
 from .topology import boundary_facets
 
@@ -56,6 +57,33 @@ def mean_ratio_terms(corners: np.ndarray):
     squares = (k + 1) * np.einsum("mij,mij->m", edges, edges) - dot(total, total)
     centred = np.concatenate([np.zeros_like(edges[:, :1]), edges], axis=1) - total[:, None] / (k + 1)
     return volume, squares, volume_gradient, centred
+
+
+@kernel
+def node_trial_costs(cells: np.ndarray, volume: np.ndarray, squares: np.ndarray, volume_gradient: np.ndarray,
+                     centred: np.ndarray, move: np.ndarray, n_points: int, power: int) -> np.ndarray:
+    """(n_points,) for each node, sum over its cells of :func:`mean_ratio_cost` ** ``power`` when that node alone
+    moves by ``move`` (n_points, k), from the cells' :func:`mean_ratio_terms` (exact: see there)."""
+    m, corners, k = volume_gradient.shape
+    scale = 4.0 * np.sqrt(3.0) if k == 2 else 12.0 * 3.0 ** (2.0 / 3.0)
+    # the sums over the axes in the order of numpy's einsum (0, 2, 1 in 3D), so that the result is the same
+    axes = np.array([0, 2, 1]) if k == 3 else np.array([0, 1])
+    total = np.zeros(n_points)
+    for c in range(m):
+        for i in range(corners):
+            node = cells[c, i]
+            trial_volume, trial_squares = 0.0, 0.0
+            for d in axes:
+                shift = move[node, d]
+                trial_volume += volume_gradient[c, i, d] * shift
+                trial_squares += (2.0 * corners * centred[c, i, d] + k * shift) * shift
+            trial_volume += volume[c]
+            trial_squares += squares[c]
+            if trial_volume > 0:
+                total[node] += (trial_squares / (scale * trial_volume ** (2.0 / k))) ** power
+            else:
+                total[node] += np.inf
+    return total
 
 
 def inverse_mean_ratio(corners: np.ndarray) -> np.ndarray:
