@@ -98,11 +98,36 @@ def facet_table(cells: np.ndarray):
     return facets, inverse, counts
 
 
+@kernel
+def _counting_sort(values: np.ndarray, n_values: int) -> np.ndarray:
+    """(r,) int64, ``np.argsort(values, kind="stable")`` of (r,) ``values`` in 0 .. n_values - 1, in linear time."""
+    start = np.zeros(n_values + 1, np.int64)
+    for value in values:
+        start[value + 1] += 1
+    for value in range(n_values):
+        start[value + 1] += start[value]
+    order = np.empty(len(values), np.int64)
+    for i in range(len(values)):
+        order[start[values[i]]] = i
+        start[values[i]] += 1
+    return order
+
+
 def neighbour_pairs(inverse: np.ndarray):
     """(a, b): the row pairs of a facet table that are the same facet, as indices into the table."""
-    order = np.argsort(inverse, kind="stable")
+    order = _counting_sort(inverse, int(inverse.max()) + 1 if len(inverse) else 0)
     same = inverse[order[1:]] == inverse[order[:-1]]
     return order[:-1][same], order[1:][same]
+
+
+def single_facets(cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1) bool, True where the facet opposite vertex i of cell c is held by that cell alone."""
+    k = cells.shape[1] - 1
+    n_points = int(cells.max()) + 1 if cells.size else 1
+    if float(n_points) ** k >= 2.0**63:
+        _, inverse, counts = facet_table(cells)
+        return (counts[inverse] == 1).reshape(-1, k + 1)
+    return _single_facets(np.ascontiguousarray(cells, dtype=np.int64), n_points)
 
 
 def boundary_facets(cells: np.ndarray) -> np.ndarray:
@@ -110,14 +135,9 @@ def boundary_facets(cells: np.ndarray) -> np.ndarray:
 
     3D: triangles (p, q, r) with (q - p) x (r - p) pointing out.  2D: edges (p, q) with the domain on the left.
     """
-    k = cells.shape[1] - 1
-    n_points = int(cells.max()) + 1 if cells.size else 1
-    if float(n_points) ** k >= 2.0**63:
-        facets, inverse, counts = facet_table(cells)
-        return facets[counts[inverse] == 1]
-    single = _single_facets(np.ascontiguousarray(cells, dtype=np.int64), n_points)
+    single = single_facets(cells)
     held = single.any(axis=1)   # the facets of the cells with one on the boundary, in the same order
-    return facets_of(cells[held]).reshape(-1, k)[single[held].ravel()]
+    return facets_of(cells[held]).reshape(-1, cells.shape[1] - 1)[single[held].ravel()]
 
 
 def connected_components(cells: np.ndarray) -> np.ndarray:
@@ -142,7 +162,15 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
 
 def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted."""
-    return unique_rows(faces_of(simplices, size).reshape(-1, size))[0]
+    rows = np.sort(faces_of(simplices, size).reshape(-1, size), axis=1).astype(np.int64, copy=False)
+    n_points = int(rows.max()) + 1 if rows.size else 1
+    if float(n_points) ** size >= 2.0**63:
+        return unique_rows(rows)[0]
+    keys = rows[:, 0].copy()
+    for column in range(1, size):
+        keys = keys * n_points + rows[:, column]
+    keys = np.unique(keys)   # sorting alone, without the indices that unique_rows needs
+    return np.stack([keys // n_points ** (size - 1 - column) % n_points for column in range(size)], axis=1)
 
 
 def euler_characteristic(simplices: np.ndarray) -> int:
