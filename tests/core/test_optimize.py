@@ -19,7 +19,8 @@ from bitemesh.core import optimize as optimizer
 from bitemesh.core.delaunay import delaunay
 from bitemesh.core.errors import BitemeshWarning, Cancelled, InvalidInputError, MeshingError
 from bitemesh.core.mesh import Mesh, signed_measures
-from bitemesh.core.cell_measures import inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms, signed_radius_ratio
+from bitemesh.core.cell_measures import (_lane_sum, inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms,
+                                         signed_radius_ratio)
 from bitemesh.core.flips import flip, polygon_triangulations
 from bitemesh.core.optimize import optimize_mesh, peel, relax, smooth
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
@@ -385,6 +386,16 @@ def test_the_closed_form_radius_ratio_agrees_with_its_definition(dim):
     assert np.allclose(radius_ratio(points, cells), definition, atol=1e-12)
     inverted = cells[:, [1, 0] + list(range(2, dim + 1))]
     assert np.allclose(signed_radius_ratio(points, inverted), -definition, atol=1e-12)
+
+
+def test_the_kernels_sum_in_numpy_einsums_order():
+    """The mean-ratio kernels sum in the order of numpy's einsum (cell_measures._lane_sum), so that the smoothing
+    moves the nodes to the same bits as the vectorized code did; a numpy build that sums otherwise fails here."""
+    rng = np.random.default_rng(0)
+    for count in range(1, 20):
+        a, b = rng.normal(size=(2, 50, count))
+        expected = np.einsum("ij,ij->i", a, b)
+        assert all(_lane_sum(a[i] * b[i], count) == expected[i] for i in range(50))
 
 
 @pytest.mark.parametrize("dim", [2, 3])

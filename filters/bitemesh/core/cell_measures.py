@@ -3,11 +3,10 @@ and its gradient, the smallest angles, the mean edge length, the boundary nodes 
 """
 from __future__ import annotations
 
-from math import factorial
-
 import numpy as np
 
 from .grid import ImplicitGrid
+from .kernels import kernel
 from .quality import cross, dihedral_angles, dot, edge_lengths, signed_radius_ratio  # noqa: F401 (re-exported)
 from .topology import boundary_facets
 
@@ -28,6 +27,44 @@ def mean_ratio_cost(volume: np.ndarray, squares: np.ndarray, k: int) -> np.ndarr
     return cost
 
 
+@kernel
+def _lane_sum(products: np.ndarray, count: int) -> float:
+    """The sum of ``products[:count]`` in numpy einsum's order on this build (two lanes, eight products at a time
+    from the front, then pairs; checked in tests/core/test_optimize.py), so that the kernels' sums are numpy's
+    bit for bit."""
+    low = high = 0.0
+    start = 0
+    while count - start >= 8:
+        low = products[start] + (products[start + 2] + (products[start + 4] + (products[start + 6] + low)))
+        high = products[start + 1] + (products[start + 3] + (products[start + 5] + (products[start + 7] + high)))
+        start += 8
+    for i in range(start, count, 2):
+        low = products[i] + low
+        if i + 1 < count:
+            high = products[i + 1] + high
+    return low + high
+
+
+@kernel
+def _edge_terms(corners: np.ndarray, c: int, edges: np.ndarray, total: np.ndarray, scratch: np.ndarray) -> float:
+    """Fill ``edges`` (k, k) (vertex j + 1 minus vertex 0) and ``total`` (k,) (their sum) of cell ``c`` of
+    (m, k + 1, k) ``corners``; return its sum of squared edge lengths."""
+    k = corners.shape[2]
+    for j in range(k):
+        for d in range(k):
+            edges[j, d] = corners[c, j + 1, d] - corners[c, 0, d]
+            scratch[j * k + d] = edges[j, d] * edges[j, d]
+    for d in range(k):
+        total[d] = edges[0, d] + edges[1, d]
+        if k == 3:
+            total[d] += edges[2, d]
+    squared = _lane_sum(scratch, k * k)
+    for d in range(k):
+        scratch[d] = total[d] * total[d]
+    return (k + 1) * squared - _lane_sum(scratch, k)
+
+
+@kernel
 def mean_ratio_terms(corners: np.ndarray):
     """What :func:`mean_ratio_cost` and its derivatives need, for (m, k + 1, k) ``corners``.
 
@@ -40,35 +77,109 @@ def mean_ratio_terms(corners: np.ndarray):
     centred : (m, k + 1, k) the vertices minus their mean; when vertex i alone moves by d, squares grows by
         2 (k + 1) centred[:, i] . d + k |d|^2
     """
-    k = corners.shape[-1]
-    edges = corners[:, 1:] - corners[:, :1]
-    # d V / d x_i for i >= 1: the cofactors of the edge matrix; d V / d x_0 = -(their sum)
-    if k == 2:
-        cofactors = np.stack([np.stack([edges[:, 1, 1], -edges[:, 1, 0]], axis=1),
-                              np.stack([-edges[:, 0, 1], edges[:, 0, 0]], axis=1)], axis=1)
-    else:
-        cofactors = np.stack([cross(edges[:, 1], edges[:, 2]), cross(edges[:, 2], edges[:, 0]),
-                              cross(edges[:, 0], edges[:, 1])], axis=1)
-    cofactors /= factorial(k)
-    volume = dot(edges[:, 0], cofactors[:, 0])
-    volume_gradient = np.concatenate([-cofactors.sum(axis=1, keepdims=True), cofactors], axis=1)
-    total = edges.sum(axis=1)
-    squares = (k + 1) * np.einsum("mij,mij->m", edges, edges) - dot(total, total)
-    centred = np.concatenate([np.zeros_like(edges[:, :1]), edges], axis=1) - total[:, None] / (k + 1)
+    m, _, k = corners.shape
+    volume, squares = np.empty(m), np.empty(m)
+    volume_gradient, centred = np.empty((m, k + 1, k)), np.empty((m, k + 1, k))
+    edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
+    for c in range(m):
+        squares[c] = _edge_terms(corners, c, edges, total, scratch)
+        # d V / d x_i for i >= 1: the cofactors of the edge matrix, / k!; d V / d x_0 = -(their sum)
+        cofactors = volume_gradient[c, 1:]
+        if k == 2:
+            cofactors[0, 0], cofactors[0, 1] = edges[1, 1] / 2.0, -edges[1, 0] / 2.0
+            cofactors[1, 0], cofactors[1, 1] = -edges[0, 1] / 2.0, edges[0, 0] / 2.0
+        else:
+            for i in range(3):
+                a, b = edges[(i + 1) % 3], edges[(i + 2) % 3]
+                cofactors[i, 0] = (a[1] * b[2] - a[2] * b[1]) / 6.0
+                cofactors[i, 1] = (a[2] * b[0] - a[0] * b[2]) / 6.0
+                cofactors[i, 2] = (a[0] * b[1] - a[1] * b[0]) / 6.0
+        for d in range(k):
+            scratch[d] = edges[0, d] * cofactors[0, d]
+            summed = cofactors[0, d] + cofactors[1, d]
+            if k == 3:
+                summed += cofactors[2, d]
+            volume_gradient[c, 0, d] = -summed
+            share = total[d] / (k + 1)
+            centred[c, 0, d] = 0.0 - share
+            for j in range(k):
+                centred[c, j + 1, d] = edges[j, d] - share
+        volume[c] = _lane_sum(scratch, k)
     return volume, squares, volume_gradient, centred
+
+
+@kernel
+def _inverse_mean_ratio(corners: np.ndarray, scale: float) -> np.ndarray:
+    m, _, k = corners.shape
+    cost = np.empty(m)
+    edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
+    for c in range(m):
+        squares = _edge_terms(corners, c, edges, total, scratch)
+        if k == 2:
+            volume = 0.5 * (edges[0, 0] * edges[1, 1] - edges[0, 1] * edges[1, 0])
+        else:
+            scratch[0] = edges[0, 0] * (edges[1, 1] * edges[2, 2] - edges[1, 2] * edges[2, 1])
+            scratch[1] = edges[0, 1] * (edges[1, 2] * edges[2, 0] - edges[1, 0] * edges[2, 2])
+            scratch[2] = edges[0, 2] * (edges[1, 0] * edges[2, 1] - edges[1, 1] * edges[2, 0])
+            volume = _lane_sum(scratch, 3) / 6.0
+        cost[c] = squares / (scale * volume ** (2.0 / k)) if volume > 0 else np.inf
+    return cost
 
 
 def inverse_mean_ratio(corners: np.ndarray) -> np.ndarray:
     """(m,) :func:`mean_ratio_cost` of the simplices with (m, k + 1, k) ``corners``."""
-    k = corners.shape[-1]
-    edges = corners[:, 1:] - corners[:, :1]
-    if k == 2:
-        volume = 0.5 * (edges[:, 0, 0] * edges[:, 1, 1] - edges[:, 0, 1] * edges[:, 1, 0])
-    else:
-        volume = dot(edges[:, 0], cross(edges[:, 1], edges[:, 2])) / 6.0
-    total = edges.sum(axis=1)
-    squares = (k + 1) * np.einsum("mij,mij->m", edges, edges) - dot(total, total)
-    return mean_ratio_cost(volume, squares, k)
+    corners = np.asarray(corners, dtype=np.float64)
+    return _inverse_mean_ratio(corners, MEAN_RATIO_SCALE[corners.shape[-1]])
+
+
+@kernel
+def node_trial_costs(cells: np.ndarray, volume: np.ndarray, squares: np.ndarray, volume_gradient: np.ndarray,
+                     centred: np.ndarray, move: np.ndarray, n_points: int, power: int) -> np.ndarray:
+    """(n_points,) for each node, sum over its cells of :func:`mean_ratio_cost` ** ``power`` when that node alone
+    moves by ``move`` (n_points, k), from the cells' :func:`mean_ratio_terms` (exact: see there)."""
+    m, corners, k = volume_gradient.shape
+    scale = 4.0 * np.sqrt(3.0) if k == 2 else 12.0 * 3.0 ** (2.0 / 3.0)
+    # the sums over the axes in the order of numpy's einsum (0, 2, 1 in 3D), so that the result is the same
+    axes = np.array([0, 2, 1]) if k == 3 else np.array([0, 1])
+    total = np.zeros(n_points)
+    for c in range(m):
+        for i in range(corners):
+            node = cells[c, i]
+            trial_volume, trial_squares = 0.0, 0.0
+            for d in axes:
+                shift = move[node, d]
+                trial_volume += volume_gradient[c, i, d] * shift
+                trial_squares += (2.0 * corners * centred[c, i, d] + k * shift) * shift
+            trial_volume += volume[c]
+            trial_squares += squares[c]
+            if trial_volume > 0:
+                total[node] += (trial_squares / (scale * trial_volume ** (2.0 / k))) ** power
+            else:
+                total[node] += np.inf
+    return total
+
+
+@kernel
+def node_cost_descent(cells: np.ndarray, cost: np.ndarray, squares: np.ndarray, volume: np.ndarray,
+                      volume_gradient: np.ndarray, centred: np.ndarray, n_points: int, power: int):
+    """For each node, the sum over its cells of ``cost`` ** ``power`` (n_points,) and minus its gradient with
+    respect to the node (n_points, k), from the cells' :func:`mean_ratio_cost` and :func:`mean_ratio_terms`;
+    not finite at a node with a cell of infinite cost."""
+    m, corners, k = volume_gradient.shape
+    current, gradient = np.zeros(n_points), np.zeros((n_points, k))
+    for c in range(m):
+        raised = cost[c] ** power
+        weight = power * raised
+        for i in range(corners):
+            node = cells[c, i]
+            current[node] += raised
+            for d in range(k):
+                if np.isfinite(weight):
+                    gradient[node, d] += weight * ((2.0 * corners) * centred[c, i, d] / squares[c]
+                                                   - (2.0 / k) * volume_gradient[c, i, d] / volume[c])
+                else:
+                    gradient[node, d] += np.nan
+    return current, -gradient
 
 
 def smallest_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:

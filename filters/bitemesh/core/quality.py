@@ -223,7 +223,7 @@ def edge_lengths(points: np.ndarray, cells: np.ndarray):
     """
     cells = _check_cells(cells)
     pairs = np.array(list(combinations(range(cells.shape[1]), 2)))
-    edges, _, _ = unique_rows(cells[:, pairs].reshape(-1, 2))
+    edges = distinct_faces(cells[:, pairs].reshape(-1, 2), 2)
     return edges, np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
 
 

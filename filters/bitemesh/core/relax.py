@@ -17,7 +17,8 @@ import numpy as np
 
 from .biting import project_to_surface
 from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
-                            mean_ratio_terms, off_surface_nodes, scatter_to_points, signed_radius_ratio, tangential)
+                            mean_ratio_terms, node_cost_descent, node_trial_costs, off_surface_nodes, scatter_to_points,
+                            signed_radius_ratio, tangential)
 from .delaunay import delaunay
 from .repair import carve_domain, compact
 from .errors import MeshingError
@@ -162,12 +163,9 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
     for iteration in range(iterations):
         report(progress, iteration / iterations, f"smoothing {iteration + 1}/{iterations}")
         volume, squares, volume_gradient, centred = mean_ratio_terms(points[cells])
-        cost = mean_ratio_cost(volume, squares, k)
-        with np.errstate(all="ignore"):  # inf on cells with no volume: their nodes do not move
-            gradient = (SMOOTH_POWER * cost ** SMOOTH_POWER)[:, None, None] * (
-                2.0 * (k + 1) * centred / squares[:, None, None] - (2.0 / k) * volume_gradient / volume[:, None, None])
-        current = np.bincount(corner_of, np.repeat(cost ** SMOOTH_POWER, k + 1), n)
-        descent = -scatter_to_points(n, cells, gradient)
+        # not finite at the nodes of cells with no volume: they do not move
+        current, descent = node_cost_descent(cells, mean_ratio_cost(volume, squares, k), squares, volume,
+                                             volume_gradient, centred, n, SMOOTH_POWER)
         descent[on_boundary] = tangential(grid, points[on_boundary], descent[on_boundary])
         # a Newton-like scale: the cost of a node's cells changes by about its own size over an edge length
         descent *= (0.5 * length ** 2 * degree / np.maximum(current, 1e-300))[:, None]
@@ -183,15 +181,10 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         start = points[on_boundary]  # the boundary nodes of every step length projected onto f = 0 at once
         ends = np.split(project_to_surface(grid, np.concatenate([start + move[on_boundary] for move in moves])),
                         len(moves))
-        twice_centred = 2.0 * (k + 1) * centred
         for move, end in zip(moves, ends):
             move[on_boundary] = end - start
             # the cost of each node's cells when that node alone moves
-            shift = move[cells]
-            trial_volume = volume[:, None] + np.einsum("mij,mij->mi", volume_gradient, shift)
-            trial_squares = squares[:, None] + np.einsum("mij,mij->mi", twice_centred + k * shift, shift)
-            trial = np.bincount(corner_of, mean_ratio_cost(trial_volume.ravel(), trial_squares.ravel(), k)
-                                ** SMOOTH_POWER, n)
+            trial = node_trial_costs(cells, volume, squares, volume_gradient, centred, move, n, SMOOTH_POWER)
             better = trial < best_cost
             best_cost[better], best_move[better] = trial[better], move[better]
         moving = np.isfinite(best_cost) & np.any(best_move != 0, axis=1)

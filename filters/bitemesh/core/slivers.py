@@ -14,7 +14,7 @@ from .flips import flip
 from .grid import ImplicitGrid
 from .progress import ProgressCallback, report, sub_progress
 from .relax import MEAN_GAIN, REVERT_ROUNDS, smooth
-from .topology import facet_table, non_manifold_faces
+from .topology import CellComplex, single_facets
 
 #: rounds of flips and smoothing, and the smoothing iterations in each round.
 SLIVER_ROUNDS = 4
@@ -28,17 +28,16 @@ def peel(cells: np.ndarray, n_points: int, candidates: np.ndarray) -> np.ndarray
     before and after, and the boundary moves in by the cell's volume.  A cell whose removal would pinch the
     boundary or leave a node unused stays.
     """
-    k = cells.shape[1] - 1
-    _, inverse, counts = facet_table(cells)
-    on_surface = (counts[inverse] == 1).reshape(-1, k + 1).sum(axis=1) >= 2
+    on_surface = single_facets(cells).sum(axis=1) >= 2
     removed = np.zeros(len(cells), bool)
     removed[candidates[on_surface[candidates]]] = True
+    complex_ = CellComplex(cells, n_points) if removed.any() else None
     for _ in range(REVERT_ROUNDS):
         if not removed.any():
             break
         kept = cells[~removed]
         trouble = np.bincount(kept.ravel(), minlength=n_points) == 0
-        for faces in non_manifold_faces(kept, n_points):
+        for faces in complex_.non_manifold_faces(~removed):
             trouble[faces.ravel()] = True
         restore = removed & trouble[cells].any(axis=1)
         if not restore.any():

@@ -11,6 +11,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
 
+from .kernels import kernel
 from .mesh import facets_of
 
 
@@ -25,14 +26,62 @@ def unique_rows(rows: np.ndarray):
     """
     rows = np.sort(rows.reshape(-1, rows.shape[-1]), axis=1).astype(np.int64, copy=False)
     n_points = int(rows.max()) + 1 if rows.size else 1
-    if float(n_points) ** rows.shape[1] < 2.0**63:  # an exact int64 key per sorted row: much faster than axis=0
-        keys = rows[:, 0].copy()
-        for column in range(1, rows.shape[1]):
-            keys = keys * n_points + rows[:, column]
-        _, first, inverse, counts = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
-        return rows[first], inverse.ravel(), counts
-    unique, inverse, counts = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
-    return unique, inverse.ravel(), counts
+    if float(n_points) ** rows.shape[1] >= 2.0**63:   # no exact int64 key per sorted row
+        unique, inverse, counts = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
+        return unique, inverse.ravel(), counts
+    keys = rows[:, 0].copy()
+    for column in range(1, rows.shape[1]):
+        keys = keys * n_points + rows[:, column]
+    # np.unique's result from one unstable sort of the keys: equal keys are equal rows, so any of them will do
+    order = np.argsort(keys)
+    ordered = keys[order]
+    start = np.empty(len(keys), bool)
+    start[:1] = True
+    np.not_equal(ordered[1:], ordered[:-1], out=start[1:])
+    inverse = np.empty(len(keys), np.int64)
+    inverse[order] = np.cumsum(start) - 1
+    first = np.flatnonzero(start)
+    return rows[order[first]], inverse, np.diff(np.append(first, len(keys)))
+
+
+@kernel
+def _single_facets(cells: np.ndarray, n_points: int) -> np.ndarray:
+    """(m, k + 1) bool, True where the facet opposite vertex i of cell c is held by that cell alone: each facet's
+    sorted vertices as an exact int64 key (n_points ** k < 2 ** 63), counted in an open-addressing hash table."""
+    m, corners = cells.shape
+    size = 1
+    while size < 2 * m * corners:
+        size *= 2
+    slot_keys = np.full(size, -1, np.int64)
+    counts = np.zeros(size, np.int64)
+    where = np.empty((m, corners), np.int64)
+    vertices = np.empty(corners - 1, np.int64)
+    for c in range(m):
+        for i in range(corners):
+            length = 0
+            for j in range(corners):   # the facet opposite vertex i, sorted by insertion
+                if j != i:
+                    v, at = cells[c, j], length
+                    while at > 0 and vertices[at - 1] > v:
+                        vertices[at] = vertices[at - 1]
+                        at -= 1
+                    vertices[at] = v
+                    length += 1
+            key = np.int64(0)
+            for j in range(corners - 1):
+                key = key * n_points + vertices[j]
+            mixed = key * np.int64(-7046029254386353131)   # Fibonacci hashing (wraps around), high bits mixed in
+            slot = (mixed ^ (mixed >> 32)) & (size - 1)
+            while slot_keys[slot] >= 0 and slot_keys[slot] != key:
+                slot = (slot + 1) & (size - 1)
+            slot_keys[slot] = key
+            counts[slot] += 1
+            where[c, i] = slot
+    single = np.empty((m, corners), np.bool_)
+    for c in range(m):
+        for i in range(corners):
+            single[c, i] = counts[where[c, i]] == 1
+    return single
 
 
 def facet_table(cells: np.ndarray):
@@ -49,11 +98,36 @@ def facet_table(cells: np.ndarray):
     return facets, inverse, counts
 
 
+@kernel
+def _counting_sort(values: np.ndarray, n_values: int) -> np.ndarray:
+    """(r,) int64, ``np.argsort(values, kind="stable")`` of (r,) ``values`` in 0 .. n_values - 1, in linear time."""
+    start = np.zeros(n_values + 1, np.int64)
+    for value in values:
+        start[value + 1] += 1
+    for value in range(n_values):
+        start[value + 1] += start[value]
+    order = np.empty(len(values), np.int64)
+    for i in range(len(values)):
+        order[start[values[i]]] = i
+        start[values[i]] += 1
+    return order
+
+
 def neighbour_pairs(inverse: np.ndarray):
     """(a, b): the row pairs of a facet table that are the same facet, as indices into the table."""
-    order = np.argsort(inverse, kind="stable")
+    order = _counting_sort(inverse, int(inverse.max()) + 1 if len(inverse) else 0)
     same = inverse[order[1:]] == inverse[order[:-1]]
     return order[:-1][same], order[1:][same]
+
+
+def single_facets(cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1) bool, True where the facet opposite vertex i of cell c is held by that cell alone."""
+    k = cells.shape[1] - 1
+    n_points = int(cells.max()) + 1 if cells.size else 1
+    if float(n_points) ** k >= 2.0**63:
+        _, inverse, counts = facet_table(cells)
+        return (counts[inverse] == 1).reshape(-1, k + 1)
+    return _single_facets(np.ascontiguousarray(cells, dtype=np.int64), n_points)
 
 
 def boundary_facets(cells: np.ndarray) -> np.ndarray:
@@ -61,8 +135,9 @@ def boundary_facets(cells: np.ndarray) -> np.ndarray:
 
     3D: triangles (p, q, r) with (q - p) x (r - p) pointing out.  2D: edges (p, q) with the domain on the left.
     """
-    facets, inverse, counts = facet_table(cells)
-    return facets[counts[inverse] == 1]
+    single = single_facets(cells)
+    held = single.any(axis=1)   # the facets of the cells with one on the boundary, in the same order
+    return facets_of(cells[held]).reshape(-1, cells.shape[1] - 1)[single[held].ravel()]
 
 
 def connected_components(cells: np.ndarray) -> np.ndarray:
@@ -87,7 +162,15 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
 
 def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted."""
-    return unique_rows(faces_of(simplices, size).reshape(-1, size))[0]
+    rows = np.sort(faces_of(simplices, size).reshape(-1, size), axis=1).astype(np.int64, copy=False)
+    n_points = int(rows.max()) + 1 if rows.size else 1
+    if float(n_points) ** size >= 2.0**63:
+        return unique_rows(rows)[0]
+    keys = rows[:, 0].copy()
+    for column in range(1, size):
+        keys = keys * n_points + rows[:, column]
+    keys = np.unique(keys)   # sorting alone, without the indices that unique_rows needs
+    return np.stack([keys // n_points ** (size - 1 - column) % n_points for column in range(size)], axis=1)
 
 
 def euler_characteristic(simplices: np.ndarray) -> int:
