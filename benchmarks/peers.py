@@ -2,8 +2,9 @@
 """bitemesh (its default, and --no-optimize) beside gmsh and TetGen, side by side in one run (issues #5, #12).
 
 Cases: sphere, torus, die and two-cavity heart (``bitemesh.core.shapes``) at about 10,000 tets; the heart, the die
-and the sphere at about 136,000; the sphere at about 1,000,000, and at 10,000,000 by bitemesh alone.  Each mesher x case runs in its own process
-(``peers_meshers.py``), which reports its times and its peak memory and saves its first mesh:
+and the sphere at about 136,000; the sphere at about 1,000,000, and at 10,000,000 by bitemesh alone.  Each mesher x
+case runs in its own process (``peers_meshers.py``), which reports its times and its peak memory and saves its
+first mesh:
 
 * bitemesh: noisy scattered surface points with normals (``shape_worker.make_input``, seed 0), then the whole
   ``pipeline.run`` with ``BitingParameters(cells=N)``: "default" is ``OptimizeParameters()`` (whatever the dataclass
