@@ -1,6 +1,7 @@
 """Flips that raise the worst radius ratio of the cells they replace: edge removal (the ring of cells around an
 interior edge triangulated again: 3-2, 4-4, 5-6 ... flips) and 2-3 flips across an interior facet (2-2 in 2D), in
-passes of flips that share no cell.
+passes of flips that share no cell; and flips towards the Delaunay triangulation of the domain (2-3 and 3-2, 2-2
+in 2D), the local update of the relaxation (:func:`bitemesh.core.relax.relax`).
 """
 from __future__ import annotations
 
@@ -10,12 +11,19 @@ import numpy as np
 
 from .cell_measures import signed_radius_ratio
 from .progress import ProgressCallback, report
-from .mesh import facets_of
+from .mesh import circumspheres, facets_of
 
 #: a flip must raise the worst radius ratio of the cells it replaces by at least FLIP_GAIN; only groups of cells
 #: with a radius ratio below FLIP_QUALITY are tried (the others rarely gain: measured, no change in the result).
 FLIP_GAIN = 1e-3
 FLIP_QUALITY = 0.8
+#: a Delaunay flip must take a vertex at least this fraction of the squared circumradius inside a circumsphere (far
+#: above rounding: no flip and its inverse both pass).
+DELAUNAY_GAIN = 1e-6
+#: a cell whose radius ratio is below FLAT_QUALITY counts as flat: no Delaunay flip makes one, no move of the
+#: relaxation either.  Four nodes on the base plane or on a lattice's plane are flat to rounding, and rounding (the
+#: floating-point library) must not decide whether a cell is made.
+FLAT_QUALITY = 1e-6
 #: passes of flips in a round (each pass makes a set of flips that share no cell), and the largest ring of cells
 #: around an edge that edge removal triangulates again (in 42 ways for 7).
 FLIP_PASSES = 12
@@ -111,6 +119,44 @@ def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING, nodes: np.ndarray | 
     return rings
 
 
+def _ring_cells(a: np.ndarray, b: np.ndarray, ring: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(E, t, 2, 4): for each triangle (x, y, z) of the ring's polygon, the cells (x, y, z, b) and (x, z, y, a)
+    that replace those around the edge (a, b)."""
+    x, y, z = (ring[:, triangles[:, i]] for i in range(3))
+    apex_b, apex_a = (np.broadcast_to(v[:, None], x.shape) for v in (b, a))
+    return np.stack([np.stack([x, y, z, apex_b], axis=-1), np.stack([x, z, y, apex_a], axis=-1)], axis=2)
+
+
+def _facet_pairs(cells: np.ndarray, nodes: np.ndarray | None):
+    """The pairs of cells across an interior facet (with ``nodes``, (n,) bool: the facets whose vertices are all
+    among them): cell_a, cell_b (p,), their far vertices a, b (p,) and the facet (p, k), oriented out of cell_a."""
+    k = cells.shape[1] - 1
+    facets = facets_of(cells).reshape(-1, k)
+    rows = np.arange(len(facets)) if nodes is None else np.flatnonzero(nodes[facets].all(axis=1))
+    order, keys = _sorted_keys(facets[rows])  # the rows that are the same facet, paired as by neighbour_pairs
+    same = keys[1:] == keys[:-1]
+    first, second = rows[order[:-1][same]], rows[order[1:][same]]
+    cell_a, cell_b = first // (k + 1), second // (k + 1)
+    return cell_a, cell_b, cells[cell_a, first % (k + 1)], cells[cell_b, second % (k + 1)], facets[first]
+
+
+def _across(a: np.ndarray, b: np.ndarray, facet: np.ndarray) -> np.ndarray:
+    """The cells that replace the two on ``facet`` (p, k) with far vertices a, b: (p, 3, 4) around the edge (a, b)
+    in 3D (2-3 flip), (p, 2, 3) in 2D (2-2 flip)."""
+    if facet.shape[1] == 3:
+        return np.stack([np.stack([a, b, facet[:, i], facet[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
+    return np.stack([np.stack([a, facet[:, 0], b], axis=1), np.stack([b, facet[:, 1], a], axis=1)], axis=1)
+
+
+def _fresh_nodes(cells: np.ndarray, fresh: np.ndarray | None, n_points: int):
+    """(n,) bool, the vertices of the ``fresh`` cells; None when every group is to be tested."""
+    if fresh is None:
+        return None
+    nodes = np.zeros(n_points, bool)
+    nodes[cells[fresh].ravel()] = True
+    return nodes
+
+
 def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, fresh: np.ndarray | None = None):
     """The flips that raise the worst radius ratio of the cells they replace by more than ``FLIP_GAIN``, among
     the groups of cells whose worst radius ratio is below ``FLIP_QUALITY``; with ``fresh`` ((m,) bool), only among
@@ -131,10 +177,7 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
     """
     k = points.shape[1]
     found = []
-    nodes = None  # the vertices of the fresh cells: the edges and facets of the groups to test have theirs among them
-    if fresh is not None:
-        nodes = np.zeros(len(points), bool)
-        nodes[cells[fresh].ravel()] = True
+    nodes = _fresh_nodes(cells, fresh, len(points))  # the groups to test have their edges and facets among them
     if k == 3:
         for n, (a, b, ring, around) in edge_rings(cells, nodes=nodes).items():
             worst_old = quality[around].min(axis=1)
@@ -143,9 +186,7 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
                 poor &= fresh[around].any(axis=1)
             a, b, ring, around, worst_old = a[poor], b[poor], ring[poor], around[poor], worst_old[poor]
             triangles, triangulations = RING_TRIANGULATIONS[n]
-            x, y, z = (ring[:, triangles[:, i]] for i in range(3))
-            apex_b, apex_a = (np.broadcast_to(v[:, None], x.shape) for v in (b, a))
-            new = np.stack([np.stack([x, y, z, apex_b], axis=-1), np.stack([x, z, y, apex_a], axis=-1)], axis=2)
+            new = _ring_cells(a, b, ring, triangles)
             worst = signed_radius_ratio(points, new.reshape(-1, 4)).reshape(new.shape[:3]).min(axis=2)
             by_triangulation = worst[:, triangulations].min(axis=2)  # (E, T)
             best = np.argmax(by_triangulation, axis=1) if len(a) else np.zeros(0, np.int64)
@@ -153,27 +194,76 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
             keep = gain > FLIP_GAIN
             chosen = new[np.flatnonzero(keep)[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
             found.append((around[keep], chosen, gain[keep]))
-    facets = facets_of(cells).reshape(-1, k)
-    rows = np.arange(len(facets)) if fresh is None else np.flatnonzero(nodes[facets].all(axis=1))
-    order, keys = _sorted_keys(facets[rows])  # the rows that are the same facet, paired as by neighbour_pairs
-    same = keys[1:] == keys[:-1]
-    first, second = rows[order[:-1][same]], rows[order[1:][same]]
-    cell_a, cell_b = first // (k + 1), second // (k + 1)
+    cell_a, cell_b, a, b, facet = _facet_pairs(cells, nodes)
     worst_old = np.minimum(quality[cell_a], quality[cell_b])
     poor = worst_old < FLIP_QUALITY
     if fresh is not None:
         poor &= fresh[cell_a] | fresh[cell_b]
-    first, second, cell_a, cell_b, worst_old = first[poor], second[poor], cell_a[poor], cell_b[poor], worst_old[poor]
-    a, b = cells[cell_a, first % (k + 1)], cells[cell_b, second % (k + 1)]
-    facet = facets[first]  # oriented out of cell_a, towards b
-    if k == 3:
-        new = np.stack([np.stack([a, b, facet[:, i], facet[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
-    else:
-        new = np.stack([np.stack([a, facet[:, 0], b], axis=1), np.stack([b, facet[:, 1], a], axis=1)], axis=1)
-    gain = signed_radius_ratio(points, new.reshape(-1, k + 1)).reshape(new.shape[:2]).min(axis=1) - worst_old
+    new = _across(a[poor], b[poor], facet[poor])
+    gain = signed_radius_ratio(points, new.reshape(-1, k + 1)).reshape(new.shape[:2]).min(axis=1) - worst_old[poor]
     keep = gain > FLIP_GAIN
-    found.append((np.stack([cell_a, cell_b], axis=1)[keep], new[keep], gain[keep]))
+    found.append((np.stack([cell_a[poor], cell_b[poor]], axis=1)[keep], new[keep], gain[keep]))
     return found
+
+
+def delaunay_candidates(points: np.ndarray, cells: np.ndarray, spheres: np.ndarray,
+                        fresh: np.ndarray | None = None):
+    """The flips towards the Delaunay triangulation of the domain: 2-3 flips (2-2 in 2D) of two cells whose shared
+    facet is not locally Delaunay (the far vertex of one inside the other's circumsphere) and 3-2 flips of the
+    three cells around an edge whose two replacements are; gain: how far inside, as a fraction of the squared
+    circumradius, above ``DELAUNAY_GAIN``.  Every new cell must be positive (radius ratio above ``FLAT_QUALITY``).
+    ``spheres``: (m, k + 1) the cells' circumcentres and radii (:func:`circumsphere_rows`); ``fresh`` as in
+    :func:`flip_candidates`.
+
+    Returns
+    -------
+    list of (old (c, j) cell indices, new (c, j', k + 1) cells, gain (c,)), one entry per kind of flip
+    """
+    k = points.shape[1]
+    found = []
+    nodes = _fresh_nodes(cells, fresh, len(points))
+    if k == 3:
+        a, b, ring, around = edge_rings(cells, 3, nodes)[3]
+        if fresh is not None:
+            tested = fresh[around].any(axis=1)
+            a, b, ring, around = a[tested], b[tested], ring[tested], around[tested]
+        new = _ring_cells(a, b, ring, RING_TRIANGULATIONS[3][0])[:, 0]   # (E, 2, 4)
+        centre, radius = circumspheres(points, new[:, 0])
+        found.append(_positive_flips(points, around, new, _beyond(points[a], centre, radius)))
+    cell_a, cell_b, a, b, facet = _facet_pairs(cells, nodes)
+    if fresh is not None:
+        tested = fresh[cell_a] | fresh[cell_b]
+        cell_a, cell_b, a, b, facet = cell_a[tested], cell_b[tested], a[tested], b[tested], facet[tested]
+    gain = -_beyond(points[b], spheres[cell_a, :k], spheres[cell_a, k])
+    found.append(_positive_flips(points, np.stack([cell_a, cell_b], axis=1), _across(a, b, facet), gain))
+    return found
+
+
+def _beyond(x: np.ndarray, centre: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """(p,) (|x - centre|^2 - radius^2) / radius^2: above 0 outside the sphere; nan for a flat cell's."""
+    offset = x - centre
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        return (np.einsum("ij,ij->i", offset, offset) - radius ** 2) / radius ** 2
+
+
+def _positive_flips(points: np.ndarray, old: np.ndarray, new: np.ndarray, gain: np.ndarray) -> tuple:
+    """The flips (old, new, gain) whose gain is above ``DELAUNAY_GAIN`` and whose new cells are all positive.
+
+    The gains are counted in whole steps of ``DELAUNAY_GAIN`` and a new cell must be above ``FLAT_QUALITY``: the
+    biting's nodes lie almost on a lattice, where many spheres pass through five nodes and many cells through four
+    to rounding, and rounding must not choose the flips (the same mesh with any floating-point library)."""
+    with np.errstate(invalid="ignore"):
+        gain = np.floor(gain / DELAUNAY_GAIN) * DELAUNAY_GAIN
+    keep = gain > DELAUNAY_GAIN
+    keep[keep] = signed_radius_ratio(points, new[keep].reshape(-1, new.shape[2])).reshape(
+        -1, new.shape[1]).min(axis=1) > FLAT_QUALITY
+    return old[keep], new[keep], gain[keep]
+
+
+def circumsphere_rows(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1) each cell's circumcentre and circumradius in one row."""
+    centre, radius = circumspheres(points, cells)
+    return np.column_stack([centre, radius])
 
 
 def independent_flips(candidates: list, n_cells: int) -> np.ndarray:
@@ -209,8 +299,9 @@ def independent_flips(candidates: list, n_cells: int) -> np.ndarray:
 
 
 def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
-         progress: ProgressCallback = None) -> np.ndarray:
-    """Apply improving flips (:func:`flip_candidates`), pass after pass, until none is left (at most ``passes``).
+         progress: ProgressCallback = None, delaunay: bool = False) -> np.ndarray:
+    """Apply improving flips (:func:`flip_candidates`), pass after pass, until none is left (at most ``passes``);
+    with ``delaunay``, the flips towards the Delaunay triangulation instead (:func:`delaunay_candidates`).
 
     Flips replace cells inside the domain only: the boundary, the nodes and the volume stay as they are.
 
@@ -218,10 +309,12 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
     -------
     (m', k + 1) int64, the new cells, positively oriented
     """
-    quality = signed_radius_ratio(points, cells)
+    measure, candidates_of = ((circumsphere_rows, delaunay_candidates) if delaunay
+                              else (signed_radius_ratio, flip_candidates))
+    measured = measure(points, cells)
     fresh = None  # the first pass tests every group, each next one those with a cell the pass before made
     for pass_ in range(passes):
-        candidates = flip_candidates(points, cells, quality, fresh)
+        candidates = candidates_of(points, cells, measured, fresh)
         found = sum(len(gain) for _, _, gain in candidates)
         report(progress, pass_ / passes, f"flip pass {pass_ + 1}: {found} improving flips")
         if not found:
@@ -237,5 +330,5 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
             added.append(new[take].reshape(-1, cells.shape[1]))
         cells = np.concatenate([cells[~removed]] + added)
         fresh = np.arange(len(cells)) >= len(cells) - sum(len(new) for new in added)
-        quality = np.concatenate([quality[~removed]] + [signed_radius_ratio(points, new) for new in added])
+        measured = np.concatenate([measured[~removed]] + [measure(points, new) for new in added])
     return cells

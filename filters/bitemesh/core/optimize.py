@@ -5,8 +5,8 @@
 2. Relaxation (:func:`bitemesh.core.relax.relax`): optimal Delaunay triangulation (ODT) smoothing, Alliez et al.
    2005.  Each interior node moves to the volume-weighted mean of the circumcentres of its cells, each boundary
    node towards the area-weighted mean of the centroids of its boundary facets, along the surface and back onto
-   f = 0; then the nodes are triangulated again (Delaunay and the circumcentre test), until the mean radius ratio
-   stops rising.  The last state is carved into a valid domain (:func:`bitemesh.core.repair.carve_domain`).
+   f = 0 (a move that would invert a cell is taken back); then flips towards the Delaunay triangulation update
+   the cells locally, in place of a new triangulation of all the nodes, until the mean radius ratio stops rising.
 3. Sliver removal (:func:`bitemesh.core.slivers.remove_slivers`): rounds of flips (:mod:`bitemesh.core.flips`),
    which replace the cells around an interior edge (edge removal: 3-2, 4-4, 5-6 ... flips) or on both sides of an
    interior facet (2-3 flips; 2-2 in 2D) when that raises the worst radius ratio among them, then of smoothing
@@ -17,14 +17,15 @@
 4. Nothing turns a valid mesh into an invalid one: flips only replace cells inside the domain and smoothing keeps
    every cell positive; :func:`bitemesh.core.validity.check_valid_domain` then judges the states met, and the best
    valid one is returned (the input itself when nothing did better).  Nor does anything change its topology (the
-   boundary's components and Euler characteristic, :func:`topology`): a relaxation that opened or closed a hole
-   through a wall thinner than about a cell is abandoned, and the sliver removal starts from the input.
+   boundary's components and Euler characteristic, :func:`topology`): the relaxation and the flips keep the
+   boundary facets, and a state whose topology differs all the same is abandoned (the sliver removal then starts
+   from the input).
 
-The nodes are the biting's, only moved (the carving may drop one that no cell inside uses): the node spacing stays
-uniform.  Everything is deterministic.  Measured on a sphere of 10,000 cells (``tests/core/test_optimize.py``): mean
-radius ratio 0.81 -> 0.90, smallest dihedral angle 0.6 -> 32 degrees, edge-length CV 0.17 -> 0.12, in 2.5 s,
-about 9 times the mesh steps before it (biting, Delaunay, carving) and 1.8 times the whole pipeline from scattered
-points.
+The nodes are the biting's, only moved: the node spacing stays uniform.  Everything is deterministic.  Measured on
+the sphere of 10,000 cells of ``benchmarks/peers.py``: mean radius ratio 0.81 -> 0.89, smallest dihedral angle
+0.8 -> 32 degrees, edge-length CV 0.17 -> 0.13, in 0.6 s (1.6x faster than the relaxation by a new Delaunay
+triangulation per iteration that it replaced, mean radius ratio 0.90; 1.8x at 136,000 cells, 3x on the demo
+heart, where that one changed the topology and was abandoned).
 
 This module runs the steps and picks the state returned (:func:`optimize_mesh`); the relaxation and the smoothing
 live in :mod:`bitemesh.core.relax`, the sliver removal in :mod:`bitemesh.core.slivers`, and their names are
@@ -44,7 +45,7 @@ from .parameters import OptimizeParameters
 from .progress import ProgressCallback, report, sub_progress
 # the relaxation and the sliver removal, imported from here as before (re-exported)
 from .relax import (INTERIOR_MARGIN, MAX_MOVE, MEAN_GAIN, PATIENCE, REVERT_ROUNDS,  # noqa: F401 (re-exported)
-                    SMOOTH_POWER, STEP_FRACTIONS, SURFACE_ROUNDS, SURFACE_TOLERANCE, odt_targets, relax, smooth)
+                    SMOOTH_POWER, STEP_FRACTIONS, SURFACE_TOLERANCE, odt_targets, relax, smooth)
 from .slivers import SLIVER_ROUNDS, SMOOTH_ITERATIONS, peel, poor_cells, remove_slivers  # noqa: F401 (re-exported)
 from .validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 
@@ -102,7 +103,7 @@ def optimize_mesh(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters
                 raise MeshingError("the relaxed boundary has (components, Euler characteristic) "
                                    f"{topology(Mesh(points, cells))}, the input {shape}")
             states.append(Mesh(points, cells))
-        except MeshingError as error:  # the relaxed nodes do not carve into the input's valid domain
+        except MeshingError as error:  # the relaxed boundary is not the input's
             report(progress, 0.5, f"relaxation abandoned ({error}); removing the input's slivers")
             points, cells = start.points, start.cells
     states += [Mesh(p, c) for p, c in remove_slivers(grid, points, cells, parameters.min_dihedral,

@@ -5,8 +5,9 @@ relaxation and the smoothing.  Boundary nodes stay on f = 0 (Newton steps along 
 - Relaxation (:func:`relax`): optimal Delaunay triangulation (ODT) smoothing, Alliez et al. 2005.  Each interior
   node moves to the volume-weighted mean of the circumcentres of its cells, each boundary node towards the
   area-weighted mean of the centroids of its boundary facets, along the surface and back onto f = 0; then the
-  nodes are triangulated again (Delaunay and the circumcentre test), until the mean radius ratio stops rising.
-  The last state is carved into a valid domain (:func:`bitemesh.core.repair.carve_domain`).
+  cells are updated locally by flips towards the Delaunay triangulation (:mod:`bitemesh.core.flips`) instead of
+  a new triangulation of all the nodes, until the mean radius ratio stops rising.  The boundary facets and the
+  nodes stay: the mesh stays a valid domain of the input's topology.
 - Smoothing (:func:`smooth`, a step of the sliver removal, :mod:`bitemesh.core.slivers`): the nodes move down sum
   over the cells of (1 / mean ratio)^2 (Knupp's inverse mean ratio, infinite for a flat cell) with the boundary
   nodes sliding on f = 0; the cells stay as they are and every cell stays positive.
@@ -17,32 +18,26 @@ import numpy as np
 
 from .biting import project_to_surface
 from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
-                            mean_ratio_terms, node_cost_descent, node_trial_costs, off_surface_nodes, scatter_to_points,
+                            mean_ratio_terms, node_cost_descent, node_trial_costs, scatter_to_points,
                             signed_radius_ratio, tangential)
-from .delaunay import delaunay
-from .repair import carve_domain, compact
-from .errors import MeshingError
+from .flips import FLAT_QUALITY, flip
 from .grid import ImplicitGrid
 from .mesh import circumspheres, signed_measures
-from .parameters import SpuriousParameters
 from .progress import ProgressCallback, report
-from .spurious import outside_cells
 from .topology import boundary_facets
 
 #: the relaxation, and the rounds of sliver removal once no cell is below the angle bound, stop when the mean
 #: radius ratio has not risen by MEAN_GAIN over their last PATIENCE iterations (rounds: over the last one).
 MEAN_GAIN = 2e-3
 PATIENCE = 2
-#: rounds of carving the relaxed nodes into a domain and moving the boundary nodes it left off f = 0.
-SURFACE_ROUNDS = 3
 #: an interior node may come no closer to f = 0 than this fraction of the mean edge length.
 INTERIOR_MARGIN = 0.3
 #: smoothing: exponent p of the cost (1 / mean ratio)^p, longest move (x mean edge length), the step lengths tried.
 SMOOTH_POWER = 2
 MAX_MOVE = 0.2
 STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.125)
-#: rounds in which moves that made a shared cell worse are taken back (smoothing), or in which peeled cells that
-#: pinched the boundary come back (peel, :mod:`bitemesh.core.slivers`).
+#: rounds in which moves that made a shared cell worse (smoothing) or inverted one (relaxation) are taken back,
+#: or in which peeled cells that pinched the boundary come back (peel, :mod:`bitemesh.core.slivers`).
 REVERT_ROUNDS = 10
 #: a boundary node is on the surface when |f| there is below this fraction of the mean edge length.
 SURFACE_TOLERANCE = 0.01
@@ -50,17 +45,15 @@ SURFACE_TOLERANCE = 0.01
 
 # --- relaxation ----------------------------------------------------------------------------------------------------
 
-def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margin: float,
-                centres: np.ndarray | None = None) -> np.ndarray:
+def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margin: float) -> np.ndarray:
     """(n, k) where the ODT smoothing moves each node (Alliez et al. 2005, section 4).
 
     Interior nodes: the volume-weighted mean of the circumcentres of their cells, pushed back to f = ``margin``
     when it lies closer to the surface.  Boundary nodes: the area-weighted mean of the centroids of their boundary
     facets, the move taken along the surface, then onto f = 0.  A node in no cell with volume stays.
-    ``centres``: the cells' circumcentres, when already known.
     """
     n, k = points.shape
-    centres = circumspheres(points, cells)[0] if centres is None else centres
+    centres = circumspheres(points, cells)[0]
     volume = np.abs(signed_measures(points, cells))
     usable = np.isfinite(centres).all(axis=1)
     weight = np.bincount(cells[usable].ravel(), np.repeat(volume[usable], k + 1), n)
@@ -92,51 +85,52 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
 
 
 def relax(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations: int,
-          spurious: SpuriousParameters = SpuriousParameters(), progress: ProgressCallback = None):
-    """ODT relaxation: move the nodes (:func:`odt_targets`), triangulate them again, keep the cells inside; repeat.
+          progress: ProgressCallback = None):
+    """ODT relaxation on the mesh's own cells: move the nodes (:func:`odt_targets`), take back the moves that
+    would invert a cell, then update the cells locally by flips towards the Delaunay triangulation of the domain
+    (:func:`bitemesh.core.flips.flip`); repeat.
 
-    Between the moves only the circumcentre test of the spurious-cell filter sorts the cells (fast); the last state
-    is carved into a valid domain, and moved and carved again while that left boundary nodes off f = 0 (at most
-    ``SURFACE_ROUNDS`` times).  Stops after ``iterations`` moves, or when the mean radius ratio has not risen by
-    ``MEAN_GAIN`` over ``PATIENCE`` iterations.  Nodes that no cell inside uses are dropped.
+    No full triangulation per iteration: flips replace cells inside the domain only, so the boundary facets, the
+    nodes and the domain's topology stay those of the input (a wall thinner than a cell cannot open).  Stops after
+    ``iterations`` moves, or when the mean radius ratio has not risen by ``MEAN_GAIN`` over ``PATIENCE``
+    iterations.
 
     Returns
     -------
-    points, cells : the relaxed valid mesh
+    points, cells : the relaxed valid mesh (the same nodes, moved)
     history : list of float, the mean radius ratio after each move
-
-    Raises :class:`MeshingError` when the moved nodes leave no cell inside or cannot be carved into a valid domain.
     """
-    length = mean_edge_length(points, cells)
-    margin = INTERIOR_MARGIN * length
+    margin = INTERIOR_MARGIN * mean_edge_length(points, cells)
     history = []
-    centres = triangulation = None  # of the cells kept, and all Delaunay cells of their nodes when none was dropped
     for iteration in range(iterations):
-        moved = odt_targets(grid, points, cells, margin, centres)
-        triangulation = delaunay(moved)
-        spheres = circumspheres(moved, triangulation)
-        inside = ~outside_cells(grid, moved, triangulation, spurious.threshold, spheres)
-        if not inside.any():
-            raise MeshingError("the relaxed nodes leave no cell inside the domain")
-        relaxed = compact(moved, triangulation[inside])
-        points, cells, centres = relaxed.points, relaxed.cells, spheres[0][inside]
-        if len(points) < len(moved):
-            triangulation = None
+        points = positive_moves(points, odt_targets(grid, points, cells, margin), cells)
+        cells = flip(points, cells, delaunay=True)
         history.append(float(signed_radius_ratio(points, cells).mean()))
         report(progress, (iteration + 1) / iterations,
                f"relaxation {iteration + 1}/{iterations}: mean radius ratio {history[-1]:.4f}")
         if len(history) > PATIENCE and max(history[-PATIENCE:]) < max(history[:-PATIENCE]) + MEAN_GAIN:
             break
-    for round_ in range(SURFACE_ROUNDS):
-        if round_:  # the carving laid nodes bare: move them onto f = 0, with the others
-            points, triangulation = odt_targets(grid, points, cells, margin), None
-        mesh = carve_domain(grid, points, delaunay(points) if triangulation is None else triangulation, spurious)
-        points, cells = mesh.points, mesh.cells
-        if len(off_surface_nodes(grid, points, cells, SURFACE_TOLERANCE * length)) == 0:
-            break
-    report(progress, 1.0, f"relaxation: {len(history)} iterations, mean radius ratio "
-                          f"{signed_radius_ratio(points, cells).mean():.4f} in the carved domain")
+    report(progress, 1.0, f"relaxation: {len(history)} iterations, mean radius ratio {history[-1]:.4f}"
+           if history else "relaxation: no iteration")
     return points, cells, history
+
+
+def positive_moves(points: np.ndarray, targets: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(n, k) the nodes moved to ``targets``, but for those of any cell the moves would invert or flatten (radius
+    ratio at most ``FLAT_QUALITY``): they stay (round after round, as a cell may turn by the move of a node that
+    stays in the next round)."""
+    moved = targets.copy()
+    moving = np.any(moved != points, axis=1)
+    for _ in range(REVERT_ROUNDS):
+        flat = signed_radius_ratio(moved, cells) <= FLAT_QUALITY
+        back = np.zeros(len(points), bool)
+        back[cells[flat].ravel()] = True
+        back &= moving
+        if not back.any():
+            return moved
+        moved[back] = points[back]
+        moving &= ~back
+    return points
 
 
 # --- smoothing -----------------------------------------------------------------------------------------------------

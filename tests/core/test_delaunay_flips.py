@@ -1,0 +1,77 @@
+"""Flips towards the Delaunay triangulation (the relaxation's local update, :func:`bitemesh.core.flips.flip` with
+``delaunay=True``): from a Delaunay triangulation whose interior nodes moved, they reach the Delaunay triangulation
+of the moved nodes, the hull kept; every interior facet ends locally Delaunay; the boundary, the nodes and the
+volume stay."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+
+from bitemesh.core.delaunay import delaunay
+from bitemesh.core.flips import DELAUNAY_GAIN, flip
+from bitemesh.core.mesh import Mesh, circumspheres, facets_of, signed_measures
+from bitemesh.core.quality import check_valid_domain
+from bitemesh.core.relax import positive_moves
+from bitemesh.core.topology import boundary_facets, unique_rows
+
+
+def jittered_grid(dim: int, side: int, seed: int):
+    """Nodes of a jittered grid in the unit box and their Delaunay cells, the nodes off the hull then moved by up
+    to 0.35 of the spacing (the hull stays: the same domain), but for those whose move would invert a cell
+    (:func:`bitemesh.core.relax.positive_moves`, as in the relaxation)."""
+    rng = np.random.default_rng(seed)
+    axes = [np.linspace(0.0, 1.0, side)] * dim
+    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
+    nodes += rng.uniform(-0.1, 0.1, nodes.shape) / (side - 1)   # no four nodes on a plane or a circle
+    cells = delaunay(nodes)
+    inner = np.ones(len(nodes), bool)
+    inner[ConvexHull(nodes).vertices] = False
+    targets = nodes.copy()
+    targets[inner] += rng.uniform(-0.35, 0.35, (inner.sum(), dim)) / (side - 1)
+    moved = positive_moves(nodes, targets, cells)
+    assert signed_measures(moved, cells).min() > 0 and np.any(moved != nodes)
+    return moved, cells
+
+
+def interior_facet_violations(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(p,) for each interior facet, how far the far vertex of one cell lies inside the other's circumsphere
+    (fraction of the squared radius; <= 0: locally Delaunay)."""
+    k = points.shape[1]
+    facets = np.sort(facets_of(cells).reshape(-1, k), axis=1)
+    _, inverse, counts = np.unique(facets, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    rows = np.flatnonzero(counts[inverse] == 2)
+    order = rows[np.argsort(inverse[rows], kind="stable")]
+    first, second = order[0::2], order[1::2]
+    cell_a, far_b = first // (k + 1), cells[second // (k + 1), second % (k + 1)]
+    centre, radius = circumspheres(points, cells[cell_a])
+    return (radius ** 2 - ((points[far_b] - centre) ** 2).sum(axis=1)) / radius ** 2
+
+
+@pytest.mark.parametrize("dim, side", [(2, 30), (3, 12)])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_moved_nodes_reach_their_delaunay_triangulation(dim, side, seed):
+    points, cells = jittered_grid(dim, side, seed)
+    assert interior_facet_violations(points, cells).max() > 0.01   # the move made the cells non-Delaunay
+    flipped = flip(points, cells, passes=50, delaunay=True)
+    assert interior_facet_violations(points, flipped).max() <= DELAUNAY_GAIN
+    assert check_valid_domain(Mesh(points, flipped)) == []
+    # the same cells as a new triangulation of the moved nodes (their hull is the box's, as before)
+    assert np.array_equal(unique_rows(np.sort(flipped, axis=1))[0], unique_rows(np.sort(delaunay(points), axis=1))[0])
+
+
+@pytest.mark.parametrize("dim, side", [(2, 30), (3, 12)])
+def test_the_boundary_the_nodes_and_the_volume_stay(dim, side):
+    points, cells = jittered_grid(dim, side, 3)
+    flipped = flip(points, cells, delaunay=True)
+    assert np.array_equal(unique_rows(boundary_facets(flipped))[0], unique_rows(boundary_facets(cells))[0])
+    assert np.array_equal(np.unique(flipped), np.arange(len(points)))
+    assert signed_measures(points, flipped).sum() == pytest.approx(signed_measures(points, cells).sum(), rel=1e-12)
+    assert signed_measures(points, flipped).min() > 0
+
+
+def test_a_delaunay_triangulation_is_left_as_it_is():
+    points, _ = jittered_grid(3, 10, 4)
+    cells = delaunay(points)
+    assert np.array_equal(flip(points, cells, delaunay=True), cells)
