@@ -140,11 +140,17 @@ def seeds_manifest(inputs, path, seeds, cells=1500):
                           header=("input", "output", "seed", "cells"))
 
 
+def running_tasks(dask_worker) -> int:
+    """The tasks occupying a thread of this worker, cancelled ones included (the scheduler forgets a cancelled
+    task at once, while its thread still finishes the case)."""
+    return len(dask_worker.state.all_running_tasks)
+
+
 def idle(client, timeout=60):
     """Wait until no task runs on the cluster (a cancelled task finishes its case first) and both workers are up."""
     client.wait_for_workers(2, timeout=timeout)
     deadline = time.monotonic() + timeout
-    while any(client.processing().values()) and time.monotonic() < deadline:
+    while any(client.run(running_tasks).values()) and time.monotonic() < deadline:
         time.sleep(0.1)
 
 

@@ -19,7 +19,7 @@ from ..core.errors import BitemeshError, InvalidInputError
 from ..core.progress import ProgressCallback
 from ..core.quality import quality_summary
 from ..io import write_mesh
-from .cases import Case, case_hash, find_cases, recorded_row, write_record
+from .cases import Case, case_hash, find_cases, recorded_row, remove_partials, write_record
 from .meshing import mesh_input, resolved
 from .report import render_cut, save_picture, write_report, write_summary
 
@@ -68,6 +68,7 @@ def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:
     row = recorded_row(output_dir, case, digest)
     if row is not None:
         return row
+    remove_partials(output_dir, case)   # of an attempt whose worker died while writing
     start = time.perf_counter()
     logger, captured = logging.getLogger("bitemesh"), _Captured()
     logger.addHandler(captured)
