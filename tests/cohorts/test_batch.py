@@ -203,3 +203,18 @@ def test_a_worker_killed_mid_run_leaves_every_case_done_once(client, inputs, tmp
     assert len(list((output / RECORDS).glob("*.json"))) == 6 and leftovers(output) == []
     client.wait_for_workers(2, timeout=60)
     assert pids[busy] not in client.run(os.getpid).values()   # that worker did die (and was restarted)
+
+
+def test_a_case_starting_removes_what_its_killed_attempt_half_wrote(inputs, tmp_path):
+    """A worker killed mid-write leaves the case's .partial files (mesh, picture, record); the next attempt of the
+    case removes them and leaves another case's."""
+    from bitemesh.cohorts.cases import RECORDS, Case
+    from bitemesh.cohorts.run import remove_partials
+    (tmp_path / RECORDS).mkdir()
+    stale = [tmp_path / ".p1.0a1b2c3d.partial.vtu", tmp_path / RECORDS / ".p1.99887766.partial.png",
+             tmp_path / RECORDS / ".p1.deadbeef.partial.json"]
+    kept = [tmp_path / ".p10.0a1b2c3d.partial.vtu", tmp_path / RECORDS / "p1.json"]
+    for path in stale + kept:
+        path.write_text("x")
+    remove_partials(tmp_path, Case("p1", inputs["sphere"]))
+    assert not any(path.exists() for path in stale) and all(path.exists() for path in kept)

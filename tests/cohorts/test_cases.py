@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from bitemesh.cohorts.cases import RECORDS, Case, case_hash, find_cases, read_manifest, remove_partials
+from bitemesh.cohorts.cases import Case, case_hash, find_cases, read_manifest
 from bitemesh.cohorts.meshing import parse_option, resolved
 from bitemesh.core.errors import InvalidInputError
 
@@ -77,17 +77,3 @@ def test_the_hash_follows_the_input_and_the_options(inputs, tmp_path):
     copy.write_bytes(copy.read_bytes() + b"\n0 0 1 0 0 1\n")
     assert case_hash(case, {"cells": 1500}) != first
 
-
-def test_a_cases_stale_partial_files_go_and_no_other_file(tmp_path):
-    """What a worker killed mid-write leaves of a case (mesh, picture, record) is removed when the case runs again;
-    another case's half-written files (even one whose name starts the same) and finished files stay."""
-    (tmp_path / RECORDS).mkdir()
-    stale = [tmp_path / ".p1.0a1b2c3d.partial.vtu", tmp_path / RECORDS / ".p1.99887766.partial.png",
-             tmp_path / RECORDS / ".p1.deadbeef.partial.json"]
-    kept = [tmp_path / ".p1.v2.0a1b2c3d.partial.vtu", tmp_path / ".p10.0a1b2c3d.partial.vtu", tmp_path / "p1.vtu",
-            tmp_path / RECORDS / "p1.json"]
-    for path in stale + kept:
-        path.write_text("x")
-    remove_partials(tmp_path, Case("p1", tmp_path / "p1.xyz"))
-    assert [path.exists() for path in stale] == [False] * 3
-    assert all(path.exists() for path in kept)

@@ -36,3 +36,20 @@ def test_every_format_is_written_whole_and_replaces_the_previous_file(tmp_path, 
     write_mesh(Mesh(points, np.array([[0, 1, 2, 3], [1, 2, 3, 4]])), path)
     assert len(read_mesh(path).cells) == 2
     assert leftovers(tmp_path) == []
+
+
+def test_the_stale_partials_of_a_file_are_its_own_alone(tmp_path):
+    """What atomic writes of p1.vtu left when killed: found; another file's (even p1.v2.vtu's or p10.vtu's), a
+    finished file and a name without the token: not."""
+    from bitemesh.io import stale_partials
+    stale = [tmp_path / ".p1.0a1b2c3d.partial.vtu", tmp_path / ".p1.deadbeef.partial.vtu"]
+    others = [tmp_path / ".p1.v2.0a1b2c3d.partial.vtu", tmp_path / ".p10.0a1b2c3d.partial.vtu", tmp_path / "p1.vtu",
+              tmp_path / ".p1.0a1b2c3d.partial.msh", tmp_path / ".p1.notahex0.partial.vtu"]
+    for path in stale + others:
+        path.write_text("x")
+    assert stale_partials(tmp_path / "p1.vtu") == sorted(stale)
+    assert stale_partials(tmp_path / "absent" / "p1.vtu") == []
+    (tmp_path / ".seg.0a1b2c3d.partial.nii.gz").write_text("x")   # the double extension is kept whole
+    assert stale_partials(tmp_path / "seg.nii.gz") == []
+    (tmp_path / ".seg.nii.0a1b2c3d.partial.nii.gz").write_text("x")
+    assert stale_partials(tmp_path / "seg.nii.gz") == [tmp_path / ".seg.nii.0a1b2c3d.partial.nii.gz"]

@@ -2,12 +2,10 @@
 parameters) and the record each finished case leaves beside the meshes, by which a rerun skips it."""
 from __future__ import annotations
 
-import contextlib
 import csv
 import glob
 import hashlib
 import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -149,19 +147,6 @@ def case_hash(case: Case, options: dict) -> str:
 
 def record_path(output_dir: Path, case: Case) -> Path:
     return Path(output_dir) / RECORDS / f"{case.name}.json"
-
-
-def remove_partials(output_dir: Path, case: Case) -> None:
-    """Delete the half-written files of ``case`` (its mesh, picture and record: bitemesh.io's ``.NAME.xxxxxxxx
-    .partial`` names) that an attempt left when its worker was killed while writing (SIGKILL, out of memory): one
-    attempt of a case runs at a time, so those found when it starts are stale.  Other cases' files stay."""
-    pattern = re.compile(rf"\.{re.escape(case.name)}\.[0-9a-f]{{8}}\.partial")
-    for folder in (Path(output_dir), Path(output_dir) / RECORDS):
-        if folder.is_dir():
-            for path in folder.iterdir():
-                if pattern.match(path.name):
-                    with contextlib.suppress(OSError):
-                        path.unlink()
 
 
 def write_record(output_dir: Path, case: Case, digest: str, row: dict) -> None:

@@ -18,10 +18,10 @@ from pathlib import Path
 from ..core.errors import BitemeshError, InvalidInputError
 from ..core.progress import ProgressCallback
 from ..core.quality import quality_summary
-from ..io import write_mesh
-from .cases import Case, case_hash, find_cases, recorded_row, remove_partials, write_record
+from ..io import stale_partials, write_mesh
+from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
 from .meshing import mesh_input, resolved
-from .report import render_cut, save_picture, write_report, write_summary
+from .report import picture_path, render_cut, save_picture, write_report, write_summary
 
 #: the columns of summary.csv (R, fidelity and volume in input units; seconds of wall clock on the worker)
 COLUMNS = ("case", "status", "message", "cells", "points", "R", "mean_Q", "min_Q", "min_dihedral", "fidelity",
@@ -57,6 +57,15 @@ class _Captured(logging.Handler):
 
     def emit(self, record):
         self.messages.append(record.getMessage())
+
+
+def remove_partials(output_dir: Path, case: Case) -> None:
+    """Delete what attempts of ``case`` half wrote (its mesh, picture and record) when their worker was killed
+    mid-write: one attempt of a case runs at a time, so those found when it starts are stale."""
+    for path in (output_dir / case.output_name, picture_path(output_dir, case.name), record_path(output_dir, case)):
+        for stale in stale_partials(path):
+            with contextlib.suppress(OSError):
+                stale.unlink()
 
 
 def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:

@@ -22,10 +22,11 @@
    from the input).
 
 The nodes are the biting's, only moved: the node spacing stays uniform.  Everything is deterministic.  Measured on
-the sphere of 10,000 cells of ``benchmarks/peers.py``: mean radius ratio 0.81 -> 0.89, smallest dihedral angle
-0.8 -> 32 degrees, edge-length CV 0.17 -> 0.13, in 0.6 s (1.6x faster than the relaxation by a new Delaunay
-triangulation per iteration that it replaced, mean radius ratio 0.90; 1.8x at 136,000 cells, 3x on the demo
-heart, where that one changed the topology and was abandoned).
+the sphere of 10,000 cells of ``benchmarks/peers.py``: mean radius ratio 0.81 -> 0.90, smallest dihedral angle
+0.8 -> 31 degrees, edge-length CV 0.17 -> 0.13, in 0.7 s (1.3x faster than the relaxation by a new Delaunay
+triangulation per iteration that it replaced, with the same mean radius ratio; 1.4x on the sphere at 136,000
+cells, 2.1x on the two-cavity heart, 2.7x on the demo heart, where that one changed the topology and was
+abandoned).
 
 This module runs the steps and picks the state returned (:func:`optimize_mesh`); the relaxation and the smoothing
 live in :mod:`bitemesh.core.relax`, the sliver removal in :mod:`bitemesh.core.slivers`, and their names are

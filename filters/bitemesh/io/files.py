@@ -90,10 +90,36 @@ def atomic_outputs(paths, what: str = "a mesh"):
                 temporary.unlink()
 
 
-def _temporary_beside(path: Path) -> Path:
-    """A fresh hidden name beside ``path`` with the same extension (``.nii.gz`` kept whole)."""
+#: the hex digits that make each temporary name of an atomic write fresh
+TOKEN_BYTES = 4
+
+
+def _partial_name(path: Path, token: str) -> str:
+    """The hidden name beside ``path`` that an atomic write of it uses: ``.STEM.TOKEN.partial`` and the same
+    extension (``.nii.gz`` kept whole)."""
     suffix = "".join(path.suffixes[-2:]) if path.name.lower().endswith(".nii.gz") else path.suffix
-    return path.with_name(f".{path.stem}.{secrets.token_hex(4)}.partial{suffix}")
+    return f".{path.stem}.{token}.partial{suffix}"
+
+
+def _temporary_beside(path: Path) -> Path:
+    """A fresh hidden name beside ``path`` for an atomic write of it."""
+    return path.with_name(_partial_name(path, secrets.token_hex(TOKEN_BYTES)))
+
+
+def stale_partials(path) -> list:
+    """The half-written files that atomic writes of ``path`` left beside it when their process was killed before
+    it could remove them (SIGKILL, out of memory); no other file's."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        return []
+    prefix, suffix = _partial_name(path, "*").split("*")
+    return sorted(other for other in path.parent.iterdir()
+                  if other.name.startswith(prefix) and other.name.endswith(suffix)
+                  and _is_token(other.name[len(prefix):len(other.name) - len(suffix)]))
+
+
+def _is_token(text: str) -> bool:
+    return len(text) == 2 * TOKEN_BYTES and all(character in "0123456789abcdef" for character in text)
 
 
 @contextlib.contextmanager
