@@ -1,7 +1,7 @@
-"""Flips towards the Delaunay triangulation (the relaxation's local update, :func:`bitemesh.core.flips.flip` with
-``delaunay=True``): from a Delaunay triangulation whose interior nodes moved, they reach the Delaunay triangulation
-of the moved nodes, the hull kept; every interior facet ends locally Delaunay; the boundary, the nodes and the
-volume stay."""
+"""Flips towards the Delaunay triangulation (the relaxation's local update,
+:func:`bitemesh.core.delaunay_flips.flip_to_delaunay`): from a Delaunay triangulation whose interior nodes moved,
+they reach the Delaunay triangulation of the moved nodes, the hull kept; every interior facet ends locally
+Delaunay; the boundary, the nodes and the volume stay."""
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +9,8 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from bitemesh.core.delaunay import delaunay
-from bitemesh.core.flips import DELAUNAY_GAIN, flip
+from bitemesh.core.adjacency import cell_neighbours
+from bitemesh.core.delaunay_flips import DELAUNAY_GAIN, flip_to_delaunay
 from bitemesh.core.mesh import Mesh, circumspheres, facets_of, signed_measures
 from bitemesh.core.quality import check_valid_domain
 from bitemesh.core.relax import positive_moves
@@ -54,9 +55,10 @@ def interior_facet_violations(points: np.ndarray, cells: np.ndarray) -> np.ndarr
 def test_moved_nodes_reach_their_delaunay_triangulation(dim, side, seed):
     points, cells = jittered_grid(dim, side, seed)
     assert interior_facet_violations(points, cells).max() > 0.01   # the move made the cells non-Delaunay
-    flipped = flip(points, cells, passes=50, delaunay=True)
+    flipped, across = flip_to_delaunay(points, cells)
     assert interior_facet_violations(points, flipped).max() <= DELAUNAY_GAIN
     assert check_valid_domain(Mesh(points, flipped)) == []
+    assert np.array_equal(across, cell_neighbours(flipped))   # the neighbours kept up to date
     # the same cells as a new triangulation of the moved nodes (their hull is the box's, as before)
     assert np.array_equal(unique_rows(np.sort(flipped, axis=1))[0], unique_rows(np.sort(delaunay(points), axis=1))[0])
 
@@ -64,7 +66,7 @@ def test_moved_nodes_reach_their_delaunay_triangulation(dim, side, seed):
 @pytest.mark.parametrize("dim, side", [(2, 30), (3, 12)])
 def test_the_boundary_the_nodes_and_the_volume_stay(dim, side):
     points, cells = jittered_grid(dim, side, 3)
-    flipped = flip(points, cells, delaunay=True)
+    flipped, _ = flip_to_delaunay(points, cells)
     assert np.array_equal(unique_rows(boundary_facets(flipped))[0], unique_rows(boundary_facets(cells))[0])
     assert np.array_equal(np.unique(flipped), np.arange(len(points)))
     assert signed_measures(points, flipped).sum() == pytest.approx(signed_measures(points, cells).sum(), rel=1e-12)
@@ -74,4 +76,4 @@ def test_the_boundary_the_nodes_and_the_volume_stay(dim, side):
 def test_a_delaunay_triangulation_is_left_as_it_is():
     points, _ = jittered_grid(3, 10, 4)
     cells = delaunay(points)
-    assert np.array_equal(flip(points, cells, delaunay=True), cells)
+    assert np.array_equal(flip_to_delaunay(points, cells)[0], cells)

@@ -1,29 +1,22 @@
 """Flips that raise the worst radius ratio of the cells they replace: edge removal (the ring of cells around an
 interior edge triangulated again: 3-2, 4-4, 5-6 ... flips) and 2-3 flips across an interior facet (2-2 in 2D), in
-passes of flips that share no cell; and flips towards the Delaunay triangulation of the domain (2-3 and 3-2, 2-2
-in 2D), the local update of the relaxation (:func:`bitemesh.core.relax.relax`).
+passes of flips that share no cell: the sliver removal's (:mod:`bitemesh.core.slivers`).  The flips towards the
+Delaunay triangulation, the relaxation's, are :mod:`bitemesh.core.delaunay_flips`.
 """
 from __future__ import annotations
 
-from itertools import combinations, permutations
+from itertools import combinations
 
 import numpy as np
 
+from .adjacency import cell_neighbours, edge_rings, facet_pairs
 from .cell_measures import signed_radius_ratio
 from .progress import ProgressCallback, report
-from .mesh import circumspheres, facets_of
 
 #: a flip must raise the worst radius ratio of the cells it replaces by at least FLIP_GAIN; only groups of cells
 #: with a radius ratio below FLIP_QUALITY are tried (the others rarely gain: measured, no change in the result).
 FLIP_GAIN = 1e-3
 FLIP_QUALITY = 0.8
-#: a Delaunay flip must take a vertex at least this fraction of the squared circumradius inside a circumsphere (far
-#: above rounding: no flip and its inverse both pass).
-DELAUNAY_GAIN = 1e-6
-#: a cell whose radius ratio is below FLAT_QUALITY counts as flat: no Delaunay flip makes one, no move of the
-#: relaxation either.  Four nodes on the base plane or on a lattice's plane are flat to rounding, and rounding (the
-#: floating-point library) must not decide whether a cell is made.
-FLAT_QUALITY = 1e-6
 #: passes of flips in a round (each pass makes a set of flips that share no cell), and the largest ring of cells
 #: around an edge that edge removal triangulates again (in 42 ways for 7).
 FLIP_PASSES = 12
@@ -55,70 +48,6 @@ def polygon_triangulations(n: int):
 RING_TRIANGULATIONS = {n: polygon_triangulations(n) for n in range(3, MAX_RING + 1)}
 
 
-def _is_even(permutation) -> bool:
-    return sum(a > b for a, b in combinations(permutation, 2)) % 2 == 0
-
-
-#: for each edge (i, j) of a tetrahedron, the other two vertices (k, l) ordered so that (i, j, k, l) is an even
-#: permutation of (0, 1, 2, 3): then (v_i, v_j, v_k, v_l) is as positively oriented as (v_0, v_1, v_2, v_3).
-EDGE_PAIRS = np.array(list(combinations(range(4), 2)))
-EDGE_OTHERS = np.array([next(rest for rest in permutations(set(range(4)) - {i, j}) if _is_even((i, j) + rest))
-                        for i, j in EDGE_PAIRS])
-
-
-def _sorted_keys(rows: np.ndarray):
-    """One stable sort of the rows (r, j) of vertex indices by their sorted vertices: ``order`` (r,) and the
-    sorted keys (r,), equal for the rows that hold the same vertices."""
-    rows = np.sort(rows, axis=1)
-    keys = rows[:, 0].astype(np.int64)
-    base = int(rows.max()) + 1 if rows.size else 1
-    for column in range(1, rows.shape[1]):
-        keys = keys * base + rows[:, column]
-    order = np.argsort(keys, kind="stable")
-    return order, keys[order]
-
-
-def edge_rings(cells: np.ndarray, max_ring: int = MAX_RING, nodes: np.ndarray | None = None) -> dict:
-    """The interior edges of a tetrahedral mesh with the cells around them in order; with ``nodes`` ((n,) bool),
-    only the edges whose two ends are among them (the others are not sorted at all).
-
-    Returns
-    -------
-    n -> (a, b, ring, around) for each ring size n in 3 .. ``max_ring``: the edges (a, b) (E,) whose cells close
-    a ring of n; ``ring`` (E, n) the vertices x_0 .. x_{n-1} around the edge, ordered so that every cell
-    (a, b, x_i, x_{i+1}) is positively oriented; ``around`` (E, n) the cell holding x_i and x_{i+1}.
-    """
-    a, b = cells[:, EDGE_PAIRS[:, 0]].ravel(), cells[:, EDGE_PAIRS[:, 1]].ravel()
-    x, y = cells[:, EDGE_OTHERS[:, 0]].ravel(), cells[:, EDGE_OTHERS[:, 1]].ravel()
-    swap = a > b  # (b, a, x, y) has the other orientation: the ring runs the other way
-    a, b, x, y = np.where(swap, b, a), np.where(swap, a, b), np.where(swap, y, x), np.where(swap, x, y)
-    owner = np.repeat(np.arange(len(cells)), len(EDGE_PAIRS))
-    if nodes is not None:
-        near = np.flatnonzero(nodes[a] & nodes[b])
-        a, b, x, y, owner = a[near], b[near], x[near], y[near], owner[near]
-    order, keys = _sorted_keys(np.stack([a, b], axis=1))
-    start = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1], [True]]))
-    counts = np.diff(start)
-    edges = np.stack([a[order[start[:-1]]], b[order[start[:-1]]]], axis=1)
-    rings = {}
-    for n in range(3, max_ring + 1):
-        chosen = np.flatnonzero(counts == n)
-        rows = order[start[chosen][:, None] + np.arange(n)]
-        xs, ys, cell = x[rows], y[rows], owner[rows]
-        every = np.arange(len(chosen))
-        ring, around = np.empty_like(xs), np.empty_like(cell)
-        ring[:, 0], around[:, 0], current = xs[:, 0], cell[:, 0], ys[:, 0]
-        closed = np.ones(len(chosen), bool)  # an edge on the boundary has an open fan of cells
-        for i in range(1, n):
-            hit = xs == current[:, None]
-            closed &= hit.sum(axis=1) == 1
-            column = np.argmax(hit, axis=1)
-            ring[:, i], around[:, i], current = current, cell[every, column], ys[every, column]
-        closed &= current == ring[:, 0]
-        rings[n] = (edges[chosen[closed], 0], edges[chosen[closed], 1], ring[closed], around[closed])
-    return rings
-
-
 def _ring_cells(a: np.ndarray, b: np.ndarray, ring: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """(E, t, 2, 4): for each triangle (x, y, z) of the ring's polygon, the cells (x, y, z, b) and (x, z, y, a)
     that replace those around the edge (a, b)."""
@@ -127,34 +56,12 @@ def _ring_cells(a: np.ndarray, b: np.ndarray, ring: np.ndarray, triangles: np.nd
     return np.stack([np.stack([x, y, z, apex_b], axis=-1), np.stack([x, z, y, apex_a], axis=-1)], axis=2)
 
 
-def _facet_pairs(cells: np.ndarray, nodes: np.ndarray | None):
-    """The pairs of cells across an interior facet (with ``nodes``, (n,) bool: the facets whose vertices are all
-    among them): cell_a, cell_b (p,), their far vertices a, b (p,) and the facet (p, k), oriented out of cell_a."""
-    k = cells.shape[1] - 1
-    facets = facets_of(cells).reshape(-1, k)
-    rows = np.arange(len(facets)) if nodes is None else np.flatnonzero(nodes[facets].all(axis=1))
-    order, keys = _sorted_keys(facets[rows])  # the rows that are the same facet, paired as by neighbour_pairs
-    same = keys[1:] == keys[:-1]
-    first, second = rows[order[:-1][same]], rows[order[1:][same]]
-    cell_a, cell_b = first // (k + 1), second // (k + 1)
-    return cell_a, cell_b, cells[cell_a, first % (k + 1)], cells[cell_b, second % (k + 1)], facets[first]
-
-
 def _across(a: np.ndarray, b: np.ndarray, facet: np.ndarray) -> np.ndarray:
     """The cells that replace the two on ``facet`` (p, k) with far vertices a, b: (p, 3, 4) around the edge (a, b)
     in 3D (2-3 flip), (p, 2, 3) in 2D (2-2 flip)."""
     if facet.shape[1] == 3:
         return np.stack([np.stack([a, b, facet[:, i], facet[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
     return np.stack([np.stack([a, facet[:, 0], b], axis=1), np.stack([b, facet[:, 1], a], axis=1)], axis=1)
-
-
-def _fresh_nodes(cells: np.ndarray, fresh: np.ndarray | None, n_points: int):
-    """(n,) bool, the vertices of the ``fresh`` cells; None when every group is to be tested."""
-    if fresh is None:
-        return None
-    nodes = np.zeros(n_points, bool)
-    nodes[cells[fresh].ravel()] = True
-    return nodes
 
 
 def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, fresh: np.ndarray | None = None):
@@ -177,13 +84,11 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
     """
     k = points.shape[1]
     found = []
-    nodes = _fresh_nodes(cells, fresh, len(points))  # the groups to test have their edges and facets among them
+    across = cell_neighbours(cells)
     if k == 3:
-        for n, (a, b, ring, around) in edge_rings(cells, nodes=nodes).items():
+        for n, (a, b, ring, around) in edge_rings(cells, across, MAX_RING, fresh).items():
             worst_old = quality[around].min(axis=1)
             poor = worst_old < FLIP_QUALITY
-            if fresh is not None:
-                poor &= fresh[around].any(axis=1)
             a, b, ring, around, worst_old = a[poor], b[poor], ring[poor], around[poor], worst_old[poor]
             triangles, triangulations = RING_TRIANGULATIONS[n]
             new = _ring_cells(a, b, ring, triangles)
@@ -194,76 +99,14 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
             keep = gain > FLIP_GAIN
             chosen = new[np.flatnonzero(keep)[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
             found.append((around[keep], chosen, gain[keep]))
-    cell_a, cell_b, a, b, facet = _facet_pairs(cells, nodes)
+    cell_a, cell_b, a, b, facet = facet_pairs(cells, across, fresh)
     worst_old = np.minimum(quality[cell_a], quality[cell_b])
     poor = worst_old < FLIP_QUALITY
-    if fresh is not None:
-        poor &= fresh[cell_a] | fresh[cell_b]
     new = _across(a[poor], b[poor], facet[poor])
     gain = signed_radius_ratio(points, new.reshape(-1, k + 1)).reshape(new.shape[:2]).min(axis=1) - worst_old[poor]
     keep = gain > FLIP_GAIN
     found.append((np.stack([cell_a[poor], cell_b[poor]], axis=1)[keep], new[keep], gain[keep]))
     return found
-
-
-def delaunay_candidates(points: np.ndarray, cells: np.ndarray, spheres: np.ndarray,
-                        fresh: np.ndarray | None = None):
-    """The flips towards the Delaunay triangulation of the domain: 2-3 flips (2-2 in 2D) of two cells whose shared
-    facet is not locally Delaunay (the far vertex of one inside the other's circumsphere) and 3-2 flips of the
-    three cells around an edge whose two replacements are; gain: how far inside, as a fraction of the squared
-    circumradius, above ``DELAUNAY_GAIN``.  Every new cell must be positive (radius ratio above ``FLAT_QUALITY``).
-    ``spheres``: (m, k + 1) the cells' circumcentres and radii (:func:`circumsphere_rows`); ``fresh`` as in
-    :func:`flip_candidates`.
-
-    Returns
-    -------
-    list of (old (c, j) cell indices, new (c, j', k + 1) cells, gain (c,)), one entry per kind of flip
-    """
-    k = points.shape[1]
-    found = []
-    nodes = _fresh_nodes(cells, fresh, len(points))
-    if k == 3:
-        a, b, ring, around = edge_rings(cells, 3, nodes)[3]
-        if fresh is not None:
-            tested = fresh[around].any(axis=1)
-            a, b, ring, around = a[tested], b[tested], ring[tested], around[tested]
-        new = _ring_cells(a, b, ring, RING_TRIANGULATIONS[3][0])[:, 0]   # (E, 2, 4)
-        centre, radius = circumspheres(points, new[:, 0])
-        found.append(_positive_flips(points, around, new, _beyond(points[a], centre, radius)))
-    cell_a, cell_b, a, b, facet = _facet_pairs(cells, nodes)
-    if fresh is not None:
-        tested = fresh[cell_a] | fresh[cell_b]
-        cell_a, cell_b, a, b, facet = cell_a[tested], cell_b[tested], a[tested], b[tested], facet[tested]
-    gain = -_beyond(points[b], spheres[cell_a, :k], spheres[cell_a, k])
-    found.append(_positive_flips(points, np.stack([cell_a, cell_b], axis=1), _across(a, b, facet), gain))
-    return found
-
-
-def _beyond(x: np.ndarray, centre: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """(p,) (|x - centre|^2 - radius^2) / radius^2: above 0 outside the sphere; nan for a flat cell's."""
-    offset = x - centre
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        return (np.einsum("ij,ij->i", offset, offset) - radius ** 2) / radius ** 2
-
-
-def _positive_flips(points: np.ndarray, old: np.ndarray, new: np.ndarray, gain: np.ndarray) -> tuple:
-    """The flips (old, new, gain) whose gain is above ``DELAUNAY_GAIN`` and whose new cells are all positive.
-
-    The gains are counted in whole steps of ``DELAUNAY_GAIN`` and a new cell must be above ``FLAT_QUALITY``: the
-    biting's nodes lie almost on a lattice, where many spheres pass through five nodes and many cells through four
-    to rounding, and rounding must not choose the flips (the same mesh with any floating-point library)."""
-    with np.errstate(invalid="ignore"):
-        gain = np.floor(gain / DELAUNAY_GAIN) * DELAUNAY_GAIN
-    keep = gain > DELAUNAY_GAIN
-    keep[keep] = signed_radius_ratio(points, new[keep].reshape(-1, new.shape[2])).reshape(
-        -1, new.shape[1]).min(axis=1) > FLAT_QUALITY
-    return old[keep], new[keep], gain[keep]
-
-
-def circumsphere_rows(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """(m, k + 1) each cell's circumcentre and circumradius in one row."""
-    centre, radius = circumspheres(points, cells)
-    return np.column_stack([centre, radius])
 
 
 def independent_flips(candidates: list, n_cells: int) -> np.ndarray:
@@ -299,9 +142,8 @@ def independent_flips(candidates: list, n_cells: int) -> np.ndarray:
 
 
 def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
-         progress: ProgressCallback = None, delaunay: bool = False) -> np.ndarray:
-    """Apply improving flips (:func:`flip_candidates`), pass after pass, until none is left (at most ``passes``);
-    with ``delaunay``, the flips towards the Delaunay triangulation instead (:func:`delaunay_candidates`).
+         progress: ProgressCallback = None) -> np.ndarray:
+    """Apply improving flips (:func:`flip_candidates`), pass after pass, until none is left (at most ``passes``).
 
     Flips replace cells inside the domain only: the boundary, the nodes and the volume stay as they are.
 
@@ -309,12 +151,10 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
     -------
     (m', k + 1) int64, the new cells, positively oriented
     """
-    measure, candidates_of = ((circumsphere_rows, delaunay_candidates) if delaunay
-                              else (signed_radius_ratio, flip_candidates))
-    measured = measure(points, cells)
+    measured = signed_radius_ratio(points, cells)
     fresh = None  # the first pass tests every group, each next one those with a cell the pass before made
     for pass_ in range(passes):
-        candidates = candidates_of(points, cells, measured, fresh)
+        candidates = flip_candidates(points, cells, measured, fresh)
         found = sum(len(gain) for _, _, gain in candidates)
         report(progress, pass_ / passes, f"flip pass {pass_ + 1}: {found} improving flips")
         if not found:
@@ -330,5 +170,5 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
             added.append(new[take].reshape(-1, cells.shape[1]))
         cells = np.concatenate([cells[~removed]] + added)
         fresh = np.arange(len(cells)) >= len(cells) - sum(len(new) for new in added)
-        measured = np.concatenate([measured[~removed]] + [measure(points, new) for new in added])
+        measured = np.concatenate([measured[~removed]] + [signed_radius_ratio(points, new) for new in added])
     return cells

@@ -6,6 +6,8 @@ from math import factorial
 
 import numpy as np
 
+from .kernels import kernel
+
 
 @dataclass(frozen=True, eq=False)
 class Mesh:
@@ -58,19 +60,56 @@ def signed_measures(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
 
 
 def circumspheres(points: np.ndarray, cells: np.ndarray):
-    """Circumcentres (m, k) and circumradii (m,) of the cells; inf/nan-free only for non-degenerate cells.
+    """Circumcentres (m, k) and circumradii (m,) of the cells; inf for a flat cell (|det| of its edges <= 1e-300).
 
-    Solves 2 (v_i - v_0) . (c - v_0) = |v_i - v_0|^2 for i = 1..k, cell by cell, vectorized.
+    Closed forms from vertex 0 with edges a, b (, c): 3D centre offset (|a|^2 b x c + |b|^2 c x a + |c|^2 a x b) /
+    (2 a . (b x c)), 2D ((|a|^2 b_y - |b|^2 a_y), (|b|^2 a_x - |a|^2 b_x)) / (2 (a_x b_y - a_y b_x)).
     """
-    corners = simplex_vertices(points, cells)
-    edges = corners[:, 1:] - corners[:, :1]
-    rhs = np.einsum("mij,mij->mi", edges, edges)
-    with np.errstate(all="ignore"):
-        det = np.linalg.det(edges)
-        safe = np.abs(det) > 1e-300
-        offset = np.full(edges.shape[:2], np.inf)
-        offset[safe] = np.linalg.solve(2.0 * edges[safe], rhs[safe][..., None])[..., 0]
-    return corners[:, 0] + offset, np.linalg.norm(offset, axis=1)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    spheres = _circumspheres(points, np.ascontiguousarray(cells, dtype=np.int64).reshape(-1, points.shape[1] + 1))
+    return spheres[:, :-1], spheres[:, -1]
+
+
+@kernel
+def _circumsphere(points: np.ndarray, cell: np.ndarray, out: np.ndarray) -> None:
+    """``out`` (k + 1,) := the circumcentre and the circumradius of one cell (k + 1,) (see :func:`circumspheres`)."""
+    p, q, r = cell[0], cell[1], cell[2]
+    if len(cell) == 4:
+        s = cell[3]
+        a0, a1, a2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
+        b0, b1, b2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
+        c0, c1, c2 = points[s, 0] - points[p, 0], points[s, 1] - points[p, 1], points[s, 2] - points[p, 2]
+        bc0, bc1, bc2 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+        ca0, ca1, ca2 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+        ab0, ab1, ab2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        det = a0 * bc0 + a1 * bc1 + a2 * bc2
+        aa, bb, cc = a0 * a0 + a1 * a1 + a2 * a2, b0 * b0 + b1 * b1 + b2 * b2, c0 * c0 + c1 * c1 + c2 * c2
+        offset = ((aa * bc0 + bb * ca0 + cc * ab0), (aa * bc1 + bb * ca1 + cc * ab1), (aa * bc2 + bb * ca2 + cc * ab2))
+    else:
+        a0, a1 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1]
+        b0, b1 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1]
+        det = a0 * b1 - a1 * b0
+        aa, bb = a0 * a0 + a1 * a1, b0 * b0 + b1 * b1
+        offset = (aa * b1 - bb * a1, bb * a0 - aa * b0, 0.0)
+    k = len(cell) - 1
+    squared = 0.0
+    for i in range(k):
+        if abs(det) > 1e-300:
+            out[i] = offset[i] / (2.0 * det)
+            squared += out[i] * out[i]
+            out[i] += points[p, i]
+        else:
+            out[i] = np.inf
+    out[k] = np.sqrt(squared) if abs(det) > 1e-300 else np.inf
+
+
+@kernel
+def _circumspheres(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1) :func:`_circumsphere` of every cell."""
+    out = np.empty((len(cells), cells.shape[1]))
+    for m in range(len(cells)):
+        _circumsphere(points, cells[m], out[m])
+    return out
 
 
 def facets_of(cells: np.ndarray) -> np.ndarray:

@@ -5,9 +5,9 @@ relaxation and the smoothing.  Boundary nodes stay on f = 0 (Newton steps along 
 - Relaxation (:func:`relax`): optimal Delaunay triangulation (ODT) smoothing, Alliez et al. 2005.  Each interior
   node moves to the volume-weighted mean of the circumcentres of its cells, each boundary node towards the
   area-weighted mean of the centroids of its boundary facets, along the surface and back onto f = 0; then the
-  cells are updated locally by flips towards the Delaunay triangulation (:mod:`bitemesh.core.flips`) instead of
-  a new triangulation of all the nodes, until the mean radius ratio stops rising.  The boundary facets and the
-  nodes stay: the mesh stays a valid domain of the input's topology.
+  cells are updated locally by flips towards the Delaunay triangulation (:mod:`bitemesh.core.delaunay_flips`)
+  instead of a new triangulation of all the nodes, until the mean radius ratio stops rising.  The boundary facets
+  and the nodes stay: the mesh stays a valid domain of the input's topology.
 - Smoothing (:func:`smooth`, a step of the sliver removal, :mod:`bitemesh.core.slivers`): the nodes move down sum
   over the cells of (1 / mean ratio)^2 (Knupp's inverse mean ratio, infinite for a flat cell) with the boundary
   nodes sliding on f = 0; the cells stay as they are and every cell stays positive.
@@ -20,7 +20,7 @@ from .biting import project_to_surface
 from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
                             mean_ratio_terms, node_cost_descent, node_trial_costs, scatter_to_points,
                             signed_radius_ratio, tangential)
-from .flips import FLAT_QUALITY, flip
+from .delaunay_flips import FLAT_QUALITY, flip_to_delaunay
 from .grid import ImplicitGrid
 from .mesh import circumspheres, signed_measures
 from .progress import ProgressCallback, report
@@ -45,8 +45,10 @@ SURFACE_TOLERANCE = 0.01
 
 # --- relaxation ----------------------------------------------------------------------------------------------------
 
-def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margin: float) -> np.ndarray:
-    """(n, k) where the ODT smoothing moves each node (Alliez et al. 2005, section 4).
+def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margin: float,
+                facets: np.ndarray | None = None) -> np.ndarray:
+    """(n, k) where the ODT smoothing moves each node (Alliez et al. 2005, section 4); ``facets``: the boundary
+    facets of ``cells`` (:func:`~bitemesh.core.topology.boundary_facets`) if known.
 
     Interior nodes: the volume-weighted mean of the circumcentres of their cells, pushed back to f = ``margin``
     when it lies closer to the surface.  Boundary nodes: the area-weighted mean of the centroids of their boundary
@@ -62,7 +64,7 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
     inner = np.flatnonzero(weight > 0)
     targets[inner] = scatter_to_points(n, cells[usable], weighted)[inner] / weight[inner, None]
 
-    facets = boundary_facets(cells)
+    facets = boundary_facets(cells) if facets is None else facets
     corners = points[facets]
     spans = corners[:, 1:] - corners[:, :1]
     area = np.linalg.norm(cross(spans[:, 0], spans[:, 1]) if k == 3 else spans[:, 0], axis=1)
@@ -88,7 +90,7 @@ def relax(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations:
           progress: ProgressCallback = None):
     """ODT relaxation on the mesh's own cells: move the nodes (:func:`odt_targets`), take back the moves that
     would invert a cell, then update the cells locally by flips towards the Delaunay triangulation of the domain
-    (:func:`bitemesh.core.flips.flip`); repeat.
+    (:func:`bitemesh.core.delaunay_flips.flip_to_delaunay`); repeat.
 
     No full triangulation per iteration: flips replace cells inside the domain only, so the boundary facets, the
     nodes and the domain's topology stay those of the input (a wall thinner than a cell cannot open).  Stops after
@@ -101,10 +103,11 @@ def relax(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations:
     history : list of float, the mean radius ratio after each move
     """
     margin = INTERIOR_MARGIN * mean_edge_length(points, cells)
+    facets, across = boundary_facets(cells), None   # the flips keep the boundary facets
     history = []
     for iteration in range(iterations):
-        points = positive_moves(points, odt_targets(grid, points, cells, margin), cells)
-        cells = flip(points, cells, delaunay=True)
+        points = positive_moves(points, odt_targets(grid, points, cells, margin, facets), cells)
+        cells, across = flip_to_delaunay(points, cells, across)
         history.append(float(signed_radius_ratio(points, cells).mean()))
         report(progress, (iteration + 1) / iterations,
                f"relaxation {iteration + 1}/{iterations}: mean radius ratio {history[-1]:.4f}")

@@ -11,6 +11,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
 
+from .adjacency import BOUNDARY, cell_neighbours
 from .kernels import kernel
 from .mesh import facets_of
 
@@ -42,46 +43,6 @@ def unique_rows(rows: np.ndarray):
     inverse[order] = np.cumsum(start) - 1
     first = np.flatnonzero(start)
     return rows[order[first]], inverse, np.diff(np.append(first, len(keys)))
-
-
-@kernel
-def _single_facets(cells: np.ndarray, n_points: int) -> np.ndarray:
-    """(m, k + 1) bool, True where the facet opposite vertex i of cell c is held by that cell alone: each facet's
-    sorted vertices as an exact int64 key (n_points ** k < 2 ** 63), counted in an open-addressing hash table."""
-    m, corners = cells.shape
-    size = 1
-    while size < 2 * m * corners:
-        size *= 2
-    slot_keys = np.full(size, -1, np.int64)
-    counts = np.zeros(size, np.int64)
-    where = np.empty((m, corners), np.int64)
-    vertices = np.empty(corners - 1, np.int64)
-    for c in range(m):
-        for i in range(corners):
-            length = 0
-            for j in range(corners):   # the facet opposite vertex i, sorted by insertion
-                if j != i:
-                    v, at = cells[c, j], length
-                    while at > 0 and vertices[at - 1] > v:
-                        vertices[at] = vertices[at - 1]
-                        at -= 1
-                    vertices[at] = v
-                    length += 1
-            key = np.int64(0)
-            for j in range(corners - 1):
-                key = key * n_points + vertices[j]
-            mixed = key * np.int64(-7046029254386353131)   # Fibonacci hashing (wraps around), high bits mixed in
-            slot = (mixed ^ (mixed >> 32)) & (size - 1)
-            while slot_keys[slot] >= 0 and slot_keys[slot] != key:
-                slot = (slot + 1) & (size - 1)
-            slot_keys[slot] = key
-            counts[slot] += 1
-            where[c, i] = slot
-    single = np.empty((m, corners), np.bool_)
-    for c in range(m):
-        for i in range(corners):
-            single[c, i] = counts[where[c, i]] == 1
-    return single
 
 
 def facet_table(cells: np.ndarray):
@@ -122,12 +83,7 @@ def neighbour_pairs(inverse: np.ndarray):
 
 def single_facets(cells: np.ndarray) -> np.ndarray:
     """(m, k + 1) bool, True where the facet opposite vertex i of cell c is held by that cell alone."""
-    k = cells.shape[1] - 1
-    n_points = int(cells.max()) + 1 if cells.size else 1
-    if float(n_points) ** k >= 2.0**63:
-        _, inverse, counts = facet_table(cells)
-        return (counts[inverse] == 1).reshape(-1, k + 1)
-    return _single_facets(np.ascontiguousarray(cells, dtype=np.int64), n_points)
+    return cell_neighbours(cells) == BOUNDARY
 
 
 def boundary_facets(cells: np.ndarray) -> np.ndarray:

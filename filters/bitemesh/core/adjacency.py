@@ -1,0 +1,155 @@
+"""Which cells of a simplicial mesh touch: the cell across each facet, the pairs of cells on interior facets and
+the rings of cells around interior edges, in compiled kernels (linear time, no sorting).
+
+The flips (:mod:`bitemesh.core.flips`) find their candidates here on every pass; :mod:`bitemesh.core.topology`
+finds the boundary facets.
+"""
+from __future__ import annotations
+
+from itertools import combinations, permutations
+
+import numpy as np
+
+from .kernels import kernel
+from .mesh import facets_of
+
+#: the neighbour recorded for a facet held by its cell alone (on the boundary), and by three cells or more.
+BOUNDARY, NON_MANIFOLD = -1, -2
+
+
+def _is_even(permutation) -> bool:
+    return sum(a > b for a, b in combinations(permutation, 2)) % 2 == 0
+
+
+#: for each edge (i, j) of a tetrahedron, the other two vertices (k, l) ordered so that (i, j, k, l) is an even
+#: permutation of (0, 1, 2, 3): then (v_i, v_j, v_k, v_l) is as positively oriented as (v_0, v_1, v_2, v_3).
+EDGE_PAIRS = np.array(list(combinations(range(4), 2)))
+EDGE_OTHERS = np.array([next(rest for rest in permutations(set(range(4)) - {i, j}) if _is_even((i, j) + rest))
+                        for i, j in EDGE_PAIRS])
+
+
+@kernel
+def _neighbours(cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1) int64, see :func:`cell_neighbours`: each facet looked up by its sorted vertices (two words: the
+    lowest, then the middle one times 2^32 plus the highest) in an open-addressing hash table (multiplicative
+    hashing, linear probing) whose slots hold the key and the first two facet rows that have it."""
+    m, corners = cells.shape
+    size, bits = 2, 1
+    while size < m * corners:
+        size, bits = 2 * size, bits + 1
+    keys = np.full((size, 2), -1, np.int64)
+    holders = np.full((size, 2), -1, np.int64)
+    across = np.full((m, corners), BOUNDARY, np.int64)
+    for c in range(m):
+        for skip in range(corners):
+            low, high, total = np.int64(1 << 62), np.int64(-1), np.int64(0)
+            for j in range(corners):
+                if j != skip:
+                    v = cells[c, j]
+                    total += v
+                    low, high = min(low, v), max(high, v)
+            rest = ((total - low - high) << 32) + high if corners == 4 else high
+            mixed = (low * np.int64(-7046029254386353131) + rest) * np.int64(-7046029254386353131)   # wraps
+            slot = np.int64(np.uint64(mixed) >> np.uint64(64 - bits))
+            while keys[slot, 0] >= 0 and (keys[slot, 0] != low or keys[slot, 1] != rest):
+                slot = (slot + 1) & (size - 1)
+            row = c * corners + skip
+            if keys[slot, 0] < 0:
+                keys[slot, 0], keys[slot, 1], holders[slot, 0] = low, rest, row
+            elif holders[slot, 1] < 0:
+                other = holders[slot, 0]
+                holders[slot, 1] = row
+                across[c, skip] = other // corners
+                across[other // corners, other % corners] = c
+            else:   # a third cell on this facet
+                other, second = holders[slot, 0], holders[slot, 1]
+                across[c, skip] = NON_MANIFOLD
+                across[other // corners, other % corners] = NON_MANIFOLD
+                across[second // corners, second % corners] = NON_MANIFOLD
+    return across
+
+
+def cell_neighbours(cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1) int64, the cell across the facet opposite vertex i of cell c; ``BOUNDARY`` (-1) where that facet
+    is held by cell c alone, ``NON_MANIFOLD`` (-2) where by three cells or more."""
+    if len(cells) == 0:
+        return np.zeros((0, cells.shape[1]), np.int64)
+    return _neighbours(np.ascontiguousarray(cells, dtype=np.int64))
+
+
+def facet_pairs(cells: np.ndarray, across: np.ndarray, start: np.ndarray | None = None):
+    """The pairs of cells on an interior facet (with ``start``, (m,) bool: those with a start cell among them), in
+    the order of the first cell and its facet: cell_a < cell_b (p,), their far vertices a, b (p,) and the facet
+    (p, k), oriented out of cell_a.  ``across``: :func:`cell_neighbours` of ``cells``."""
+    upper = across > np.arange(len(cells))[:, None]
+    if start is not None:
+        upper &= start[:, None] | start[np.maximum(across, 0)]
+    cell_a, opposite = np.nonzero(upper)
+    cell_b = across[cell_a, opposite]
+    far = np.argmax(across[cell_b] == cell_a[:, None], axis=1)
+    facet = facets_of(cells[cell_a])[np.arange(len(cell_a)), opposite]
+    return cell_a, cell_b, cells[cell_a, opposite], cells[cell_b, far], facet
+
+
+@kernel
+def _rings(cells: np.ndarray, across: np.ndarray, start: np.ndarray, max_ring: int, pairs: np.ndarray,
+           others: np.ndarray):
+    """The closed rings of 3 .. ``max_ring`` cells around the edges of the start cells, each once (walked from its
+    first start cell); see :func:`edge_rings`.  Returns (E,) sizes, a, b and (E, max_ring) ring, around."""
+    m = len(cells)
+    sizes = np.zeros(6 * m, np.int64)
+    ends = np.empty((6 * m, 2), np.int64)
+    ring = np.empty((6 * m, max_ring), np.int64)
+    around = np.empty((6 * m, max_ring), np.int64)
+    found = 0
+    for c in range(m):
+        if not start[c]:
+            continue
+        for e in range(6):
+            a, b = cells[c, pairs[e, 0]], cells[c, pairs[e, 1]]
+            x, y = cells[c, others[e, 0]], cells[c, others[e, 1]]
+            if a > b:   # (b, a, y, x) is as positively oriented as (a, b, x, y)
+                a, b, x, y = b, a, y, x
+            ring[found, 0], around[found, 0] = x, c
+            cell, dropped, current, n, closed = c, x, y, 1, False
+            while True:
+                position = 0
+                while cells[cell, position] != dropped:
+                    position += 1
+                cell = across[cell, position]   # the cell on the facet (a, b, current)
+                if cell < 0:
+                    break
+                if cell == c:
+                    closed = True
+                    break
+                if cell < c and start[cell] or n == max_ring:   # walked from an earlier start cell, or too long
+                    break
+                following = -1
+                for j in range(4):
+                    v = cells[cell, j]
+                    if v != a and v != b and v != current:
+                        following = v
+                ring[found, n], around[found, n] = current, cell
+                dropped, current, n = current, following, n + 1
+            if closed and n >= 3:
+                sizes[found], ends[found, 0], ends[found, 1] = n, a, b
+                found += 1
+    return sizes[:found], ends[:found, 0], ends[:found, 1], ring[:found], around[:found]
+
+
+def edge_rings(cells: np.ndarray, across: np.ndarray, max_ring: int, start: np.ndarray | None = None) -> dict:
+    """The interior edges of a tetrahedral mesh with the cells around them in order (with ``start``, (m,) bool:
+    the edges with a start cell around them), in the order of their first (start) cell and its edges.
+    ``across``: :func:`cell_neighbours` of ``cells``.
+
+    Returns
+    -------
+    n -> (a, b, ring, around) for each ring size n in 3 .. ``max_ring``: the edges (a, b) (E,), a < b, whose cells
+    close a ring of n; ``ring`` (E, n) the vertices x_0 .. x_{n-1} around the edge, ordered so that every cell
+    (a, b, x_i, x_{i+1}) is positively oriented; ``around`` (E, n) the cell holding x_i and x_{i+1}.
+    """
+    start = np.ones(len(cells), bool) if start is None else start
+    sizes, a, b, ring, around = _rings(np.ascontiguousarray(cells, dtype=np.int64), across, start, max_ring,
+                                       EDGE_PAIRS, EDGE_OTHERS)
+    return {n: (a[sizes == n], b[sizes == n], ring[sizes == n, :n], around[sizes == n, :n])
+            for n in range(3, max_ring + 1)}
