@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from bitemesh.core.adjacency import BOUNDARY, NON_MANIFOLD, cell_neighbours, edge_rings, facet_pairs
+from bitemesh.core.adjacency import BOUNDARY, NON_MANIFOLD, cell_neighbours, edge_rings, facet_pairs, replaced
 from bitemesh.core.mesh import facets_of, signed_measures
 from bitemesh.core.topology import facet_table, neighbour_pairs
 
@@ -82,3 +82,14 @@ def test_edge_rings_close_positively_around_every_interior_edge():
         held = start[rings[n][3]].any(axis=1)
         assert sorted(zip(*short[n][:2])) == sorted(zip(rings[n][0][held], rings[n][1][held]))
     assert set(short) == {3, 4, 5}
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_replaced_cells_keep_their_neighbours_up_to_date(dim):
+    points, cells = positive_delaunay(dim, 300, 4)
+    rng = np.random.default_rng(4)
+    removed = rng.random(len(cells)) < 0.1
+    added = cells[removed][::-1]   # the same place filled again, in another order
+    new_cells, across = replaced(cells, cell_neighbours(cells), removed, added)
+    assert np.array_equal(new_cells, np.concatenate([cells[~removed], added]))
+    assert np.array_equal(across, cell_neighbours(new_cells))

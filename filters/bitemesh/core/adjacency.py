@@ -153,3 +153,35 @@ def edge_rings(cells: np.ndarray, across: np.ndarray, max_ring: int, start: np.n
                                        EDGE_PAIRS, EDGE_OTHERS)
     return {n: (a[sizes == n], b[sizes == n], ring[sizes == n, :n], around[sizes == n, :n])
             for n in range(3, max_ring + 1)}
+
+
+def replaced(cells: np.ndarray, across: np.ndarray, removed: np.ndarray, added: np.ndarray):
+    """The cells with ``removed`` ((m,) bool) taken out and ``added`` ((a, k + 1)) put at the end, and their
+    neighbours: ``across`` (:func:`cell_neighbours` of ``cells``) renumbered, and the facets of the added cells and
+    those that faced a removed cell matched among themselves (few: sorted, not hashed).
+
+    Returns
+    -------
+    cells : (m - removed + a, k + 1) int64, ``concatenate([cells[~removed], added])``
+    across : its :func:`cell_neighbours`, when the added cells fill exactly the removed ones' place
+    """
+    unknown = -3
+    index = np.cumsum(~removed) - 1
+    index[removed] = unknown
+    kept = across[~removed]
+    kept = np.where(kept >= 0, index[np.maximum(kept, 0)], kept)
+    cells = np.concatenate([cells[~removed], added])
+    across = np.concatenate([kept, np.full(added.shape, unknown, np.int64)])
+    rows = np.flatnonzero(across.ravel() == unknown)
+    corners = cells.shape[1]
+    facets = np.sort(facets_of(cells[rows // corners])[np.arange(len(rows)), rows % corners], axis=1)
+    order = np.lexsort(facets.T[::-1])
+    facets, rows = facets[order], rows[order]
+    start = np.flatnonzero(np.concatenate([[True], np.any(facets[1:] != facets[:-1], axis=1), [True]]))
+    sizes = np.diff(start)
+    flat = across.ravel()
+    flat[rows[start[:-1][sizes == 1]]] = BOUNDARY
+    pair = start[:-1][sizes == 2]
+    flat[rows[pair]], flat[rows[pair + 1]] = rows[pair + 1] // corners, rows[pair] // corners
+    flat[rows[np.repeat(sizes, sizes) > 2]] = NON_MANIFOLD
+    return cells, across

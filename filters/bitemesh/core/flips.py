@@ -9,7 +9,7 @@ from itertools import combinations
 
 import numpy as np
 
-from .adjacency import cell_neighbours, edge_rings, facet_pairs
+from .adjacency import cell_neighbours, edge_rings, facet_pairs, replaced
 from .cell_measures import signed_radius_ratio
 from .progress import ProgressCallback, report
 
@@ -64,10 +64,12 @@ def _across(a: np.ndarray, b: np.ndarray, facet: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([a, facet[:, 0], b], axis=1), np.stack([b, facet[:, 1], a], axis=1)], axis=1)
 
 
-def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, fresh: np.ndarray | None = None):
+def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, across: np.ndarray,
+                    fresh: np.ndarray | None = None):
     """The flips that raise the worst radius ratio of the cells they replace by more than ``FLIP_GAIN``, among
     the groups of cells whose worst radius ratio is below ``FLIP_QUALITY``; with ``fresh`` ((m,) bool), only among
-    the groups that hold a fresh cell.
+    the groups that hold a fresh cell.  ``across``: the cells' neighbours
+    (:func:`~bitemesh.core.adjacency.cell_neighbours`).
 
     After a pass of :func:`flip`, every candidate either flipped or lost a cell to a flip, so a group of cells
     that were all there before gives no candidate now (the nodes do not move): only the groups with a cell made by
@@ -84,7 +86,6 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
     """
     k = points.shape[1]
     found = []
-    across = cell_neighbours(cells)
     if k == 3:
         for n, (a, b, ring, around) in edge_rings(cells, across, MAX_RING, fresh).items():
             worst_old = quality[around].min(axis=1)
@@ -152,9 +153,10 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
     (m', k + 1) int64, the new cells, positively oriented
     """
     measured = signed_radius_ratio(points, cells)
+    across = cell_neighbours(cells)
     fresh = None  # the first pass tests every group, each next one those with a cell the pass before made
     for pass_ in range(passes):
-        candidates = flip_candidates(points, cells, measured, fresh)
+        candidates = flip_candidates(points, cells, measured, across, fresh)
         found = sum(len(gain) for _, _, gain in candidates)
         report(progress, pass_ / passes, f"flip pass {pass_ + 1}: {found} improving flips")
         if not found:
@@ -168,7 +170,7 @@ def flip(points: np.ndarray, cells: np.ndarray, passes: int = FLIP_PASSES,
             start += len(gain)
             removed[old[take].ravel()] = True
             added.append(new[take].reshape(-1, cells.shape[1]))
-        cells = np.concatenate([cells[~removed]] + added)
+        cells, across = replaced(cells, across, removed, np.concatenate(added))
         fresh = np.arange(len(cells)) >= len(cells) - sum(len(new) for new in added)
         measured = np.concatenate([measured[~removed]] + [signed_radius_ratio(points, new) for new in added])
     return cells
