@@ -77,3 +77,14 @@ def test_a_delaunay_triangulation_is_left_as_it_is():
     points, _ = jittered_grid(3, 10, 4)
     cells = delaunay(points)
     assert np.array_equal(flip_to_delaunay(points, cells)[0], cells)
+
+
+def test_a_run_that_fills_its_room_goes_on_from_where_it_stopped():
+    from bitemesh.core.delaunay_flips import _flip_in_room
+    points, cells = jittered_grid(3, 10, 5)
+    across = cell_neighbours(cells)
+    partial, links, full, flips = _flip_in_room(points, cells, across, len(cells) + 2, 10 ** 6)
+    assert full and len(partial) == len(cells) + 2 and 0 < flips   # two 2-3 flips more than 3-2 flips, then no room
+    assert np.array_equal(links, cell_neighbours(partial)) and check_valid_domain(Mesh(points, partial)) == []
+    finished, _ = flip_to_delaunay(points, partial, links)
+    assert interior_facet_violations(points, finished).max() <= DELAUNAY_GAIN

@@ -217,27 +217,20 @@ def _flip_facet(points, cells, across, c, i, sphere):
 
 
 @kernel
-def _lawson(points, cells, across, max_flips):
+def _lawson(points, cells, across, alive, n_cells, max_flips):
     """Flip the facets that are not locally Delaunay, from a stack of the cells to check (all of them first, then
-    the new ones), at most ``max_flips`` times.  Returns the cells and their neighbours, as
-    :func:`flip_to_delaunay`."""
-    m, corners = cells.shape
-    capacity = m + m // 4 + 16
-    grown = np.empty((capacity, corners), np.int64)
-    grown[:m] = cells
-    links = np.full((capacity, corners), -1, np.int64)
-    links[:m] = across
-    cells, across = grown, links
-    alive = np.zeros(capacity, np.bool_)
-    alive[:m] = True
+    the new ones), at most ``max_flips`` times.  ``cells``, ``across`` (capacity, k + 1) and ``alive``
+    (capacity,) hold ``n_cells`` cells in their first rows and are changed in place, in room for ``capacity``
+    cells; it stops early when the room is full.  Returns (n_cells, flips made)."""
+    capacity, corners = cells.shape
     free = np.empty(capacity, np.int64)
     stack = np.empty(capacity, np.int64)
     queued = np.zeros(capacity, np.bool_)
-    for c in range(m):
-        stack[c], queued[c] = m - 1 - c, True   # cell 0 on top
-    top, n_free, n_cells, flips = m, 0, m, 0
+    for c in range(n_cells):
+        stack[c], queued[c] = n_cells - 1 - c, True   # cell 0 on top
+    top, n_free, flips = n_cells, 0, 0
     sphere = np.empty(corners)
-    while top > 0 and flips < max_flips:
+    while top > 0 and flips < max_flips and (n_free > 0 or n_cells < capacity):
         top -= 1
         c = stack[top]
         queued[c] = False
@@ -248,28 +241,13 @@ def _lawson(points, cells, across, max_flips):
             old, new = _flip_facet(points, cells, across, c, i, sphere)
             if len(old) == 0:
                 continue
-            if n_cells + 1 >= len(cells):   # room for a 2-3 flip
-                more = len(cells) // 2 + 16
-                cells = np.concatenate((cells, np.empty((more, corners), np.int64)))
-                across = np.concatenate((across, np.full((more, corners), -1, np.int64)))
-                alive = np.concatenate((alive, np.zeros(more, np.bool_)))
-                free = np.concatenate((free, np.empty(more, np.int64)))
-                stack = np.concatenate((stack, np.empty(more, np.int64)))
-                queued = np.concatenate((queued, np.zeros(more, np.bool_)))
             slots, n_free, n_cells = _replace(cells, across, alive, free, n_free, n_cells, old, new)
             flips += 1
             for s in slots:
                 if not queued[s]:
                     stack[top], top, queued[s] = s, top + 1, True
             break
-    index = np.cumsum(alive[:n_cells]) - 1   # the slots of the living cells, compacted
-    kept = np.flatnonzero(alive[:n_cells])
-    out, links = cells[kept], across[kept]
-    for c in range(len(kept)):
-        for i in range(corners):
-            if links[c, i] >= 0:
-                links[c, i] = index[links[c, i]]
-    return out, links
+    return n_cells, flips
 
 
 def flip_to_delaunay(points: np.ndarray, cells: np.ndarray, across: np.ndarray | None = None):
@@ -290,4 +268,26 @@ def flip_to_delaunay(points: np.ndarray, cells: np.ndarray, across: np.ndarray |
     if len(cells) == 0:
         return cells, np.zeros_like(cells)
     across = cell_neighbours(cells) if across is None else np.ascontiguousarray(across, dtype=np.int64)
-    return _lawson(np.ascontiguousarray(points, dtype=np.float64), cells, across, FLIPS_PER_CELL * len(cells))
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    budget = FLIPS_PER_CELL * len(cells)
+    while True:   # again, with more room, when a run filled its room (2-3 flips add a cell each)
+        cells, across, full, flips = _flip_in_room(points, cells, across, len(cells) + len(cells) // 4 + 16, budget)
+        budget -= flips
+        if not full or budget <= 0:
+            return cells, across
+
+
+def _flip_in_room(points: np.ndarray, cells: np.ndarray, across: np.ndarray, capacity: int, budget: int):
+    """:func:`_lawson` in room for ``capacity`` cells: (cells, across) compacted, whether the room filled, flips."""
+    m, corners = cells.shape
+    room = np.empty((capacity, corners), np.int64)
+    room[:m] = cells
+    links = np.full((capacity, corners), -1, np.int64)
+    links[:m] = across
+    alive = np.zeros(capacity, bool)
+    alive[:m] = True
+    n_cells, flips = _lawson(points, room, links, alive, m, budget)
+    kept = np.flatnonzero(alive[:n_cells])
+    index = np.cumsum(alive[:n_cells]) - 1   # the slots of the living cells, compacted
+    links = links[kept]
+    return room[kept], np.where(links >= 0, index[np.maximum(links, 0)], links), len(kept) == capacity, flips

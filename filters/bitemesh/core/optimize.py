@@ -5,8 +5,9 @@
 2. Relaxation (:func:`bitemesh.core.relax.relax`): optimal Delaunay triangulation (ODT) smoothing, Alliez et al.
    2005.  Each interior node moves to the volume-weighted mean of the circumcentres of its cells, each boundary
    node towards the area-weighted mean of the centroids of its boundary facets, along the surface and back onto
-   f = 0 (a move that would invert a cell is taken back); then flips towards the Delaunay triangulation update
-   the cells locally, in place of a new triangulation of all the nodes, until the mean radius ratio stops rising.
+   f = 0 (a move that would invert a cell is taken back); then Lawson's flips towards the Delaunay triangulation
+   (:mod:`bitemesh.core.delaunay_flips`) update the cells locally, in place of a new triangulation of all the
+   nodes, until the mean radius ratio stops rising.
 3. Sliver removal (:func:`bitemesh.core.slivers.remove_slivers`): rounds of flips (:mod:`bitemesh.core.flips`),
    which replace the cells around an interior edge (edge removal: 3-2, 4-4, 5-6 ... flips) or on both sides of an
    interior facet (2-3 flips; 2-2 in 2D) when that raises the worst radius ratio among them, then of smoothing
@@ -23,10 +24,9 @@
 
 The nodes are the biting's, only moved: the node spacing stays uniform.  Everything is deterministic.  Measured on
 the sphere of 10,000 cells of ``benchmarks/peers.py``: mean radius ratio 0.81 -> 0.90, smallest dihedral angle
-0.8 -> 31 degrees, edge-length CV 0.17 -> 0.13, in 0.7 s (1.3x faster than the relaxation by a new Delaunay
-triangulation per iteration that it replaced, with the same mean radius ratio; 1.4x on the sphere at 136,000
-cells, 2.1x on the two-cavity heart, 2.7x on the demo heart, where that one changed the topology and was
-abandoned).
+0.8 -> 31 degrees, edge-length CV 0.17 -> 0.13, in 0.4 s; on the two-cavity heart of 136,000 cells 10 s (19 s with
+the passes of independent Delaunay flips that Lawson's replaced, 27 s with a new Delaunay triangulation per
+iteration before them), with the same quality.
 
 This module runs the steps and picks the state returned (:func:`optimize_mesh`); the relaxation and the smoothing
 live in :mod:`bitemesh.core.relax`, the sliver removal in :mod:`bitemesh.core.slivers`, and their names are
