@@ -94,19 +94,6 @@ def _bite_block(ordered, start, stop, shape, padded_shape, pads, alive, offsets)
     return selected[:count]
 
 
-def project_to_surface(grid: SampledGrid, points: np.ndarray, *, steps: int = 4) -> np.ndarray:
-    """Move (m, k) points onto f = 0 by Newton steps along grad f, each step at most one grid spacing long."""
-    limit = float(np.max(grid.spacing))
-    for _ in range(steps):
-        value = grid.evaluate(points)
-        gradient = grid.gradient(points)
-        squared = np.maximum(np.einsum("ij,ij->i", gradient, gradient), 1e-12)
-        step = -(value / squared)[:, None] * gradient
-        length = np.linalg.norm(step, axis=1, keepdims=True)
-        points = points + step * np.minimum(1.0, limit / np.maximum(length, 1e-300))
-    return points
-
-
 def interface_border(grid: SampledGrid, alive: np.ndarray, interfaces) -> np.ndarray:
     """The Alive grid nodes with an Alive axis neighbour in another region (``interfaces.node_regions``)."""
     inside = np.flatnonzero(alive.ravel())
@@ -182,7 +169,7 @@ def bite(grid: SampledGrid, radius: float, *, order: str = "boundary", seed: int
 
     nodes = grid.node_coordinates(chosen) + rng.uniform(-jitter, jitter, (chosen.size, grid.dim)) * spacing
     on_border = border.ravel()[chosen]   # the nodes of the border layer go onto f = 0
-    nodes[on_border] = project_to_surface(grid, nodes[on_border])
+    nodes[on_border] = grid.project(nodes[on_border])
     if between is not None:   # and those next to another region onto the interface (on the border: where the
         reach = 4 * float(np.max(spacing))    # interface meets f = 0), as far as the border's go
         for layer, surface in ((between & ~border, None), (between & border, grid)):

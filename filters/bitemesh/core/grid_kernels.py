@@ -93,31 +93,57 @@ def _corners(index, p, shape, low, high, weight) -> bool:
 
 
 @kernel
-def interpolate(coarse, slots, bricks, shape, index):
-    """(m,) f multilinear at (m, 3) fractional node indices of the grid of ``shape`` (3,); NaN where the index is
-    NaN.  The arithmetic of ``scipy.ndimage.map_coordinates(values, index.T, order=1, mode="nearest")`` (scipy 1.17),
-    bit for bit: the corners summed in C order, each corner's value times its weights in axis order."""
-    out = np.empty(index.shape[0])
-    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
-    for p in range(index.shape[0]):
-        if not _corners(index, p, shape, low, high, weight):
-            out[p] = np.nan
-            continue
-        total = 0.0
-        for corner in range(8):
-            i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
-            value = node_value(coarse, slots, bricks, low[0] if i == 0 else high[0], low[1] if j == 0 else high[1],
-                               low[2] if h == 0 else high[2])
-            total += value * weight[0, i] * weight[1, j] * weight[2, h]
-        out[p] = total
-    return out
-
-
-@kernel
 def _far_difference(coarse, slots, bricks, shape, x, y, z, axis, step):
     """:func:`_difference` called, not inlined: the rare path of :func:`interpolate_gradient` stays out of its loop
     (inlined, it makes the loop 5x slower)."""
     return _difference(coarse, slots, bricks, shape, x, y, z, axis, step)
+
+
+@inline
+def _value(coarse, slots, bricks, low, high, weight):
+    """f multilinear from the corners of :func:`_corners`: summed in C order, each corner's value times its
+    weights in axis order."""
+    total = 0.0
+    for corner in range(8):
+        i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
+        value = node_value(coarse, slots, bricks, low[0] if i == 0 else high[0], low[1] if j == 0 else high[1],
+                           low[2] if h == 0 else high[2])
+        total += value * weight[0, i] * weight[1, j] * weight[2, h]
+    return total
+
+
+@inline
+def _gradient(coarse, slots, bricks, gradients, shape, spacing, low, high, weight, q):
+    """Component q of the central-difference gradient multilinear from the corners of :func:`_corners`."""
+    total = 0.0
+    for corner in range(8):
+        i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
+        x, y, z = low[0] if i == 0 else high[0], low[1] if j == 0 else high[1], low[2] if h == 0 else high[2]
+        if slots.size == 1:   # a dense grid
+            value = gradients[0, x, y, z, q]
+        else:   # kept in the bricks kept, else from the neighbours
+            slot = slots[x >> BRICK_SHIFT, y >> BRICK_SHIFT, z >> BRICK_SHIFT]
+            if slot < 0:
+                value = _far_difference(coarse, slots, bricks, shape, x, y, z, q, spacing[q])
+            else:
+                value = gradients[slot, x & _MASK, y & _MASK, z & _MASK, q]
+        total += value * weight[0, i] * weight[1, j] * weight[2, h]
+    return total
+
+
+@kernel
+def interpolate(coarse, slots, bricks, shape, index):
+    """(m,) f multilinear at (m, 3) fractional node indices of the grid of ``shape`` (3,); NaN where the index is
+    NaN.  The arithmetic of ``scipy.ndimage.map_coordinates(values, index.T, order=1, mode="nearest")`` (scipy 1.17),
+    bit for bit."""
+    out = np.empty(index.shape[0])
+    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
+    for p in range(index.shape[0]):
+        if _corners(index, p, shape, low, high, weight):
+            out[p] = _value(coarse, slots, bricks, low, high, weight)
+        else:
+            out[p] = np.nan
+    return out
 
 
 @kernel
@@ -132,47 +158,88 @@ def interpolate_gradient(coarse, slots, bricks, gradients, shape, spacing, index
             out[p] = np.nan
             continue
         for q in range(len(spacing)):
-            total = 0.0
-            for corner in range(8):
-                i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
-                x, y, z = low[0] if i == 0 else high[0], low[1] if j == 0 else high[1], low[2] if h == 0 else high[2]
-                if slots.size == 1:   # a dense grid
-                    value = gradients[0, x, y, z, q]
-                else:   # kept in the bricks kept, else from the neighbours
-                    slot = slots[x >> BRICK_SHIFT, y >> BRICK_SHIFT, z >> BRICK_SHIFT]
-                    if slot < 0:
-                        value = _far_difference(coarse, slots, bricks, shape, x, y, z, q, spacing[q])
-                    else:
-                        value = gradients[slot, x & _MASK, y & _MASK, z & _MASK, q]
-                total += value * weight[0, i] * weight[1, j] * weight[2, h]
-            out[p, q] = total
+            out[p, q] = _gradient(coarse, slots, bricks, gradients, shape, spacing, low, high, weight, q)
+    return out
+
+
+@kernel
+def newton_to_surface(coarse, slots, bricks, gradients, shape, origin, spacing, points, steps, settled):
+    """(m, k) points moved onto f = 0 by up to ``steps`` Newton steps along the interpolated gradient (as
+    :func:`interpolate` and :func:`interpolate_gradient` take f and grad f), each at most the largest spacing
+    long; beyond the grid f is at most minus the distance to it.  A point stops once a step is shorter than
+    ``settled`` (its next ones would be shorter still); a NaN point stays NaN."""
+    m, k = points.shape
+    out = points.copy()
+    index = np.zeros((1, 3))
+    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
+    gradient = np.zeros(k)
+    limit = spacing.max()
+    for p in range(m):
+        for _ in range(steps):
+            beyond = 0.0
+            for d in range(k):
+                index[0, d] = (out[p, d] - origin[d]) / spacing[d]
+                outside = max(-index[0, d], index[0, d] - (shape[d] - 1.0), 0.0) * spacing[d]
+                beyond += outside * outside
+            if not _corners(index, 0, shape, low, high, weight):
+                break
+            value = _value(coarse, slots, bricks, low, high, weight)
+            if beyond > 0:
+                value = min(value, -np.sqrt(beyond))
+            squared = 0.0
+            for q in range(k):
+                gradient[q] = _gradient(coarse, slots, bricks, gradients, shape, spacing, low, high, weight, q)
+                squared += gradient[q] * gradient[q]
+            scale = -value / max(squared, 1e-12)
+            length = abs(scale) * np.sqrt(squared)
+            if length > limit:
+                scale *= limit / length
+            for q in range(k):
+                out[p, q] += scale * gradient[q]
+            if length < settled:
+                break
     return out
 
 
 @kernel
 def brick_gradients(coarse, slots, bricks, shape, spacing):
     """(m, B_0, B_1, B_2, k) the central-difference gradient of f on the nodes of each brick kept (0 beyond the
-    grid of ``shape`` (3,)): what :func:`interpolate_gradient` reads there."""
+    grid of ``shape`` (3,)): what :func:`interpolate_gradient` reads there.  Each brick's f and that of the nodes
+    around it are read once into ``local``; the differences are :func:`_difference`'s."""
     gradients = np.zeros((*bricks.shape, len(spacing)))
     index = np.full(bricks.shape[0], -1, np.int64)
     flat = slots.ravel()
     for b in range(flat.size):
         if flat[b] >= 0:
             index[flat[b]] = b
-    counts = slots.shape
+    counts, side = slots.shape, np.array(bricks.shape[1:])
+    local = np.zeros((side[0] + 2, side[1] + 2, side[2] + 2))
+    corner, at = np.zeros(3, np.int64), np.zeros(3, np.int64)
     for s in range(bricks.shape[0]):
         bx, rest = divmod(index[s], counts[1] * counts[2])
         by, bz = divmod(rest, counts[2])
-        for i in range(bricks.shape[1]):
-            x = bx * bricks.shape[1] + i
-            for j in range(bricks.shape[2]):
-                y = by * bricks.shape[2] + j
-                for h in range(bricks.shape[3]):
-                    z = bz * bricks.shape[3] + h
-                    if x < shape[0] and y < shape[1] and z < shape[2]:
-                        for q in range(len(spacing)):
-                            gradients[s, i, j, h, q] = _difference(coarse, slots, bricks, shape, x, y, z, q,
-                                                                   spacing[q])
+        corner[0], corner[1], corner[2] = bx * side[0] - 1, by * side[1] - 1, bz * side[2] - 1
+        for i in range(side[0] + 2):
+            for j in range(side[1] + 2):
+                for h in range(side[2] + 2):
+                    x, y, z = corner[0] + i, corner[1] + j, corner[2] + h
+                    if 0 <= x < shape[0] and 0 <= y < shape[1] and 0 <= z < shape[2]:
+                        inner = 0 < i <= side[0] and 0 < j <= side[1] and 0 < h <= side[2]
+                        local[i, j, h] = bricks[s, i - 1, j - 1, h - 1] if inner else node_value(
+                            coarse, slots, bricks, x, y, z)
+        for i in range(1, side[0] + 1):
+            for j in range(1, side[1] + 1):
+                for h in range(1, side[2] + 1):
+                    at[0], at[1], at[2] = corner[0] + i, corner[1] + j, corner[2] + h
+                    if at[0] >= shape[0] or at[1] >= shape[1] or at[2] >= shape[2]:
+                        continue
+                    for q in range(len(spacing)):
+                        ahead, behind = int(at[q] < shape[q] - 1), int(at[q] > 0)
+                        di, dj, dh = int(q == 0), int(q == 1), int(q == 2)
+                        difference = (local[i + ahead * di, j + ahead * dj, h + ahead * dh]
+                                      - local[i - behind * di, j - behind * dj, h - behind * dh])
+                        gradients[s, i - 1, j - 1, h - 1, q] = (difference / (2.0 * spacing[q]) if ahead and behind
+                                                                else difference / spacing[q])
     return gradients
 
 

@@ -1,7 +1,7 @@
 """Mesh optimisation: the relaxation and the sliver removal that the paper leaves to future work (sections 5-6).
 
 1. Boundary nodes: every node on the boundary of the mesh goes onto f = 0 (Newton steps along grad f,
-   :func:`bitemesh.core.biting.project_to_surface`) and every later move keeps it there.
+   :meth:`bitemesh.core.grid.SampledGrid.project`) and every later move keeps it there.
 2. Relaxation (:func:`bitemesh.core.relax.relax`): optimal Delaunay triangulation (ODT) smoothing, Alliez et al.
    2005.  Each interior node moves to the volume-weighted mean of the circumcentres of its cells, each boundary
    node towards the area-weighted mean of the centroids of its boundary facets, along the surface and back onto

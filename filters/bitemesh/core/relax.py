@@ -1,6 +1,6 @@
 """Moving the nodes of a valid mesh (the cells of the MeshOptimizer, :mod:`bitemesh.core.optimize`): the
 relaxation and the smoothing.  Boundary nodes stay on f = 0 (Newton steps along grad f,
-:func:`bitemesh.core.biting.project_to_surface`).
+:meth:`bitemesh.core.grid.SampledGrid.project`).
 
 - Relaxation (:func:`relax`): optimal Delaunay triangulation (ODT) smoothing, Alliez et al. 2005.  Each interior
   node moves to the volume-weighted mean of the circumcentres of its cells, each boundary node towards the
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .biting import project_to_surface
 from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
                             mean_ratio_terms, node_cost_descent, node_trial_costs, scatter_to_points,
                             signed_radius_ratio, tangential)
@@ -82,7 +81,7 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
         targets[shallow] += ((margin - value[value < margin]) / squared)[:, None] * gradient
     outer = np.flatnonzero(on_boundary & (along_weight > 0))
     goal = along[outer] / along_weight[outer, None]
-    targets[outer] = project_to_surface(grid, points[outer] + tangential(grid, points[outer], goal - points[outer]))
+    targets[outer] = grid.project(points[outer] + tangential(grid, points[outer], goal - points[outer]))
     return targets
 
 
@@ -176,7 +175,7 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         best_cost, best_move = limit.copy(), np.zeros_like(points)
         moves = [fraction * descent for fraction in STEP_FRACTIONS]
         start = points[on_boundary]  # the boundary nodes of every step length projected onto f = 0 at once
-        ends = np.split(project_to_surface(grid, np.concatenate([start + move[on_boundary] for move in moves])),
+        ends = np.split(grid.project(np.concatenate([start + move[on_boundary] for move in moves])),
                         len(moves))
         for move, end in zip(moves, ends):
             move[on_boundary] = end - start

@@ -61,9 +61,8 @@ def find_outliers(points: np.ndarray) -> np.ndarray:
         if len(index) <= PLANE_NEIGHBOURS + 1:
             break
         kept = points[index]
-        distances, _ = _neighbourhoods(kept, FAR_NEIGHBOURS)
-        far = distances[:, -1] > FAR_RATIO * np.median(distances[:, -1])
-        _, neighbours = _neighbourhoods(kept, PLANE_NEIGHBOURS)
+        distances, neighbours = _neighbourhoods(kept, PLANE_NEIGHBOURS)   # FAR_NEIGHBOURS < PLANE_NEIGHBOURS
+        far = distances[:, FAR_NEIGHBOURS] > FAR_RATIO * np.median(distances[:, FAR_NEIGHBOURS])
         centre, normal, _, spread = _planes(kept[neighbours[:, 1:]])
         ratio = np.abs(np.einsum("ni,ni->n", kept - centre, normal)) / np.maximum(spread, 1e-300)
         off = ratio > max(OFF_RATIO, NOISE_RATIO * float(np.median(ratio)))

@@ -179,9 +179,13 @@ def sample_surface(shape: Shape, spacing: float, *, noise: float = 0.0, seed: in
     count = int(60 * np.prod(extent / spacing) ** ((shape.dim - 1) / shape.dim)) + 1000
     points = lower - 0.05 * extent + rng.random((count, shape.dim)) * 1.1 * extent
     points = points[np.abs(shape.function(points)) < 2 * spacing]
-    for _ in range(12):
-        gradient = shape.gradient(points)
-        points = points - (shape.function(points) / np.maximum(np.sum(gradient**2, axis=1), 1e-12))[:, None] * gradient
+    moving = np.arange(len(points))
+    for _ in range(12):   # Newton steps on the points not yet within 1e-10 x the extent of f = 0
+        value = shape.function(points[moving])
+        unsettled = np.abs(value) >= 1e-10 * np.max(extent)
+        moving, value = moving[unsettled], value[unsettled]
+        gradient = shape.gradient(points[moving])
+        points[moving] -= (value / np.maximum(np.sum(gradient**2, axis=1), 1e-12))[:, None] * gradient
     points = points[np.abs(shape.function(points)) < 1e-7 * np.max(extent)]
     _, first = np.unique(np.floor(points / spacing).astype(np.int64), axis=0, return_index=True)
     points = points[np.sort(first)]

@@ -74,6 +74,33 @@ def _counting_sort(values: np.ndarray, n_values: int) -> np.ndarray:
     return order
 
 
+@kernel
+def _distinct_pairs(rows: np.ndarray, n_points: int) -> np.ndarray:
+    """(u, 2) the distinct pairs of vertices among (r, 2) ``rows``, each pair's vertices sorted, the pairs sorted:
+    grouped by their first vertex (:func:`_counting_sort`), each group sorted by insertion (a vertex has a few
+    dozen edges)."""
+    low, high = np.minimum(rows[:, 0], rows[:, 1]), np.maximum(rows[:, 0], rows[:, 1])
+    order = _counting_sort(low, n_points)
+    first, second = low[order], high[order]
+    out = np.empty((len(rows), 2), np.int64)
+    count, begin = 0, 0
+    while begin < len(rows):
+        end = begin + 1
+        while end < len(rows) and first[end] == first[begin]:
+            value, j = second[end], end - 1
+            while j >= begin and second[j] > value:
+                second[j + 1] = second[j]
+                j -= 1
+            second[j + 1] = value
+            end += 1
+        for i in range(begin, end):
+            if i == begin or second[i] != second[i - 1]:
+                out[count, 0], out[count, 1] = first[begin], second[i]
+                count += 1
+        begin = end
+    return out[:count].copy()
+
+
 def neighbour_pairs(inverse: np.ndarray):
     """(a, b): the row pairs of a facet table that are the same facet, as indices into the table."""
     order = _counting_sort(inverse, int(inverse.max()) + 1 if len(inverse) else 0)
@@ -117,9 +144,13 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
 
 
 def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
-    """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted."""
-    rows = np.sort(faces_of(simplices, size).reshape(-1, size), axis=1).astype(np.int64, copy=False)
+    """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted, rows
+    sorted."""
+    rows = faces_of(simplices, size).reshape(-1, size).astype(np.int64, copy=False)
     n_points = int(rows.max()) + 1 if rows.size else 1
+    if size == 2:
+        return _distinct_pairs(rows, n_points)
+    rows = np.sort(rows, axis=1)
     if float(n_points) ** size >= 2.0**63:
         return unique_rows(rows)[0]
     keys = rows[:, 0].copy()
