@@ -88,3 +88,20 @@ def test_a_run_that_fills_its_room_goes_on_from_where_it_stopped():
     assert np.array_equal(links, cell_neighbours(partial)) and check_valid_domain(Mesh(points, partial)) == []
     finished, _ = flip_to_delaunay(points, partial, links)
     assert interior_facet_violations(points, finished).max() <= DELAUNAY_GAIN
+
+
+def test_no_flip_makes_an_edge_the_mesh_already_has():
+    """81 cells of the two-cavity heart's RV wall (about 3 R thick) after a relaxation move: every vertex on the
+    boundary, the wall folded so that a 2-3 flip passes its own tests (non-Delaunay facet, positive new cells) but
+    makes an edge that a cell already holds.  Made, it left a facet in three cells; the relaxation was then
+    abandoned and the optimised heart kept 76 poor cells."""
+    from pathlib import Path
+    with np.load(Path(__file__).parent / "data" / "folded_wall.npz") as data:
+        points, cells = data["points"], data["cells"]
+    assert cell_neighbours(cells).min() >= -1   # the input: every facet in one or two cells
+    flipped, across = flip_to_delaunay(points, cells)
+    assert cell_neighbours(flipped).min() >= -1
+    assert np.array_equal(across, cell_neighbours(flipped))
+    assert np.array_equal(unique_rows(boundary_facets(flipped))[0], unique_rows(boundary_facets(cells))[0])
+    assert signed_measures(points, flipped).sum() == pytest.approx(signed_measures(points, cells).sum(), rel=1e-12)
+    assert signed_measures(points, flipped).min() > 0

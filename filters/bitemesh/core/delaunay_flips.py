@@ -7,8 +7,9 @@ the cell on the other.  A facet that is not (by more than ``DELAUNAY_GAIN`` of t
 rounding, so that no flip and its inverse both pass) is flipped: 2-3 (2-2 in 2D) when the segment joining the two
 far vertices crosses it, else 3-2 when an edge of the facet has exactly three cells around it.  Every new cell must
 be positive, with a radius ratio above ``FLAT_QUALITY``: the biting's nodes lie almost on a lattice, where many
-spheres pass through five nodes to rounding.  Flips replace cells inside the domain only: the boundary facets, the
-nodes and the volume stay.
+spheres pass through five nodes to rounding.  No flip makes an edge or a face that the mesh already holds
+(:func:`_star_holds`): a relaxed mesh may fold at a thin wall, and such a flip leaves a facet in three cells.  Flips
+replace cells inside the domain only: the boundary facets, the nodes and the volume stay.
 """
 from __future__ import annotations
 
@@ -171,6 +172,41 @@ def _pair(c: int, d: int) -> np.ndarray:
     return pair
 
 
+#: the cells around a vertex that :func:`_star_holds` walks, at most (it answers True beyond: no flip is made).
+MAX_STAR = 256
+
+
+@kernel
+def _star_holds(cells: np.ndarray, across: np.ndarray, start: int, v: int, p: int, q: int) -> bool:
+    """Whether a cell around vertex ``v`` (those reached from cell ``start``, which holds v, across facets that
+    hold v) holds ``p`` and, unless q < 0, ``q``: whether the edge (v, p) or the face (v, p, q) is already in the
+    mesh.  A flip must not make it again: on a mesh folded at a wall a few cells thick, one can pass the flip's own
+    tests and leave a facet in three cells."""
+    star = np.empty(MAX_STAR, np.int64)
+    star[0], count, seen = start, 1, 0
+    while seen < count:
+        c = star[seen]
+        seen += 1
+        has_p, has_q = False, q < 0
+        for j in range(cells.shape[1]):
+            has_p = has_p or cells[c, j] == p
+            has_q = has_q or cells[c, j] == q
+        if has_p and has_q:
+            return True
+        for j in range(cells.shape[1]):
+            d = across[c, j]
+            if d < 0 or cells[c, j] == v:   # beyond the boundary, or across the facet without v
+                continue
+            known = False
+            for i in range(count):
+                known = known or star[i] == d
+            if not known:
+                if count == MAX_STAR:
+                    return True
+                star[count], count = d, count + 1
+    return False
+
+
 @kernel
 def _flip_facet(points, cells, across, c, i, sphere):
     """The flip of the facet of cell ``c`` (circumsphere ``sphere``) opposite its vertex ``i``, if that facet is not
@@ -195,11 +231,12 @@ def _flip_facet(points, cells, across, c, i, sphere):
             facet[0], facet[1] = facet[1], facet[0]
         new = np.empty((2, 3), np.int64)
         new[0, 0], new[0, 1], new[0, 2], new[1, 0], new[1, 1], new[1, 2] = a, facet[0], b, b, facet[1], a
-        return (_pair(c, d), new) if _all_positive(points, new) else none
+        return (_pair(c, d), new) if _all_positive(points, new) and not _star_holds(cells, across, c, a, b, -1) \
+            else none
     new = np.empty((3, 4), np.int64)
     for j in range(3):
         new[j, 0], new[j, 1], new[j, 2], new[j, 3] = a, b, facet[j], facet[(j + 1) % 3]
-    if _all_positive(points, new):
+    if _all_positive(points, new) and not _star_holds(cells, across, c, a, b, -1):
         return _pair(c, d), new
     for j in range(3):   # 3-2: the edge (u, v) of the facet, if three cells (c, d, e) are around it
         u, v, w = facet[j], facet[(j + 1) % 3], facet[(j + 2) % 3]
@@ -209,7 +246,7 @@ def _flip_facet(points, cells, across, c, i, sphere):
         x, y = _even_rest(cells[c], u, v)   # the ring around (u, v): x, y, then b
         two = np.empty((2, 4), np.int64)
         two[0, 0], two[0, 1], two[0, 2], two[0, 3], two[1, 0], two[1, 1], two[1, 2], two[1, 3] = x, y, b, v, x, b, y, u
-        if _all_positive(points, two):
+        if _all_positive(points, two) and not _star_holds(cells, across, c, x, y, b):
             three = np.empty(3, np.int64)
             three[0], three[1], three[2] = c, d, e
             return three, two

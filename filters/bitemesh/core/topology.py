@@ -148,7 +148,7 @@ def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     sorted."""
     rows = faces_of(simplices, size).reshape(-1, size).astype(np.int64, copy=False)
     n_points = int(rows.max()) + 1 if rows.size else 1
-    if size == 2:
+    if size == 2 and len(rows) >= n_points:   # a counting sort over the vertices pays when they are few
         return _distinct_pairs(rows, n_points)
     rows = np.sort(rows, axis=1)
     if float(n_points) ** size >= 2.0**63:
