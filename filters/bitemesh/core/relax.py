@@ -14,6 +14,8 @@ relaxation and the smoothing.  Boundary nodes stay on f = 0 (Newton steps along 
 """
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
@@ -35,8 +37,9 @@ INTERIOR_MARGIN = 0.3
 SMOOTH_POWER = 2
 MAX_MOVE = 0.2
 STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.125)
-#: rounds in which moves that made a shared cell worse (smoothing) or inverted one (relaxation) are taken back,
-#: or in which peeled cells that pinched the boundary come back (peel, :mod:`bitemesh.core.slivers`).
+#: rounds in which moves that made a shared cell worse (smoothing; after them, the moves of the nodes around those
+#: still worse go back too) or inverted one (relaxation) are taken back, or in which peeled cells that pinched the
+#: boundary come back (peel, :mod:`bitemesh.core.slivers`).
 REVERT_ROUNDS = 10
 #: a boundary node is on the surface when |f| there is below this fraction of the mean edge length.
 SURFACE_TOLERANCE = 0.01
@@ -144,8 +147,9 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
     Each iteration takes, for every node, a step down the gradient of the cost of its cells (boundary nodes: its
     tangential part, then back onto f = 0): the best of ``STEP_FRACTIONS`` with the other nodes fixed (exact and
     cheap: a cell's volume is linear in one vertex).  All nodes move at once; a node whose cells then cost more
-    than before, or one of which is inverted, goes back.  A boundary node off f = 0 goes onto it as soon as its
-    cells stay positive there.
+    than before, or one of which is inverted, goes back, round after round (after ``REVERT_ROUNDS``, with the
+    nodes that share a cell with it: a chain of such nodes must not hold up the others).  A boundary node off f = 0
+    goes onto it as soon as its cells stay positive there.
 
     Returns
     -------
@@ -187,18 +191,19 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         new = points.copy()
         new[moving] += best_move[moving]
         cost = inverse_mean_ratio(new[cells]) ** SMOOTH_POWER
-        for _ in range(REVERT_ROUNDS):
+        for round_ in itertools.count():   # ends: each round takes back at least one move
             worse = np.bincount(corner_of, np.repeat(cost, k + 1), n) > limit
             worse[cells[~np.isfinite(cost)].ravel()] = True
             worse &= moving
             if not worse.any():
                 break
+            if round_ >= REVERT_ROUNDS:   # a chain of moves: those of the nodes around it go back too
+                worse[cells[worse[cells].any(axis=1)].ravel()] = True
+                worse &= moving
             new[worse] = points[worse]
             moving &= ~worse
             touched = np.flatnonzero(worse[cells].any(axis=1))  # only their cells change cost
             cost[touched] = inverse_mean_ratio(new[cells[touched]]) ** SMOOTH_POWER
-        else:
-            new = points
         points = new
     report(progress, 1.0, "smoothing")
     return points
