@@ -25,24 +25,29 @@ def unique_rows(rows: np.ndarray):
     inverse : (r,) int64, the group of each input row
     counts : (u,) int64, the size of each group
     """
-    rows = np.sort(rows.reshape(-1, rows.shape[-1]), axis=1).astype(np.int64, copy=False)
+    rows = np.ascontiguousarray(rows.reshape(-1, rows.shape[-1]), dtype=np.int64)
     n_points = int(rows.max()) + 1 if rows.size else 1
-    if float(n_points) ** rows.shape[1] >= 2.0**63:   # no exact int64 key per sorted row
-        unique, inverse, counts = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
+    if float(n_points) ** (rows.shape[1] - 1) < 2.0**63 and len(rows) >= n_points:
+        # many rows on few vertices: grouped by their lowest vertex in linear time
+        rows, order, inverse, first = _grouped_unique(rows, n_points)
+    elif float(n_points) ** rows.shape[1] >= 2.0**63:   # no exact int64 key per sorted row
+        unique, inverse, counts = np.unique(np.sort(rows, axis=1), axis=0, return_inverse=True, return_counts=True)
         return unique, inverse.ravel(), counts
-    keys = rows[:, 0].copy()
-    for column in range(1, rows.shape[1]):
-        keys = keys * n_points + rows[:, column]
-    # np.unique's result from one unstable sort of the keys: equal keys are equal rows, so any of them will do
-    order = np.argsort(keys)
-    ordered = keys[order]
-    start = np.empty(len(keys), bool)
-    start[:1] = True
-    np.not_equal(ordered[1:], ordered[:-1], out=start[1:])
-    inverse = np.empty(len(keys), np.int64)
-    inverse[order] = np.cumsum(start) - 1
-    first = np.flatnonzero(start)
-    return rows[order[first]], inverse, np.diff(np.append(first, len(keys)))
+    else:
+        rows = np.sort(rows, axis=1)
+        keys = rows[:, 0].copy()
+        for column in range(1, rows.shape[1]):
+            keys = keys * n_points + rows[:, column]
+        # np.unique's result from one unstable sort of the keys: equal keys are equal rows, so any of them will do
+        order = np.argsort(keys)
+        ordered = keys[order]
+        start = np.empty(len(keys), bool)
+        start[:1] = True
+        np.not_equal(ordered[1:], ordered[:-1], out=start[1:])
+        inverse = np.empty(len(keys), np.int64)
+        inverse[order] = np.cumsum(start) - 1
+        first = np.flatnonzero(start)
+    return rows[order[first]], inverse, np.diff(np.append(first, len(rows)))
 
 
 def facet_table(cells: np.ndarray):
@@ -75,30 +80,52 @@ def _counting_sort(values: np.ndarray, n_values: int) -> np.ndarray:
 
 
 @kernel
-def _distinct_pairs(rows: np.ndarray, n_points: int) -> np.ndarray:
-    """(u, 2) the distinct pairs of vertices among (r, 2) ``rows``, each pair's vertices sorted, the pairs sorted:
-    grouped by their first vertex (:func:`_counting_sort`), each group sorted by insertion (a vertex has a few
-    dozen edges)."""
-    low, high = np.minimum(rows[:, 0], rows[:, 1]), np.maximum(rows[:, 0], rows[:, 1])
-    order = _counting_sort(low, n_points)
-    first, second = low[order], high[order]
-    out = np.empty((len(rows), 2), np.int64)
-    count, begin = 0, 0
-    while begin < len(rows):
-        end = begin + 1
-        while end < len(rows) and first[end] == first[begin]:
-            value, j = second[end], end - 1
-            while j >= begin and second[j] > value:
-                second[j + 1] = second[j]
-                j -= 1
-            second[j + 1] = value
-            end += 1
-        for i in range(begin, end):
-            if i == begin or second[i] != second[i - 1]:
-                out[count, 0], out[count, 1] = first[begin], second[i]
-                count += 1
-        begin = end
-    return out[:count].copy()
+def _grouped_unique(rows: np.ndarray, n_points: int):
+    """The (r, j) ``rows`` of vertex ids below ``n_points``, each sorted, then sorted and grouped as
+    :func:`unique_rows` gives them: (sorted rows (r, j), order (r,), inverse (r,), the position in order of each
+    group's first row (u,)).  Ordered by their lowest vertex (a counting sort), then within each run of equal
+    lowest vertex by the rest (one word, base ``n_points``), by insertion (a vertex is the lowest of a few dozen
+    faces)."""
+    r, j = rows.shape
+    rows = rows.copy()
+    rest = np.zeros(r, np.int64)
+    for i in range(r):
+        for a in range(1, j):   # insertion sort of the row
+            value, b = rows[i, a], a - 1
+            while b >= 0 and rows[i, b] > value:
+                rows[i, b + 1] = rows[i, b]
+                b -= 1
+            rows[i, b + 1] = value
+        for a in range(1, j):
+            rest[i] = rest[i] * n_points + rows[i, a]
+    start = np.zeros(n_points + 1, np.int64)   # a counting sort by the lowest vertex, the rests carried along
+    for i in range(r):
+        start[rows[i, 0] + 1] += 1
+    for v in range(n_points):
+        start[v + 1] += start[v]
+    filled = start[:-1].copy()
+    order = np.empty(r, np.int64)
+    ordered_rest = np.empty(r, np.int64)
+    for i in range(r):
+        at = filled[rows[i, 0]]
+        order[at], ordered_rest[at] = i, rest[i]
+        filled[rows[i, 0]] += 1
+    inverse = np.empty(r, np.int64)
+    first = np.empty(r, np.int64)
+    group = -1
+    for v in range(n_points):
+        for i in range(start[v] + 1, start[v + 1]):   # insertion sort of the run by rest
+            key, row, b = ordered_rest[i], order[i], i - 1
+            while b >= start[v] and ordered_rest[b] > key:
+                ordered_rest[b + 1], order[b + 1] = ordered_rest[b], order[b]
+                b -= 1
+            ordered_rest[b + 1], order[b + 1] = key, row
+        for i in range(start[v], start[v + 1]):
+            if i == start[v] or ordered_rest[i] != ordered_rest[i - 1]:
+                group += 1
+                first[group] = i
+            inverse[order[i]] = group
+    return rows, order, inverse, first[:group + 1].copy()
 
 
 def neighbour_pairs(inverse: np.ndarray):
@@ -146,12 +173,9 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
 def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted, rows
     sorted."""
-    rows = faces_of(simplices, size).reshape(-1, size).astype(np.int64, copy=False)
+    rows = np.sort(faces_of(simplices, size).reshape(-1, size), axis=1).astype(np.int64, copy=False)
     n_points = int(rows.max()) + 1 if rows.size else 1
-    if size == 2 and len(rows) >= n_points:   # a counting sort over the vertices pays when they are few
-        return _distinct_pairs(rows, n_points)
-    rows = np.sort(rows, axis=1)
-    if float(n_points) ** size >= 2.0**63:
+    if float(n_points) ** size >= 2.0**63 or len(rows) >= n_points:
         return unique_rows(rows)[0]
     keys = rows[:, 0].copy()
     for column in range(1, size):
