@@ -47,7 +47,9 @@ def circumcentre_outside(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarr
     centres, radii = circumspheres(points, cells) if spheres is None else spheres
     finite = np.isfinite(radii)
     outside = ~finite
-    value = grid.evaluate(centres[finite])
-    slope = np.maximum(np.linalg.norm(grid.gradient(centres[finite]), axis=1), 1e-12)
-    outside[finite] = (value < 0) & (np.abs(value) / slope > threshold * radii[finite])
+    judged = np.flatnonzero(finite)
+    value = grid.evaluate(centres[judged])
+    judged, value = judged[value < 0], value[value < 0]   # the slope only where f(c) < 0 (few: the hull's cells)
+    slope = np.maximum(np.linalg.norm(grid.gradient(centres[judged]), axis=1), 1e-12)
+    outside[judged] = -value / slope > threshold * radii[judged]
     return outside, radii
