@@ -87,9 +87,10 @@ def test_the_default_chain_and_mesh_from_points_give_the_same_shape(sphere_sampl
     choose the same R and mesh the same shape.  Not the same nodes: the chain
     samples and bites the grid I in the input's coordinates (the image shows in place), MeshFromPoints in the unit
     frame of the points' box, and biting is greedy: one tie broken the other way by rounding changes the nodes that
-    follow.  Bounds: the cell counts within 1 %, the volumes within 0.5 %, the same topology, and each boundary
-    within R / 2 of the other (sampled on its triangles; R is the node spacing, so two node sets on the same
-    surface differ by a fraction of it)."""
+    follow, as another biting seed would.  Bounds: the cell counts within 4 % (over the biting's seeds 0-11 the
+    count here has a standard deviation of 0.7 %, so two of them differ by 0.7 % x sqrt 2 = 1 % at one sigma: 4 % is
+    about 4 sigma), the volumes within 0.5 %, the same topology, and each boundary within R / 2 of the other (sampled on
+    its triangles; R is the node spacing, so two node sets on the same surface differ by a fraction of it)."""
     from scipy.spatial import cKDTree
 
     from bitemesh.core.topology import boundary_facets
@@ -106,7 +107,7 @@ def test_the_default_chain_and_mesh_from_points_give_the_same_shape(sphere_sampl
     assert field_value(output(pipeline.implicit), "Radius") == pytest.approx(radius, rel=1e-9)
     meshes = unstructured_to_mesh(output(pipeline.quality)), unstructured_to_mesh(one_shot)
     counts = [len(mesh.cells) for mesh in meshes]
-    assert abs(counts[0] - counts[1]) <= 0.01 * counts[1], counts
+    assert abs(counts[0] - counts[1]) <= 0.04 * counts[1], counts
     volumes = [mesh.cell_data["Volume"].sum() for mesh in meshes]
     assert volumes[0] == pytest.approx(volumes[1], rel=0.005)
     weights = np.random.default_rng(0).dirichlet([1, 1, 1], 20)   # 20 points on each boundary triangle
