@@ -231,8 +231,9 @@ def _flip_facet(points, cells, across, c, i, sphere):
             facet[0], facet[1] = facet[1], facet[0]
         new = np.empty((2, 3), np.int64)
         new[0, 0], new[0, 1], new[0, 2], new[1, 0], new[1, 1], new[1, 2] = a, facet[0], b, b, facet[1], a
-        return (_pair(c, d), new) if _all_positive(points, new) and not _star_holds(cells, across, c, a, b, -1) \
-            else none
+        if not _all_positive(points, new) or _star_holds(cells, across, c, a, b, -1):
+            return none
+        return _pair(c, d), new
     new = np.empty((3, 4), np.int64)
     for j in range(3):
         new[j, 0], new[j, 1], new[j, 2], new[j, 3] = a, b, facet[j], facet[(j + 1) % 3]

@@ -69,8 +69,16 @@ def _difference(coarse, slots, bricks, shape, x, y, z, axis, step):
     at = x if axis == 0 else y if axis == 1 else z
     ahead, behind = int(at < shape[axis] - 1), int(at > 0)
     dx, dy, dz = int(axis == 0), int(axis == 1), int(axis == 2)
-    difference = (node_value(coarse, slots, bricks, x + ahead * dx, y + ahead * dy, z + ahead * dz)
-                  - node_value(coarse, slots, bricks, x - behind * dx, y - behind * dy, z - behind * dz))
+    return _derivative(node_value(coarse, slots, bricks, x + ahead * dx, y + ahead * dy, z + ahead * dz),
+                       node_value(coarse, slots, bricks, x - behind * dx, y - behind * dy, z - behind * dz),
+                       ahead, behind, step)
+
+
+@inline
+def _derivative(f_ahead, f_behind, ahead, behind, step):
+    """numpy.gradient's difference of f at the node ``ahead`` (0 or 1) after and ``behind`` before one: central
+    when both are 1, else one-sided."""
+    difference = f_ahead - f_behind
     return difference / (2.0 * step) if ahead and behind else difference / step
 
 
@@ -205,7 +213,7 @@ def newton_to_surface(coarse, slots, bricks, gradients, shape, origin, spacing, 
 def brick_gradients(coarse, slots, bricks, shape, spacing):
     """(m, B_0, B_1, B_2, k) the central-difference gradient of f on the nodes of each brick kept (0 beyond the
     grid of ``shape`` (3,)): what :func:`interpolate_gradient` reads there.  Each brick's f and that of the nodes
-    around it are read once into ``local``; the differences are :func:`_difference`'s."""
+    around it are read once into ``local``, then differenced (:func:`_derivative`, as :func:`_difference`)."""
     gradients = np.zeros((*bricks.shape, len(spacing)))
     index = np.full(bricks.shape[0], -1, np.int64)
     flat = slots.ravel()
@@ -236,10 +244,9 @@ def brick_gradients(coarse, slots, bricks, shape, spacing):
                     for q in range(len(spacing)):
                         ahead, behind = int(at[q] < shape[q] - 1), int(at[q] > 0)
                         di, dj, dh = int(q == 0), int(q == 1), int(q == 2)
-                        difference = (local[i + ahead * di, j + ahead * dj, h + ahead * dh]
-                                      - local[i - behind * di, j - behind * dj, h - behind * dh])
-                        gradients[s, i - 1, j - 1, h - 1, q] = (difference / (2.0 * spacing[q]) if ahead and behind
-                                                                else difference / spacing[q])
+                        gradients[s, i - 1, j - 1, h - 1, q] = _derivative(
+                            local[i + ahead * di, j + ahead * dj, h + ahead * dh],
+                            local[i - behind * di, j - behind * dj, h - behind * dh], ahead, behind, spacing[q])
     return gradients
 
 

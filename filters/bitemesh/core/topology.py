@@ -83,9 +83,9 @@ def _counting_sort(values: np.ndarray, n_values: int) -> np.ndarray:
 def _grouped_unique(rows: np.ndarray, n_points: int):
     """The (r, j) ``rows`` of vertex ids below ``n_points``, each sorted, then sorted and grouped as
     :func:`unique_rows` gives them: (sorted rows (r, j), order (r,), inverse (r,), the position in order of each
-    group's first row (u,)).  Ordered by their lowest vertex (a counting sort), then within each run of equal
-    lowest vertex by the rest (one word, base ``n_points``), by insertion (a vertex is the lowest of a few dozen
-    faces)."""
+    group's first row (u,)).  Ordered by their lowest vertex (:func:`_counting_sort`), then within each run of
+    equal lowest vertex by the rest (one word, base ``n_points``), by insertion (a vertex is the lowest of a few
+    dozen faces)."""
     r, j = rows.shape
     rows = rows.copy()
     rest = np.zeros(r, np.int64)
@@ -98,33 +98,26 @@ def _grouped_unique(rows: np.ndarray, n_points: int):
             rows[i, b + 1] = value
         for a in range(1, j):
             rest[i] = rest[i] * n_points + rows[i, a]
-    start = np.zeros(n_points + 1, np.int64)   # a counting sort by the lowest vertex, the rests carried along
-    for i in range(r):
-        start[rows[i, 0] + 1] += 1
-    for v in range(n_points):
-        start[v + 1] += start[v]
-    filled = start[:-1].copy()
-    order = np.empty(r, np.int64)
-    ordered_rest = np.empty(r, np.int64)
-    for i in range(r):
-        at = filled[rows[i, 0]]
-        order[at], ordered_rest[at] = i, rest[i]
-        filled[rows[i, 0]] += 1
+    order = _counting_sort(rows[:, 0].copy(), n_points)
+    low, ordered_rest = rows[:, 0][order], rest[order]
     inverse = np.empty(r, np.int64)
     first = np.empty(r, np.int64)
-    group = -1
-    for v in range(n_points):
-        for i in range(start[v] + 1, start[v + 1]):   # insertion sort of the run by rest
-            key, row, b = ordered_rest[i], order[i], i - 1
-            while b >= start[v] and ordered_rest[b] > key:
+    group, begin = -1, 0
+    while begin < r:
+        end = begin + 1
+        while end < r and low[end] == low[begin]:   # insertion sort of the run by rest
+            key, row, b = ordered_rest[end], order[end], end - 1
+            while b >= begin and ordered_rest[b] > key:
                 ordered_rest[b + 1], order[b + 1] = ordered_rest[b], order[b]
                 b -= 1
             ordered_rest[b + 1], order[b + 1] = key, row
-        for i in range(start[v], start[v + 1]):
-            if i == start[v] or ordered_rest[i] != ordered_rest[i - 1]:
+            end += 1
+        for i in range(begin, end):
+            if i == begin or ordered_rest[i] != ordered_rest[i - 1]:
                 group += 1
                 first[group] = i
             inverse[order[i]] = group
+        begin = end
     return rows, order, inverse, first[:group + 1].copy()
 
 
