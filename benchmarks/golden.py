@@ -2,8 +2,9 @@
 
 Each case is meshed in this process and fingerprinted by the SHA-1 of its node coordinates and cells (float64 and
 int64 bytes).  ``--record`` writes them to ``golden.json`` beside this file, with the versions of Python, numpy,
-scipy and the platform they were made with (floating point may differ elsewhere); without it the cases are meshed
-and compared, and the exit status is 1 when one differs.  ``tests/test_golden.py`` compares the quick cases.
+scipy and numba and the processor's instruction sets they were made with (floating point may differ elsewhere);
+without it the cases are meshed and compared, and the exit status is 1 when one differs.  ``tests/test_golden.py``
+compares the quick cases.
 
     python benchmarks/golden.py                  # compare every case
     python benchmarks/golden.py --record         # after a change that is meant to change meshes: say why in the commit
@@ -114,10 +115,23 @@ def processor() -> str:
     return platform.processor() or "?"
 
 
+def instruction_sets() -> str:
+    """The SIMD instructions floating point is rounded with here: numpy's dispatch targets this processor runs
+    (X86_V3: AVX2 and FMA, X86_V4: AVX-512, ...) and the processor numba compiles for (LLVM's name).  Two AMD EPYC
+    machines with and without AVX-512 make different golden meshes from the same code."""
+    import llvmlite.binding
+    from numba.core import config
+    from numpy._core import _multiarray_umath as umath
+    found = [name for name in umath.__cpu_dispatch__ if umath.__cpu_features__.get(name)]
+    return f"numpy {' '.join(found) or 'baseline'}, numba {config.CPU_NAME or llvmlite.binding.get_host_cpu_name()}"
+
+
 def environment() -> dict:
     """What floating point results depend on here."""
+    import numba
     return dict(python=platform.python_version(), numpy=np.__version__, scipy=scipy.__version__,
-                machine=platform.machine(), system=platform.system(), processor=processor())
+                numba=numba.__version__, machine=platform.machine(), system=platform.system(),
+                processor=processor(), instructions=instruction_sets())
 
 
 def recorded_here(records: list):
