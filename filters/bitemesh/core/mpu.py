@@ -126,6 +126,22 @@ def _auxiliary_points(points, normals, tree, centres, half_side):
     return where, signed.mean(axis=1).reshape(shape), valid.reshape(shape)
 
 
+@kernel
+def _fit_errors(y: np.ndarray, coefficients: np.ndarray, cell: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(k,) max over the support rows of each cell of |f(p)| / |grad f(p)| (input units), f its quadric (k, 10)
+    at the (rows, 3) points ``y`` in cell coordinates (units of the cell's radius); a NaN stays."""
+    errors = np.zeros(len(radii))
+    for row in range(len(cell)):
+        c = coefficients[cell[row]]
+        a, b, z = y[row, 0], y[row, 1], y[row, 2]
+        g0, g1, g2 = _quadric_gradient(a, b, z, c)
+        slope = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2) / radii[cell[row]]
+        error = abs(_quadric(a, b, z, c)) / max(slope, 1e-300)
+        if error > errors[cell[row]] or np.isnan(error):
+            errors[cell[row]] = error
+    return errors
+
+
 def _fit_cells(points, normals, tree, centres, radii, half_side):
     """One local fit per cell: (k, 10) coefficients of f in y = (x - centre) / R, input units, and (k,) errors.
 
@@ -167,10 +183,7 @@ def _fit_cells(points, normals, tree, centres, radii, half_side):
     coef[bivariate] = _fit_bivariate(y[rows], weight[rows], sub_cell, axis[bivariate])
     coef *= radii[:, None]
 
-    local = (*np.ascontiguousarray(y.T), np.ascontiguousarray(coef[cell].T))
-    value = _quadric(*local)
-    slope = np.linalg.norm(np.stack(_quadric_gradient(*local)), axis=0) / radii[cell]
-    return coef, np.maximum.reduceat(np.abs(value) / np.maximum(slope, 1e-300), starts)
+    return coef, _fit_errors(y, coef, cell, radii)
 
 
 def _support_radii(tree, centres, radius, min_points):
