@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from bitemesh.core import optimize as optimizer
+from bitemesh.core import relax as relaxation
 from bitemesh.core.delaunay import delaunay
 from bitemesh.core.errors import BitemeshWarning, Cancelled, InvalidInputError, MeshingError
 from bitemesh.core.mesh import Mesh, signed_measures
@@ -289,6 +290,17 @@ def test_relaxation_raises_the_mean_quality_and_keeps_the_boundary_facets(small)
     assert history[-1] > radius_ratio(mesh.points, mesh.cells).mean() + 0.05
 
 
+@pytest.mark.parametrize("spread", [0.3, 1.0])
+def test_moves_that_would_flatten_a_cell_go_back_and_the_others_stay(small, spread):
+    """Random moves of ``spread`` x R: each node ends at its target or where it was, no cell flat."""
+    grid, mesh, radius = small
+    targets = mesh.points + np.random.default_rng(0).normal(scale=spread * radius, size=mesh.points.shape)
+    moved = relaxation.positive_moves(mesh.points, targets, mesh.cells)
+    kept = np.all(moved == targets, axis=1)
+    assert (kept | np.all(moved == mesh.points, axis=1)).all() and kept.any()
+    assert radius_ratio(moved, mesh.cells).min() > relaxation.FLAT_QUALITY
+
+
 def test_flips_keep_the_boundary_the_nodes_and_the_volume(small):
     _, mesh, _ = small
     cells = flip(mesh.points, mesh.cells)
@@ -298,7 +310,11 @@ def test_flips_keep_the_boundary_the_nodes_and_the_volume(small):
     assert radius_ratio(mesh.points, cells).min() > 4 * radius_ratio(mesh.points, mesh.cells).min()
 
 
-def test_smoothing_keeps_cells_positive_and_boundary_nodes_on_f_zero(small):
+@pytest.mark.parametrize("revert_rounds", [relaxation.REVERT_ROUNDS, 1])
+def test_smoothing_keeps_cells_positive_and_boundary_nodes_on_f_zero(small, revert_rounds, monkeypatch):
+    """With one revert round, every node still worse after it is a chain: its neighbours' moves go back with it
+    and the other nodes keep theirs (before 027e61a the whole iteration went back: no node moved)."""
+    monkeypatch.setattr(relaxation, "REVERT_ROUNDS", revert_rounds)
     grid, mesh, radius = small
     points = smooth(grid, mesh.points, mesh.cells, 5)
     assert (signed_measures(points, mesh.cells) > 0).all()

@@ -37,9 +37,9 @@ INTERIOR_MARGIN = 0.3
 SMOOTH_POWER = 2
 MAX_MOVE = 0.2
 STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.125)
-#: rounds in which moves that made a shared cell worse (smoothing; after them, the moves of the nodes around those
-#: still worse go back too) or inverted one (relaxation) are taken back, or in which peeled cells that pinched the
-#: boundary come back (peel, :mod:`bitemesh.core.slivers`).
+#: rounds in which moves that made a shared cell worse are taken back (smoothing; after them, the moves of the
+#: nodes around those still worse go back too), or in which peeled cells that pinched the boundary come back (peel,
+#: :mod:`bitemesh.core.slivers`).
 REVERT_ROUNDS = 10
 #: a boundary node is on the surface when |f| there is below this fraction of the mean edge length.
 SURFACE_TOLERANCE = 0.01
@@ -126,7 +126,7 @@ def positive_moves(points: np.ndarray, targets: np.ndarray, cells: np.ndarray) -
     stays in the next round)."""
     moved = targets.copy()
     moving = np.any(moved != points, axis=1)
-    for _ in range(REVERT_ROUNDS):
+    for _ in itertools.count():   # ends: each round takes back a move, and with none left the cells are the input's
         flat = signed_radius_ratio(moved, cells) <= FLAT_QUALITY
         back = np.zeros(len(points), bool)
         back[cells[flat].ravel()] = True
@@ -135,7 +135,6 @@ def positive_moves(points: np.ndarray, targets: np.ndarray, cells: np.ndarray) -
             return moved
         moved[back] = points[back]
         moving &= ~back
-    return points
 
 
 # --- smoothing -----------------------------------------------------------------------------------------------------
