@@ -11,7 +11,7 @@ from itertools import combinations, permutations
 import numpy as np
 
 from .kernels import kernel
-from .mesh import facets_of
+from .mesh import facet_of
 
 #: the neighbour recorded for a facet held by its cell alone (on the boundary), and by three cells or more.
 BOUNDARY, NON_MANIFOLD = -1, -2
@@ -87,7 +87,7 @@ def facet_pairs(cells: np.ndarray, across: np.ndarray, start: np.ndarray | None 
     cell_a, opposite = np.nonzero(upper)
     cell_b = across[cell_a, opposite]
     far = np.argmax(across[cell_b] == cell_a[:, None], axis=1)
-    facet = facets_of(cells[cell_a])[np.arange(len(cell_a)), opposite]
+    facet = facet_of(cells, cell_a, opposite)
     return cell_a, cell_b, cells[cell_a, opposite], cells[cell_b, far], facet
 
 
@@ -174,7 +174,7 @@ def replaced(cells: np.ndarray, across: np.ndarray, removed: np.ndarray, added: 
     across = np.concatenate([kept, np.full(added.shape, unknown, np.int64)])
     rows = np.flatnonzero(across.ravel() == unknown)
     corners = cells.shape[1]
-    facets = np.sort(facets_of(cells[rows // corners])[np.arange(len(rows)), rows % corners], axis=1)
+    facets = np.sort(facet_of(cells, rows // corners, rows % corners), axis=1)
     order = np.lexsort(facets.T[::-1])
     facets, rows = facets[order], rows[order]
     start = np.flatnonzero(np.concatenate([[True], np.any(facets[1:] != facets[:-1], axis=1), [True]]))

@@ -112,11 +112,23 @@ def _circumspheres(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return out
 
 
+def facet_corners(corners: int) -> np.ndarray:
+    """(corners, corners - 1) int64: facet i of a simplex (opposite vertex i) as positions in its row, ordered so
+    that a positively oriented cell's facets face out of it."""
+    table = np.array([[j for j in range(corners) if j != i] for i in range(corners)], dtype=np.int64)
+    table[1::2, -2:] = table[1::2, :-3:-1]
+    return table
+
+
 def facets_of(cells: np.ndarray) -> np.ndarray:
     """(m, k + 1, k) the facets (triangles in 3D, edges in 2D) of each cell, facet i opposite vertex i.
 
     For a positively oriented cell each facet is ordered so that its normal points out of the cell.
     """
-    facets = np.stack([np.delete(cells, i, axis=1) for i in range(cells.shape[1])], axis=1)
-    facets[:, 1::2, -2:] = facets[:, 1::2, :-3:-1]
-    return facets
+    return cells[:, facet_corners(cells.shape[1])]
+
+
+def facet_of(cells: np.ndarray, cell: np.ndarray, opposite: np.ndarray) -> np.ndarray:
+    """(p, k) the facet opposite vertex ``opposite[i]`` of cell ``cell[i]`` (both (p,)), as :func:`facets_of`
+    orders it."""
+    return cells[np.asarray(cell)[:, None], facet_corners(cells.shape[1])[opposite]]

@@ -13,7 +13,7 @@ from scipy.sparse import csgraph
 
 from .adjacency import BOUNDARY, cell_neighbours
 from .kernels import kernel
-from .mesh import facets_of
+from .mesh import facet_of, facets_of
 
 
 def unique_rows(rows: np.ndarray):
@@ -138,9 +138,7 @@ def boundary_facets(cells: np.ndarray) -> np.ndarray:
 
     3D: triangles (p, q, r) with (q - p) x (r - p) pointing out.  2D: edges (p, q) with the domain on the left.
     """
-    single = single_facets(cells)
-    held = single.any(axis=1)   # the facets of the cells with one on the boundary, in the same order
-    return facets_of(cells[held]).reshape(-1, cells.shape[1] - 1)[single[held].ravel()]
+    return facet_of(cells, *np.nonzero(single_facets(cells)))
 
 
 def connected_components(cells: np.ndarray) -> np.ndarray:

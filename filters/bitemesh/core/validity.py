@@ -152,10 +152,10 @@ def check_valid_domain(mesh: Mesh, volume_rtol: float = 1e-12) -> list:
         problems.append(_found(len(bad), "points with NaN or infinite coordinates", f"point {bad[0]}"))
 
     volume = signed_measures(points, cells)
-    corners = points[cells]
-    pairs = np.array(list(combinations(range(k + 1), 2)))
-    longest = np.linalg.norm(corners[:, pairs[:, 1]] - corners[:, pairs[:, 0]], axis=-1).max(axis=1, initial=0.0)
-    tolerance = volume_rtol * longest ** k
+    longest = np.zeros(len(cells))   # squared, edge by edge: (m, k) temporaries only
+    for i, j in combinations(range(k + 1), 2):
+        np.maximum(longest, np.square(points[cells[:, j]] - points[cells[:, i]]).sum(axis=1), out=longest)
+    tolerance = volume_rtol * np.sqrt(longest) ** k
     for mask, what in ((volume < -tolerance, "inverted cells (negative volume)"),
                        (np.abs(volume) <= tolerance, f"flat cells (|volume| <= {volume_rtol:g} * longest edge^{k})")):
         bad = np.flatnonzero(mask)

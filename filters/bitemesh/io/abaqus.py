@@ -23,7 +23,7 @@ from itertools import combinations
 import numpy as np
 
 from ..core.errors import InvalidInputError
-from ..core.mesh import facets_of, signed_measures
+from ..core.mesh import facet_of, facets_of, signed_measures
 
 #: Abaqus face identifier of the facet opposite each vertex (0-based) of a tetrahedron (k = 3) or a triangle (k = 2).
 FACE_OPPOSITE = {3: ("S3", "S4", "S2", "S1"), 2: ("S2", "S3", "S1")}
@@ -200,7 +200,7 @@ def read_abaqus_tags(path, data, chosen, points: np.ndarray, cells: np.ndarray):
                 opposite.append(np.full(len(cell), FACE_OPPOSITE[k].index(face)))
                 tags.append(np.full(len(cell), tag, np.int32))
     cell, opposite = np.concatenate(found), np.concatenate(opposite)
-    facets = facets_of(cells[cell])[np.arange(len(cell)), opposite]
+    facets = facet_of(cells, cell, opposite)
     inverted = signed_measures(points, cells[cell]) < 0
     facets[inverted] = facets[inverted, ::-1]
     return regions, facets, np.concatenate(tags), tag_names
