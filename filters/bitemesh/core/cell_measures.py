@@ -46,13 +46,14 @@ def _lane_sum(products: np.ndarray, count: int) -> float:
 
 
 @kernel
-def _edge_terms(corners: np.ndarray, c: int, edges: np.ndarray, total: np.ndarray, scratch: np.ndarray) -> float:
-    """Fill ``edges`` (k, k) (vertex j + 1 minus vertex 0) and ``total`` (k,) (their sum) of cell ``c`` of
-    (m, k + 1, k) ``corners``; return its sum of squared edge lengths."""
-    k = corners.shape[2]
+def _edge_terms(points: np.ndarray, cell: np.ndarray, edges: np.ndarray, total: np.ndarray,
+                scratch: np.ndarray) -> float:
+    """Fill ``edges`` (k, k) (vertex j + 1 minus vertex 0) and ``total`` (k,) (their sum) of the cell with (k + 1,)
+    vertices ``cell`` of the (n, k) ``points``; return its sum of squared edge lengths."""
+    k = points.shape[1]
     for j in range(k):
         for d in range(k):
-            edges[j, d] = corners[c, j + 1, d] - corners[c, 0, d]
+            edges[j, d] = points[cell[j + 1], d] - points[cell[0], d]
             scratch[j * k + d] = edges[j, d] * edges[j, d]
     for d in range(k):
         total[d] = edges[0, d] + edges[1, d]
@@ -65,8 +66,8 @@ def _edge_terms(corners: np.ndarray, c: int, edges: np.ndarray, total: np.ndarra
 
 
 @kernel
-def mean_ratio_terms(corners: np.ndarray):
-    """What :func:`mean_ratio_cost` and its derivatives need, for (m, k + 1, k) ``corners``.
+def mean_ratio_terms(points: np.ndarray, cells: np.ndarray):
+    """What :func:`mean_ratio_cost` and its derivatives need, for the (m, k + 1) ``cells`` of (n, k) ``points``.
 
     Returns
     -------
@@ -77,12 +78,12 @@ def mean_ratio_terms(corners: np.ndarray):
     centred : (m, k + 1, k) the vertices minus their mean; when vertex i alone moves by d, squares grows by
         2 (k + 1) centred[:, i] . d + k |d|^2
     """
-    m, _, k = corners.shape
+    m, k = len(cells), points.shape[1]
     volume, squares = np.empty(m), np.empty(m)
     volume_gradient, centred = np.empty((m, k + 1, k)), np.empty((m, k + 1, k))
     edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
     for c in range(m):
-        squares[c] = _edge_terms(corners, c, edges, total, scratch)
+        squares[c] = _edge_terms(points, cells[c], edges, total, scratch)
         # d V / d x_i for i >= 1: the cofactors of the edge matrix, / k!; d V / d x_0 = -(their sum)
         cofactors = volume_gradient[c, 1:]
         if k == 2:
@@ -109,12 +110,12 @@ def mean_ratio_terms(corners: np.ndarray):
 
 
 @kernel
-def _inverse_mean_ratio(corners: np.ndarray, scale: float) -> np.ndarray:
-    m, _, k = corners.shape
+def _inverse_mean_ratio(points: np.ndarray, cells: np.ndarray, scale: float) -> np.ndarray:
+    m, k = len(cells), points.shape[1]
     cost = np.empty(m)
     edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
     for c in range(m):
-        squares = _edge_terms(corners, c, edges, total, scratch)
+        squares = _edge_terms(points, cells[c], edges, total, scratch)
         if k == 2:
             volume = 0.5 * (edges[0, 0] * edges[1, 1] - edges[0, 1] * edges[1, 0])
         else:
@@ -126,10 +127,10 @@ def _inverse_mean_ratio(corners: np.ndarray, scale: float) -> np.ndarray:
     return cost
 
 
-def inverse_mean_ratio(corners: np.ndarray) -> np.ndarray:
-    """(m,) :func:`mean_ratio_cost` of the simplices with (m, k + 1, k) ``corners``."""
-    corners = np.asarray(corners, dtype=np.float64)
-    return _inverse_mean_ratio(corners, MEAN_RATIO_SCALE[corners.shape[-1]])
+def inverse_mean_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) :func:`mean_ratio_cost` of the (m, k + 1) ``cells`` of (n, k) ``points``."""
+    points = np.asarray(points, dtype=np.float64)
+    return _inverse_mean_ratio(points, np.asarray(cells, dtype=np.int64), MEAN_RATIO_SCALE[points.shape[-1]])
 
 
 @kernel

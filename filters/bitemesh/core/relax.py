@@ -161,7 +161,7 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
     length = mean_edge_length(points, cells)
     for iteration in range(iterations):
         report(progress, iteration / iterations, f"smoothing {iteration + 1}/{iterations}")
-        volume, squares, volume_gradient, centred = mean_ratio_terms(points[cells])
+        volume, squares, volume_gradient, centred = mean_ratio_terms(points, cells)
         # not finite at the nodes of cells with no volume: they do not move
         current, descent = node_cost_descent(cells, mean_ratio_cost(volume, squares, k), squares, volume,
                                              volume_gradient, centred, n, SMOOTH_POWER)
@@ -189,7 +189,7 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         moving = np.isfinite(best_cost) & np.any(best_move != 0, axis=1)
         new = points.copy()
         new[moving] += best_move[moving]
-        cost = inverse_mean_ratio(new[cells]) ** SMOOTH_POWER
+        cost = inverse_mean_ratio(new, cells) ** SMOOTH_POWER
         for round_ in itertools.count():   # ends: each round takes back at least one move
             worse = np.bincount(corner_of, np.repeat(cost, k + 1), n) > limit
             worse[cells[~np.isfinite(cost)].ravel()] = True
@@ -202,7 +202,7 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
             new[worse] = points[worse]
             moving &= ~worse
             touched = np.flatnonzero(worse[cells].any(axis=1))  # only their cells change cost
-            cost[touched] = inverse_mean_ratio(new[cells[touched]]) ** SMOOTH_POWER
+            cost[touched] = inverse_mean_ratio(new, cells[touched]) ** SMOOTH_POWER
         points = new
     report(progress, 1.0, "smoothing")
     return points

@@ -218,19 +218,27 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
     -------
     The valid domain mesh; unused nodes are dropped.
     """
+    keep = _domain_cells(grid, points, cells, parameters, progress)
+    report(progress, 1.0, "repairing the boundary")
+    mesh = compact(points, cells[keep])   # the tables of all Delaunay cells (about 10x the cells' bytes) are gone
+    problems = check_valid_domain(mesh)
+    if problems:
+        raise MeshingError(f"the mesh is not a valid domain: {problems[0]}; try a smaller radius or a finer "
+                           "grid_spacing")
+    return mesh
+
+
+def _domain_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, parameters: SpuriousParameters,
+                  progress: ProgressCallback) -> np.ndarray:
+    """(m,) bool, the Delaunay cells of the valid domain: inside f > 0 (and the voids they enclose), repaired,
+    without handles when asked."""
     keep = ~outside_cells(grid, points, cells, parameters.threshold)
     delaunay = DelaunayCells.of(points, cells)
     keep |= enclosed_inside_voids(grid, delaunay, keep)
     keep = repaired(grid, delaunay, keep, parameters, sub_progress(progress, 0.0, 0.8))
     if parameters.handles == "remove" and cells.shape[1] == 4:
         keep = without_handles(grid, delaunay, keep, parameters, sub_progress(progress, 0.8, 1.0))
-    report(progress, 1.0, "repairing the boundary")
-    mesh = compact(points, cells[keep])
-    problems = check_valid_domain(mesh)
-    if problems:
-        raise MeshingError(f"the mesh is not a valid domain: {problems[0]}; try a smaller radius or a finer "
-                           "grid_spacing")
-    return mesh
+    return keep
 
 
 def compact(points: np.ndarray, cells: np.ndarray) -> Mesh:

@@ -124,6 +124,7 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
     report(progress, 0.45, "delaunay")
     with timed(seconds, "spurious cells"):
         mesh = carve_domain(grid, nodes, cells, spurious, progress=sub_progress(progress, 0.45, carved))
+    del cells   # all of Delaunay's cells (32 bytes each): not held through the optimizer
     if optimize is not None:
         with timed(seconds, "optimize"):
             mesh = optimize_mesh(grid, mesh, optimize, progress=sub_progress(progress, carved, 0.97))
