@@ -92,10 +92,11 @@ def facet_pairs(cells: np.ndarray, across: np.ndarray, start: np.ndarray | None 
 
 
 @kernel
-def _rings(cells: np.ndarray, across: np.ndarray, start: np.ndarray, max_ring: int, pairs: np.ndarray,
-           others: np.ndarray):
+def _rings(cells: np.ndarray, across: np.ndarray, start: np.ndarray, wanted: np.ndarray, max_ring: int,
+           pairs: np.ndarray, others: np.ndarray):
     """The closed rings of 3 .. ``max_ring`` cells around the edges of the start cells, each once (walked from its
-    first start cell); see :func:`edge_rings`.  Returns (E,) sizes, a, b and (E, max_ring) ring, around."""
+    first start cell), that hold a wanted cell; see :func:`edge_rings`.  Returns (E,) sizes, a, b and
+    (E, max_ring) ring, around."""
     m = len(cells)
     sizes = np.zeros(6 * m, np.int64)
     ends = np.empty((6 * m, 2), np.int64)
@@ -131,15 +132,20 @@ def _rings(cells: np.ndarray, across: np.ndarray, start: np.ndarray, max_ring: i
                         following = v
                 ring[found, n], around[found, n] = current, cell
                 dropped, current, n = current, following, n + 1
-            if closed and n >= 3:
+            held = False
+            for i in range(n if closed else 0):
+                held = held or wanted[around[found, i]]
+            if held and n >= 3:
                 sizes[found], ends[found, 0], ends[found, 1] = n, a, b
                 found += 1
     return sizes[:found], ends[:found, 0], ends[:found, 1], ring[:found], around[:found]
 
 
-def edge_rings(cells: np.ndarray, across: np.ndarray, max_ring: int, start: np.ndarray | None = None) -> dict:
+def edge_rings(cells: np.ndarray, across: np.ndarray, max_ring: int, start: np.ndarray | None = None,
+               wanted: np.ndarray | None = None) -> dict:
     """The interior edges of a tetrahedral mesh with the cells around them in order (with ``start``, (m,) bool:
-    the edges with a start cell around them), in the order of their first (start) cell and its edges.
+    the edges with a start cell around them), in the order of their first (start) cell and its edges; with
+    ``wanted`` ((m,) bool), only those with a wanted cell around them, in the same order.
     ``across``: :func:`cell_neighbours` of ``cells``.
 
     Returns
@@ -149,7 +155,8 @@ def edge_rings(cells: np.ndarray, across: np.ndarray, max_ring: int, start: np.n
     (a, b, x_i, x_{i+1}) is positively oriented; ``around`` (E, n) the cell holding x_i and x_{i+1}.
     """
     start = np.ones(len(cells), bool) if start is None else start
-    sizes, a, b, ring, around = _rings(np.ascontiguousarray(cells, dtype=np.int64), across, start, max_ring,
+    wanted = np.ones(len(cells), bool) if wanted is None else wanted
+    sizes, a, b, ring, around = _rings(np.ascontiguousarray(cells, dtype=np.int64), across, start, wanted, max_ring,
                                        EDGE_PAIRS, EDGE_OTHERS)
     return {n: (a[sizes == n], b[sizes == n], ring[sizes == n, :n], around[sizes == n, :n])
             for n in range(3, max_ring + 1)}

@@ -87,10 +87,8 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
     k = points.shape[1]
     found = []
     if k == 3:
-        for n, (a, b, ring, around) in edge_rings(cells, across, MAX_RING, fresh).items():
+        for n, (a, b, ring, around) in edge_rings(cells, across, MAX_RING, fresh, quality < FLIP_QUALITY).items():
             worst_old = quality[around].min(axis=1)
-            poor = worst_old < FLIP_QUALITY
-            a, b, ring, around, worst_old = a[poor], b[poor], ring[poor], around[poor], worst_old[poor]
             triangles, triangulations = RING_TRIANGULATIONS[n]
             new = _ring_cells(a, b, ring, triangles)
             worst = signed_radius_ratio(points, new.reshape(-1, 4)).reshape(new.shape[:3]).min(axis=2)
