@@ -164,10 +164,11 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
 def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted, rows
     sorted."""
-    rows = np.sort(faces_of(simplices, size).reshape(-1, size), axis=1).astype(np.int64, copy=False)
+    rows = faces_of(simplices, size).reshape(-1, size).astype(np.int64, copy=False)
     n_points = int(rows.max()) + 1 if rows.size else 1
     if float(n_points) ** size >= 2.0**63 or len(rows) >= n_points:
-        return unique_rows(rows)[0]
+        return unique_rows(rows)[0]   # which sorts each row itself
+    rows = np.sort(rows, axis=1)
     keys = rows[:, 0].copy()
     for column in range(1, size):
         keys = keys * n_points + rows[:, column]
