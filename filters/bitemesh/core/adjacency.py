@@ -29,43 +29,51 @@ EDGE_OTHERS = np.array([next(rest for rest in permutations(set(range(4)) - {i, j
 
 
 @kernel
-def _neighbours(cells: np.ndarray) -> np.ndarray:
-    """(m, k + 1) int64, see :func:`cell_neighbours`: each facet looked up by its sorted vertices (two words: the
-    lowest, then the middle one times 2^32 plus the highest) in an open-addressing hash table (multiplicative
-    hashing, linear probing) whose slots hold the key and the first two facet rows that have it."""
+def _facet_key(cells: np.ndarray, c: int, skip: int):
+    """The facet of cell c opposite its vertex ``skip`` by its sorted vertices, in two words: the lowest, then
+    (triangles) the middle one times 2^32 plus the highest, or (edges) the highest."""
+    low, high, total = np.int64(1 << 62), np.int64(-1), np.int64(0)
+    for j in range(cells.shape[1]):
+        if j != skip:
+            v = cells[c, j]
+            total += v
+            low, high = min(low, v), max(high, v)
+    return low, ((total - low - high) << 32) + high if cells.shape[1] == 4 else high
+
+
+@kernel
+def _neighbours(cells: np.ndarray, slots: np.ndarray) -> np.ndarray:
+    """(m, k + 1) int64, see :func:`cell_neighbours`: each facet looked up by :func:`_facet_key` in an
+    open-addressing hash table (multiplicative hashing, linear probing) of ``slots`` (a power of two, -1: empty),
+    each holding the first facet row (c (k + 1) + i) that has its key; the second is the cell across it."""
     m, corners = cells.shape
-    size, bits = 2, 1
-    while size < m * corners:
-        size, bits = 2 * size, bits + 1
-    keys = np.full((size, 2), -1, np.int64)
-    holders = np.full((size, 2), -1, np.int64)
+    size, bits = len(slots), 0
+    while (1 << bits) < size:
+        bits += 1
     across = np.full((m, corners), BOUNDARY, np.int64)
     for c in range(m):
         for skip in range(corners):
-            low, high, total = np.int64(1 << 62), np.int64(-1), np.int64(0)
-            for j in range(corners):
-                if j != skip:
-                    v = cells[c, j]
-                    total += v
-                    low, high = min(low, v), max(high, v)
-            rest = ((total - low - high) << 32) + high if corners == 4 else high
+            low, rest = _facet_key(cells, c, skip)
             mixed = (low * np.int64(-7046029254386353131) + rest) * np.int64(-7046029254386353131)   # wraps
             slot = np.int64(np.uint64(mixed) >> np.uint64(64 - bits))
-            while keys[slot, 0] >= 0 and (keys[slot, 0] != low or keys[slot, 1] != rest):
+            first = np.int64(slots[slot])
+            while first >= 0 and _facet_key(cells, first // corners, first % corners) != (low, rest):
                 slot = (slot + 1) & (size - 1)
-            row = c * corners + skip
-            if keys[slot, 0] < 0:
-                keys[slot, 0], keys[slot, 1], holders[slot, 0] = low, rest, row
-            elif holders[slot, 1] < 0:
-                other = holders[slot, 0]
-                holders[slot, 1] = row
-                across[c, skip] = other // corners
-                across[other // corners, other % corners] = c
-            else:   # a third cell on this facet
-                other, second = holders[slot, 0], holders[slot, 1]
-                across[c, skip] = NON_MANIFOLD
-                across[other // corners, other % corners] = NON_MANIFOLD
-                across[second // corners, second % corners] = NON_MANIFOLD
+                first = np.int64(slots[slot])
+            if first < 0:
+                slots[slot] = c * corners + skip
+                continue
+            first_cell, first_skip = first // corners, first % corners
+            second = across[first_cell, first_skip]
+            if second == BOUNDARY:
+                across[c, skip], across[first_cell, first_skip] = first_cell, c
+                continue
+            for j in range(corners if second >= 0 else 0):   # a third cell on this facet: the second's row too
+                if (across[second, j] == first_cell and second * corners + j != first
+                        and _facet_key(cells, second, j) == (low, rest)):
+                    across[second, j] = NON_MANIFOLD
+                    break
+            across[c, skip] = across[first_cell, first_skip] = NON_MANIFOLD
     return across
 
 
@@ -74,7 +82,10 @@ def cell_neighbours(cells: np.ndarray) -> np.ndarray:
     is held by cell c alone, ``NON_MANIFOLD`` (-2) where by three cells or more."""
     if len(cells) == 0:
         return np.zeros((0, cells.shape[1]), np.int64)
-    return _neighbours(np.ascontiguousarray(cells, dtype=np.int64))
+    rows = cells.size
+    size = 1 << max(1, (rows - 1).bit_length())   # at least one slot per facet row: at most half full inside
+    return _neighbours(np.ascontiguousarray(cells, dtype=np.int64),
+                       np.full(size, -1, np.int32 if rows < 2**31 else np.int64))
 
 
 def facet_pairs(cells: np.ndarray, across: np.ndarray, start: np.ndarray | None = None):

@@ -161,19 +161,67 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
     return np.stack([simplices[:, list(c)] for c in combinations(range(simplices.shape[1]), size)], axis=1)
 
 
+@kernel
+def _grouped_distinct(simplices: np.ndarray, corners: np.ndarray, n_points: int) -> np.ndarray:
+    """(u, size) the distinct faces of the (m, j) ``simplices`` with the local vertices ``corners`` (f, size),
+    vertices and rows sorted: each face's other vertices as one word (base ``n_points``) bucketed by its lowest
+    vertex, each bucket sorted and deduplicated in place (no (m f, size) table of faces)."""
+    m, faces, size = len(simplices), len(corners), corners.shape[1]
+    start = np.zeros(n_points + 1, np.int64)
+    for c in range(m):
+        for q in range(faces):
+            low = simplices[c, corners[q, 0]]
+            for a in range(1, size):
+                low = min(low, simplices[c, corners[q, a]])
+            start[low + 1] += 1
+    for v in range(n_points):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    rest = np.empty(m * faces, np.int64)
+    face = np.empty(size, np.int64)
+    for c in range(m):
+        for q in range(faces):
+            for a in range(size):   # insertion sort of the face's vertices
+                value, b = simplices[c, corners[q, a]], a - 1
+                while b >= 0 and face[b] > value:
+                    face[b + 1] = face[b]
+                    b -= 1
+                face[b + 1] = value
+            key = 0
+            for a in range(1, size):
+                key = key * n_points + face[a]
+            rest[fill[face[0]]] = key
+            fill[face[0]] += 1
+    kept = np.zeros(n_points, np.int64)
+    for v in range(n_points):
+        bucket = rest[start[v]:start[v + 1]]
+        bucket.sort()
+        for i in range(len(bucket)):
+            if i == 0 or bucket[i] != bucket[i - 1]:
+                bucket[kept[v]] = bucket[i]
+                kept[v] += 1
+    unique = np.empty((kept.sum(), size), np.int64)
+    row = 0
+    for v in range(n_points):
+        for i in range(kept[v]):
+            key = rest[start[v] + i]
+            unique[row, 0] = v
+            for a in range(size - 1, 0, -1):
+                unique[row, a] = key % n_points
+                key //= n_points
+            row += 1
+    return unique
+
+
 def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted, rows
     sorted."""
-    rows = faces_of(simplices, size).reshape(-1, size).astype(np.int64, copy=False)
-    n_points = int(rows.max()) + 1 if rows.size else 1
-    if float(n_points) ** size >= 2.0**63 or len(rows) >= n_points:
-        return unique_rows(rows)[0]   # which sorts each row itself
-    rows = np.sort(rows, axis=1)
-    keys = rows[:, 0].copy()
-    for column in range(1, size):
-        keys = keys * n_points + rows[:, column]
-    keys = np.unique(keys)   # sorting alone, without the indices that unique_rows needs
-    return np.stack([keys // n_points ** (size - 1 - column) % n_points for column in range(size)], axis=1)
+    simplices = np.ascontiguousarray(simplices, dtype=np.int64)
+    n_points = int(simplices.max()) + 1 if simplices.size else 1
+    if float(n_points) ** (size - 1) >= 2.0**63:   # no exact int64 word for a face's other vertices
+        return unique_rows(faces_of(simplices, size))[0]
+    return _grouped_distinct(simplices, np.array(list(combinations(range(simplices.shape[1]), size)), np.int64),
+                             n_points)
 
 
 def euler_characteristic(simplices: np.ndarray) -> int:
