@@ -55,6 +55,12 @@ def test_facet_pairs_are_the_interior_facets_once(dim):
     some = facet_pairs(cells, across, start)[0:2]
     expected = start[cell_a] | start[cell_b]
     assert np.array_equal(some[0], cell_a[expected]) and np.array_equal(some[1], cell_b[expected])
+    wanted = np.zeros(len(cells), bool)
+    wanted[1::3] = True
+    some = facet_pairs(cells, across, start, wanted)
+    expected &= wanted[cell_a] | wanted[cell_b]
+    for got, every in zip(some, (cell_a, cell_b, a, b, facet)):
+        assert np.array_equal(got, every[expected])
 
 
 def test_edge_rings_close_positively_around_every_interior_edge():

@@ -11,7 +11,7 @@ from itertools import combinations, permutations
 import numpy as np
 
 from .kernels import kernel
-from .mesh import facet_of
+from .mesh import facet_corners, facet_of
 
 #: the neighbour recorded for a facet held by its cell alone (on the boundary), and by three cells or more.
 BOUNDARY, NON_MANIFOLD = -1, -2
@@ -88,13 +88,61 @@ def cell_neighbours(cells: np.ndarray) -> np.ndarray:
                        np.full(size, -1, np.int32 if rows < 2**31 else np.int64))
 
 
-def facet_pairs(cells: np.ndarray, across: np.ndarray, start: np.ndarray | None = None):
-    """The pairs of cells on an interior facet (with ``start``, (m,) bool: those with a start cell among them), in
-    the order of the first cell and its facet: cell_a < cell_b (p,), their far vertices a, b (p,) and the facet
-    (p, k), oriented out of cell_a.  ``across``: :func:`cell_neighbours` of ``cells``."""
+@kernel
+def _facet_parity(cells: np.ndarray, c: int, facet: np.ndarray) -> int:
+    """0 or 1: the parity of the inversions of cell c's vertices at the positions ``facet`` (a row of
+    :func:`~bitemesh.core.mesh.facet_corners`, the facet as :func:`~bitemesh.core.mesh.facet_of` orders it)."""
+    parity = 0
+    for i in range(len(facet)):
+        for j in range(i + 1, len(facet)):
+            if cells[c, facet[i]] > cells[c, facet[j]]:
+                parity += 1
+    return parity % 2
+
+
+@kernel
+def _same_side(cells: np.ndarray, across: np.ndarray, facets: np.ndarray):
+    corners = cells.shape[1]
+    count, first, second = 0, -1, -1
+    for c in range(len(cells)):
+        for i in range(corners):
+            d = across[c, i]
+            if d < c:
+                continue
+            key = _facet_key(cells, c, i)
+            for j in range(corners):
+                if across[d, j] == c and d * corners + j > c * corners + i and _facet_key(cells, d, j) == key:
+                    if _facet_parity(cells, c, facets[i]) == _facet_parity(cells, d, facets[j]):
+                        count += 1
+                        if first < 0:
+                            first, second = c, d
+                    break
+    return count, first, second
+
+
+def same_side_pairs(cells: np.ndarray, across: np.ndarray):
+    """The interior facets whose two cells lie on the same side of them (overlapping cells): both cells orient the
+    facet alike, where a consistently oriented mesh has them opposite.  ``across``: :func:`cell_neighbours`.
+
+    Returns
+    -------
+    count : int; first : (int, int) the two cells of the first such facet in cell order, (-1, -1) if none
+    """
+    count, first, second = _same_side(np.ascontiguousarray(cells, dtype=np.int64), across,
+                                      facet_corners(cells.shape[1]))
+    return int(count), (int(first), int(second))
+
+
+def facet_pairs(cells: np.ndarray, across: np.ndarray, start: np.ndarray | None = None,
+                wanted: np.ndarray | None = None):
+    """The pairs of cells on an interior facet (with ``start``, (m,) bool: those with a start cell among them; with
+    ``wanted``, (m,) bool: those with a wanted cell among them), in the order of the first cell and its facet:
+    cell_a < cell_b (p,), their far vertices a, b (p,) and the facet (p, k), oriented out of cell_a.  ``across``:
+    :func:`cell_neighbours` of ``cells``."""
     upper = across > np.arange(len(cells))[:, None]
-    if start is not None:
-        upper &= start[:, None] | start[np.maximum(across, 0)]
+    for among in (start, wanted):
+        if among is not None:
+            upper &= among[:, None] | among[np.maximum(across, 0)]
     cell_a, opposite = np.nonzero(upper)
     cell_b = across[cell_a, opposite]
     far = np.argmax(across[cell_b] == cell_a[:, None], axis=1)

@@ -21,6 +21,8 @@ FLIP_QUALITY = 0.8
 #: around an edge that edge removal triangulates again (in 42 ways for 7).
 FLIP_PASSES = 12
 MAX_RING = 7
+#: the edges whose rings' new cells are measured at once.
+RING_CHUNK = 16384
 
 
 def polygon_triangulations(n: int):
@@ -56,6 +58,22 @@ def _ring_cells(a: np.ndarray, b: np.ndarray, ring: np.ndarray, triangles: np.nd
     return np.stack([np.stack([x, y, z, apex_b], axis=-1), np.stack([x, z, y, apex_a], axis=-1)], axis=2)
 
 
+def _best_triangulations(points: np.ndarray, a: np.ndarray, b: np.ndarray, ring: np.ndarray):
+    """For the (E,) edges (a, b) with the (E, n) ``ring`` around each: the best triangulation of each ring's polygon
+    (E,) (a row of ``RING_TRIANGULATIONS[n]``) and the worst radius ratio of the cells it makes (E,).  The new
+    cells are measured ``RING_CHUNK`` edges at a time (their (E, t, 2, 4) table would take 2.2 kB an edge at 7)."""
+    triangles, triangulations = RING_TRIANGULATIONS[ring.shape[1]]
+    best, worst_new = np.zeros(len(a), np.int64), np.empty(len(a))
+    for first in range(0, len(a), RING_CHUNK):
+        part = slice(first, first + RING_CHUNK)
+        new = _ring_cells(a[part], b[part], ring[part], triangles)
+        worst = signed_radius_ratio(points, new.reshape(-1, 4)).reshape(new.shape[:3]).min(axis=2)
+        by_triangulation = worst[:, triangulations].min(axis=2)  # (e, T)
+        best[part] = np.argmax(by_triangulation, axis=1)
+        worst_new[part] = by_triangulation[np.arange(len(new)), best[part]]
+    return best, worst_new
+
+
 def _across(a: np.ndarray, b: np.ndarray, facet: np.ndarray) -> np.ndarray:
     """The cells that replace the two on ``facet`` (p, k) with far vertices a, b: (p, 3, 4) around the edge (a, b)
     in 3D (2-3 flip), (p, 2, 3) in 2D (2-2 flip)."""
@@ -88,23 +106,19 @@ def flip_candidates(points: np.ndarray, cells: np.ndarray, quality: np.ndarray, 
     found = []
     if k == 3:
         for n, (a, b, ring, around) in edge_rings(cells, across, MAX_RING, fresh, quality < FLIP_QUALITY).items():
-            worst_old = quality[around].min(axis=1)
-            triangles, triangulations = RING_TRIANGULATIONS[n]
-            new = _ring_cells(a, b, ring, triangles)
-            worst = signed_radius_ratio(points, new.reshape(-1, 4)).reshape(new.shape[:3]).min(axis=2)
-            by_triangulation = worst[:, triangulations].min(axis=2)  # (E, T)
-            best = np.argmax(by_triangulation, axis=1) if len(a) else np.zeros(0, np.int64)
-            gain = by_triangulation[np.arange(len(a)), best] - worst_old
+            best, worst_new = _best_triangulations(points, a, b, ring)
+            gain = worst_new - quality[around].min(axis=1)
             keep = gain > FLIP_GAIN
-            chosen = new[np.flatnonzero(keep)[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
+            triangles, triangulations = RING_TRIANGULATIONS[n]
+            new = _ring_cells(a[keep], b[keep], ring[keep], triangles)
+            chosen = new[np.arange(len(new))[:, None], triangulations[best[keep]]].reshape(-1, 2 * (n - 2), 4)
             found.append((around[keep], chosen, gain[keep]))
-    cell_a, cell_b, a, b, facet = facet_pairs(cells, across, fresh)
+    cell_a, cell_b, a, b, facet = facet_pairs(cells, across, fresh, quality < FLIP_QUALITY)
     worst_old = np.minimum(quality[cell_a], quality[cell_b])
-    poor = worst_old < FLIP_QUALITY
-    new = _across(a[poor], b[poor], facet[poor])
-    gain = signed_radius_ratio(points, new.reshape(-1, k + 1)).reshape(new.shape[:2]).min(axis=1) - worst_old[poor]
+    new = _across(a, b, facet)
+    gain = signed_radius_ratio(points, new.reshape(-1, k + 1)).reshape(new.shape[:2]).min(axis=1) - worst_old
     keep = gain > FLIP_GAIN
-    found.append((np.stack([cell_a[poor], cell_b[poor]], axis=1)[keep], new[keep], gain[keep]))
+    found.append((np.stack([cell_a, cell_b], axis=1)[keep], new[keep], gain[keep]))
     return found
 
 

@@ -161,32 +161,8 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
     length = mean_edge_length(points, cells)
     for iteration in range(iterations):
         report(progress, iteration / iterations, f"smoothing {iteration + 1}/{iterations}")
-        volume, squares, volume_gradient, centred = mean_ratio_terms(points, cells)
-        # not finite at the nodes of cells with no volume: they do not move
-        current, descent = node_cost_descent(cells, mean_ratio_cost(volume, squares, k), squares, volume,
-                                             volume_gradient, centred, n, SMOOTH_POWER)
-        descent[on_boundary] = tangential(grid, points[on_boundary], descent[on_boundary])
-        # a Newton-like scale: the cost of a node's cells changes by about its own size over an edge length
-        descent *= (0.5 * length ** 2 * degree / np.maximum(current, 1e-300))[:, None]
-        descent[~np.isfinite(descent).all(axis=1)] = 0.0
-        step = np.linalg.norm(descent, axis=1)
-        descent *= np.minimum(1.0, MAX_MOVE * length / np.maximum(step, 1e-300))[:, None]
-
-        off_surface = np.zeros(n, bool)
-        off_surface[on_boundary] = np.abs(grid.evaluate(points[on_boundary])) > SURFACE_TOLERANCE * length
-        limit = np.where(off_surface, np.inf, current)
-        best_cost, best_move = limit.copy(), np.zeros_like(points)
-        moves = [fraction * descent for fraction in STEP_FRACTIONS]
-        start = points[on_boundary]  # the boundary nodes of every step length projected onto f = 0 at once
-        ends = np.split(grid.project(np.concatenate([start + move[on_boundary] for move in moves])),
-                        len(moves))
-        for move, end in zip(moves, ends):
-            move[on_boundary] = end - start
-            # the cost of each node's cells when that node alone moves
-            trial = node_trial_costs(cells, volume, squares, volume_gradient, centred, move, n, SMOOTH_POWER)
-            better = trial < best_cost
-            best_cost[better], best_move[better] = trial[better], move[better]
-        moving = np.isfinite(best_cost) & np.any(best_move != 0, axis=1)
+        best_move, limit = _best_moves(grid, points, cells, on_boundary, degree, length)
+        moving = np.any(best_move != 0, axis=1)
         new = points.copy()
         new[moving] += best_move[moving]
         cost = inverse_mean_ratio(new, cells) ** SMOOTH_POWER
@@ -206,3 +182,43 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
         points = new
     report(progress, 1.0, "smoothing")
     return points
+
+
+def _best_moves(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, on_boundary: np.ndarray,
+                degree: np.ndarray, length: float):
+    """One smoothing iteration's choice, every other node fixed: each node's best move among ``STEP_FRACTIONS``
+    of its descent (boundary nodes: tangential, then onto f = 0) and the cost its cells may not exceed.
+
+    Returns
+    -------
+    move : (n, k) float64, zero where no step lowers the cost of the node's cells
+    limit : (n,) float64, the cost of each node's cells before the move, which the moves may not raise (inf for a
+        boundary node off f = 0: it goes onto f = 0 at any cost that keeps its cells positive)
+    """
+    n, k = points.shape
+    # (m, k + 1, k) terms: freed on return, so that two iterations' never live at once
+    volume, squares, volume_gradient, centred = mean_ratio_terms(points, cells)
+    # not finite at the nodes of cells with no volume: they do not move
+    current, descent = node_cost_descent(cells, mean_ratio_cost(volume, squares, k), squares, volume,
+                                         volume_gradient, centred, n, SMOOTH_POWER)
+    descent[on_boundary] = tangential(grid, points[on_boundary], descent[on_boundary])
+    # a Newton-like scale: the cost of a node's cells changes by about its own size over an edge length
+    descent *= (0.5 * length ** 2 * degree / np.maximum(current, 1e-300))[:, None]
+    descent[~np.isfinite(descent).all(axis=1)] = 0.0
+    step = np.linalg.norm(descent, axis=1)
+    descent *= np.minimum(1.0, MAX_MOVE * length / np.maximum(step, 1e-300))[:, None]
+
+    off_surface = np.zeros(n, bool)
+    off_surface[on_boundary] = np.abs(grid.evaluate(points[on_boundary])) > SURFACE_TOLERANCE * length
+    limit = np.where(off_surface, np.inf, current)
+    best_cost, best_move = limit.copy(), np.zeros_like(points)
+    moves = [fraction * descent for fraction in STEP_FRACTIONS]
+    start = points[on_boundary]  # the boundary nodes of every step length projected onto f = 0 at once
+    ends = np.split(grid.project(np.concatenate([start + move[on_boundary] for move in moves])), len(moves))
+    for move, end in zip(moves, ends):
+        move[on_boundary] = end - start
+        # the cost of each node's cells when that node alone moves
+        trial = node_trial_costs(cells, volume, squares, volume_gradient, centred, move, n, SMOOTH_POWER)
+        better = trial < best_cost
+        best_cost[better], best_move[better] = trial[better], move[better]
+    return best_move, limit

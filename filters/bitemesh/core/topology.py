@@ -13,7 +13,7 @@ from scipy.sparse import csgraph
 
 from .adjacency import BOUNDARY, cell_neighbours
 from .kernels import kernel
-from .mesh import facet_of, facets_of
+from .mesh import facet_corners, facet_of, facets_of
 
 
 def unique_rows(rows: np.ndarray):
@@ -25,29 +25,95 @@ def unique_rows(rows: np.ndarray):
     inverse : (r,) int64, the group of each input row
     counts : (u,) int64, the size of each group
     """
-    rows = np.ascontiguousarray(rows.reshape(-1, rows.shape[-1]), dtype=np.int64)
-    n_points = int(rows.max()) + 1 if rows.size else 1
-    if float(n_points) ** (rows.shape[1] - 1) < 2.0**63 and len(rows) >= n_points:
-        # many rows on few vertices: grouped by their lowest vertex in linear time
-        rows, order, inverse, first = _grouped_unique(rows, n_points)
-    elif float(n_points) ** rows.shape[1] >= 2.0**63:   # no exact int64 key per sorted row
-        unique, inverse, counts = np.unique(np.sort(rows, axis=1), axis=0, return_inverse=True, return_counts=True)
-        return unique, inverse.ravel(), counts
+    rows = rows.reshape(-1, rows.shape[-1])
+    unique, inverse, counts = face_groups(rows, np.arange(rows.shape[1])[None])
+    return unique, inverse.ravel(), counts
+
+
+def face_groups(simplices: np.ndarray, corners: np.ndarray, inverse: bool = True):
+    """The distinct faces of (m, j) ``simplices`` whose vertices are at the positions ``corners`` (f, size) of
+    each, without a table of every face where they are many.
+
+    Returns
+    -------
+    unique : (u, size) int64, each distinct face once, vertices sorted, rows sorted
+    inverse : (m, f) int64, the group of face q of simplex c (None when not asked for)
+    counts : (u,) int64, how many (simplex, face) pairs are each
+    """
+    simplices = np.ascontiguousarray(simplices, dtype=np.int64)
+    corners = np.ascontiguousarray(corners, dtype=np.int64)
+    m, (f, size) = len(simplices), corners.shape
+    n_points = int(simplices.max()) + 1 if simplices.size else 1
+    if float(n_points) ** (size - 1) < 2.0**63 and m * f >= n_points:
+        # many faces on few vertices: grouped by their lowest vertex in linear time
+        unique, groups, counts = _grouped_faces(simplices, corners, n_points, inverse)
+        return unique, groups.reshape(m, f) if inverse else None, counts
+    rows = np.sort(simplices[:, corners].reshape(-1, size), axis=1)
+    if float(n_points) ** size >= 2.0**63:   # no exact int64 key per sorted row
+        unique, groups, counts = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
     else:
-        rows = np.sort(rows, axis=1)
         keys = rows[:, 0].copy()
-        for column in range(1, rows.shape[1]):
+        for column in range(1, size):
             keys = keys * n_points + rows[:, column]
-        # np.unique's result from one unstable sort of the keys: equal keys are equal rows, so any of them will do
-        order = np.argsort(keys)
-        ordered = keys[order]
-        start = np.empty(len(keys), bool)
-        start[:1] = True
-        np.not_equal(ordered[1:], ordered[:-1], out=start[1:])
-        inverse = np.empty(len(keys), np.int64)
-        inverse[order] = np.cumsum(start) - 1
-        first = np.flatnonzero(start)
-    return rows[order[first]], inverse, np.diff(np.append(first, len(rows)))
+        _, first, groups, counts = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
+        unique = rows[first]
+    return unique, groups.reshape(m, f) if inverse else None, counts
+
+
+@kernel
+def _grouped_faces(simplices: np.ndarray, corners: np.ndarray, n_points: int, with_inverse: bool):
+    """:func:`face_groups` in linear time: each face's other vertices as one word (base ``n_points``), bucketed by
+    its lowest vertex (a counting sort), each bucket sorted; groups numbered in that order, which is the sorted
+    order of the faces.  The inverse is (m f,), empty without ``with_inverse``."""
+    m, faces, size = len(simplices), len(corners), corners.shape[1]
+    start = np.zeros(n_points + 1, np.int64)
+    for c in range(m):
+        for q in range(faces):
+            low = simplices[c, corners[q, 0]]
+            for a in range(1, size):
+                low = min(low, simplices[c, corners[q, a]])
+            start[low + 1] += 1
+    for v in range(n_points):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    rest = np.empty(m * faces, np.int64)
+    origin = np.empty(m * faces if with_inverse else 0, np.int64)
+    face = np.empty(size, np.int64)
+    for c in range(m):
+        for q in range(faces):
+            for a in range(size):   # insertion sort of the face's vertices
+                value, b = simplices[c, corners[q, a]], a - 1
+                while b >= 0 and face[b] > value:
+                    face[b + 1] = face[b]
+                    b -= 1
+                face[b + 1] = value
+            key = 0
+            for a in range(1, size):
+                key = key * n_points + face[a]
+            rest[fill[face[0]]] = key
+            if with_inverse:
+                origin[fill[face[0]]] = c * faces + q
+            fill[face[0]] += 1
+    inverse = np.empty(m * faces if with_inverse else 0, np.int64)
+    low, key, counts = np.empty(m * faces, np.int64), np.empty(m * faces, np.int64), np.zeros(m * faces, np.int64)
+    group = -1
+    for v in range(n_points):
+        bucket = rest[start[v]:start[v + 1]]
+        order = np.argsort(bucket)
+        for i in range(len(order)):
+            if i == 0 or bucket[order[i]] != bucket[order[i - 1]]:
+                group += 1
+                low[group], key[group] = v, bucket[order[i]]
+            counts[group] += 1
+            if with_inverse:
+                inverse[origin[start[v] + order[i]]] = group
+    unique = np.empty((group + 1, size), np.int64)
+    for g in range(group + 1):
+        unique[g, 0], word = low[g], key[g]
+        for a in range(size - 1, 0, -1):
+            unique[g, a] = word % n_points
+            word //= n_points
+    return unique, inverse, counts[:group + 1].copy()
 
 
 def facet_table(cells: np.ndarray):
@@ -77,48 +143,6 @@ def _counting_sort(values: np.ndarray, n_values: int) -> np.ndarray:
         order[start[values[i]]] = i
         start[values[i]] += 1
     return order
-
-
-@kernel
-def _grouped_unique(rows: np.ndarray, n_points: int):
-    """The (r, j) ``rows`` of vertex ids below ``n_points``, each sorted, then sorted and grouped as
-    :func:`unique_rows` gives them: (sorted rows (r, j), order (r,), inverse (r,), the position in order of each
-    group's first row (u,)).  Ordered by their lowest vertex (:func:`_counting_sort`), then within each run of
-    equal lowest vertex by the rest (one word, base ``n_points``), by insertion (a vertex is the lowest of a few
-    dozen faces)."""
-    r, j = rows.shape
-    rows = rows.copy()
-    rest = np.zeros(r, np.int64)
-    for i in range(r):
-        for a in range(1, j):   # insertion sort of the row
-            value, b = rows[i, a], a - 1
-            while b >= 0 and rows[i, b] > value:
-                rows[i, b + 1] = rows[i, b]
-                b -= 1
-            rows[i, b + 1] = value
-        for a in range(1, j):
-            rest[i] = rest[i] * n_points + rows[i, a]
-    order = _counting_sort(rows[:, 0].copy(), n_points)
-    low, ordered_rest = rows[:, 0][order], rest[order]
-    inverse = np.empty(r, np.int64)
-    first = np.empty(r, np.int64)
-    group, begin = -1, 0
-    while begin < r:
-        end = begin + 1
-        while end < r and low[end] == low[begin]:   # insertion sort of the run by rest
-            key, row, b = ordered_rest[end], order[end], end - 1
-            while b >= begin and ordered_rest[b] > key:
-                ordered_rest[b + 1], order[b + 1] = ordered_rest[b], order[b]
-                b -= 1
-            ordered_rest[b + 1], order[b + 1] = key, row
-            end += 1
-        for i in range(begin, end):
-            if i == begin or ordered_rest[i] != ordered_rest[i - 1]:
-                group += 1
-                first[group] = i
-            inverse[order[i]] = group
-        begin = end
-    return rows, order, inverse, first[:group + 1].copy()
 
 
 def neighbour_pairs(inverse: np.ndarray):
@@ -161,67 +185,10 @@ def faces_of(simplices: np.ndarray, size: int) -> np.ndarray:
     return np.stack([simplices[:, list(c)] for c in combinations(range(simplices.shape[1]), size)], axis=1)
 
 
-@kernel
-def _grouped_distinct(simplices: np.ndarray, corners: np.ndarray, n_points: int) -> np.ndarray:
-    """(u, size) the distinct faces of the (m, j) ``simplices`` with the local vertices ``corners`` (f, size),
-    vertices and rows sorted: each face's other vertices as one word (base ``n_points``) bucketed by its lowest
-    vertex, each bucket sorted and deduplicated in place (no (m f, size) table of faces)."""
-    m, faces, size = len(simplices), len(corners), corners.shape[1]
-    start = np.zeros(n_points + 1, np.int64)
-    for c in range(m):
-        for q in range(faces):
-            low = simplices[c, corners[q, 0]]
-            for a in range(1, size):
-                low = min(low, simplices[c, corners[q, a]])
-            start[low + 1] += 1
-    for v in range(n_points):
-        start[v + 1] += start[v]
-    fill = start[:-1].copy()
-    rest = np.empty(m * faces, np.int64)
-    face = np.empty(size, np.int64)
-    for c in range(m):
-        for q in range(faces):
-            for a in range(size):   # insertion sort of the face's vertices
-                value, b = simplices[c, corners[q, a]], a - 1
-                while b >= 0 and face[b] > value:
-                    face[b + 1] = face[b]
-                    b -= 1
-                face[b + 1] = value
-            key = 0
-            for a in range(1, size):
-                key = key * n_points + face[a]
-            rest[fill[face[0]]] = key
-            fill[face[0]] += 1
-    kept = np.zeros(n_points, np.int64)
-    for v in range(n_points):
-        bucket = rest[start[v]:start[v + 1]]
-        bucket.sort()
-        for i in range(len(bucket)):
-            if i == 0 or bucket[i] != bucket[i - 1]:
-                bucket[kept[v]] = bucket[i]
-                kept[v] += 1
-    unique = np.empty((kept.sum(), size), np.int64)
-    row = 0
-    for v in range(n_points):
-        for i in range(kept[v]):
-            key = rest[start[v] + i]
-            unique[row, 0] = v
-            for a in range(size - 1, 0, -1):
-                unique[row, a] = key % n_points
-                key //= n_points
-            row += 1
-    return unique
-
-
 def distinct_faces(simplices: np.ndarray, size: int) -> np.ndarray:
     """(u, size) int64, each distinct face with ``size`` vertices of ``simplices`` once, vertices sorted, rows
     sorted."""
-    simplices = np.ascontiguousarray(simplices, dtype=np.int64)
-    n_points = int(simplices.max()) + 1 if simplices.size else 1
-    if float(n_points) ** (size - 1) >= 2.0**63:   # no exact int64 word for a face's other vertices
-        return unique_rows(faces_of(simplices, size))[0]
-    return _grouped_distinct(simplices, np.array(list(combinations(range(simplices.shape[1]), size)), np.int64),
-                             n_points)
+    return face_groups(simplices, list(combinations(range(simplices.shape[1]), size)), inverse=False)[0]
 
 
 def euler_characteristic(simplices: np.ndarray) -> int:
@@ -268,13 +235,11 @@ class CellComplex:
     def __init__(self, cells: np.ndarray, n_points: int):
         self.cells, self.n_points = cells, n_points
         k = cells.shape[1] - 1
-        self.facets, facet_ids, self.hull_counts = unique_rows(facets_of(cells))
-        self.facet_ids = facet_ids.reshape(len(cells), k + 1)
-        self.neighbour_rows = neighbour_pairs(facet_ids)
-        self.ridges, ridge_ids, _ = unique_rows(faces_of(cells, k - 1))
-        self.cell_ridges = ridge_ids.reshape(len(cells), -1)
+        self.facets, self.facet_ids, self.hull_counts = face_groups(cells, facet_corners(k + 1))
+        self.neighbour_rows = neighbour_pairs(self.facet_ids.ravel())
+        self.ridges, self.cell_ridges, _ = face_groups(cells, list(combinations(range(k + 1), k - 1)))
         row = np.zeros(len(self.facets), np.int64)
-        row[facet_ids] = np.arange(len(facet_ids))   # a row of each distinct facet (any: the same ridges)
+        row[self.facet_ids.ravel()] = np.arange(self.facet_ids.size)   # a row of each distinct facet (any will do)
         without = np.array([[j for j, ridge in enumerate(combinations(range(k + 1), k - 1)) if i not in ridge]
                             for i in range(k + 1)])   # the cell's ridges on the facet opposite vertex i
         self._facet_ridges = self.cell_ridges[(row // (k + 1))[:, None], without[row % (k + 1)]]

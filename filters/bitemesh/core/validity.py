@@ -15,8 +15,9 @@ from scipy import sparse
 from scipy.sparse import csgraph
 
 from .errors import InvalidInputError, check_number
-from .mesh import Mesh, signed_measures
-from .topology import boundary_facets, distinct_faces, euler_characteristic, facet_table, neighbour_pairs, unique_rows
+from .adjacency import BOUNDARY, NON_MANIFOLD, cell_neighbours, same_side_pairs
+from .mesh import Mesh, facet_of, signed_measures
+from .topology import boundary_facets, distinct_faces, euler_characteristic, neighbour_pairs, unique_rows
 
 
 def _check_cells(cells, name: str = "cells") -> np.ndarray:
@@ -72,11 +73,6 @@ def count_boundary_components(mesh: Mesh) -> int:
     graph = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n_points,) * 2)
     labels = csgraph.connected_components(graph, directed=False)[1]
     return len(np.unique(labels[np.unique(facets)]))
-
-
-def _parity(rows: np.ndarray) -> np.ndarray:
-    """(r,) 0 for an even permutation of the sorted row, 1 for an odd one."""
-    return sum(rows[:, i] > rows[:, j] for i, j in combinations(range(rows.shape[1]), 2)) % 2
 
 
 def _found(count: int, what: str, first: str) -> str:
@@ -167,20 +163,20 @@ def check_valid_domain(mesh: Mesh, volume_rtol: float = 1e-12) -> list:
     if len(bad):
         problems.append(_found(len(bad), "cells with the same vertices as another cell", f"cell {bad[0]}"))
 
-    facets, inverse, counts = facet_table(cells)
-    bad = np.flatnonzero(counts[inverse] > 2)
+    # facets by the cells across them (a hash table of the cells' facet rows, no table of every facet)
+    across = cell_neighbours(cells)
+    bad = np.flatnonzero(across.ravel() == NON_MANIFOLD)
     if len(bad):
-        problems.append(_found(len(np.unique(inverse[bad])), "facets shared by more than two cells",
-                               f"facet {tuple(np.sort(facets[bad[0]]).tolist())} in {counts[inverse[bad[0]]]} cells"))
-    a, b = neighbour_pairs(inverse)
-    parity = _parity(facets)
-    same_side = (counts[inverse[a]] == 2) & (parity[a] == parity[b])
-    if same_side.any():
-        first = a[same_side][0]
-        problems.append(_found(int(same_side.sum()), "facets with both cells on the same side (overlapping cells)",
-                               f"cells {first // (k + 1)} and {b[same_side][0] // (k + 1)}"))
+        facets = facet_of(cells, bad // (k + 1), bad % (k + 1))
+        unique, inverse, counts = unique_rows(facets)
+        problems.append(_found(len(unique), "facets shared by more than two cells",
+                               f"facet {tuple(np.sort(facets[0]).tolist())} in {counts[inverse[0]]} cells"))
+    count, (first, second) = same_side_pairs(cells, across)
+    if count:
+        problems.append(_found(count, "facets with both cells on the same side (overlapping cells)",
+                               f"cells {first} and {second}"))
 
-    problems += _manifold_problems(facets[counts[inverse] == 1], len(points))
+    problems += _manifold_problems(facet_of(cells, *np.nonzero(across == BOUNDARY)), len(points))
 
     bad = np.flatnonzero(np.bincount(cells.ravel(), minlength=len(points)) == 0)
     if len(bad):
