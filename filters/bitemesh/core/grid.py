@@ -10,7 +10,7 @@ from typing import Callable
 
 import numpy as np
 
-from .grid_kernels import (BRICK_SHIFT, brick_gradients, fill_bricks, interpolate, interpolate_gradient,
+from .grid_kernels import (BRICK_SHIFT, brick_gradients, evaluate_at, fill_bricks, gradient_at,
                            newton_to_surface, node_values, plane_values)
 from .errors import InvalidInputError, check_number
 from .progress import ProgressCallback, report
@@ -59,33 +59,24 @@ class SampledGrid:
         """(3,) int64 the node counts, a 2D grid's with a last axis of one node."""
         return np.array(tuple(self.shape) + (1,) * (3 - self.dim), dtype=np.int64)
 
-    def _index(self, points: np.ndarray) -> np.ndarray:
-        """(m, 3) fractional node indices of (m, k) points (a 2D grid's last one 0)."""
-        index = (np.asarray(points, dtype=np.float64).reshape(-1, self.dim) - self.origin) / self.spacing
-        return np.ascontiguousarray(np.pad(index, ((0, 0), (0, 3 - self.dim))))
+    def _points(self, points: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(points, dtype=np.float64).reshape(-1, self.dim)
 
     def evaluate(self, points: np.ndarray) -> np.ndarray:
         """(m,) multilinear interpolation of f at (m, k) points; outside the grid, at most minus the distance to it."""
-        points = np.asarray(points, dtype=np.float64)
-        beyond = np.maximum(self.origin - points, 0.0) + np.maximum(points - self.upper, 0.0)
-        values = interpolate(*self._storage, self._shape3, self._index(points))
-        distance = np.linalg.norm(beyond, axis=1)
-        outside = distance > 0
-        values[outside] = np.minimum(values[outside], -distance[outside])
-        return values
+        return evaluate_at(*self._storage, self._shape3, self._origin, self._spacing, self._points(points))
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """(m, k) multilinear interpolation of the central-difference gradient of f (numpy.gradient's)."""
-        return interpolate_gradient(*self._storage, self._gradients, self._shape3, self._spacing,
-                                    self._index(points))
+        return gradient_at(*self._storage, self._gradients, self._shape3, self._origin, self._spacing,
+                           self._points(points))
 
     def project(self, points: np.ndarray, steps: int = 4) -> np.ndarray:
         """(m, k) points moved onto f = 0 by up to ``steps`` Newton steps along grad f (as :meth:`evaluate` and
         :meth:`gradient` take them), each at most one grid spacing long; a point stops once its step is shorter
         than ``SETTLED`` spacings."""
-        points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, self.dim)
-        return newton_to_surface(*self._storage, self._gradients, self._shape3, self._origin, self._spacing, points,
-                                 steps, SETTLED * float(np.min(self.spacing)))
+        return newton_to_surface(*self._storage, self._gradients, self._shape3, self._origin, self._spacing,
+                                 self._points(points), steps, SETTLED * float(np.min(self.spacing)))
 
     @cached_property
     def _origin(self) -> np.ndarray:

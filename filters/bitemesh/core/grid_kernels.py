@@ -82,24 +82,6 @@ def _derivative(f_ahead, f_behind, ahead, behind, step):
     return difference / (2.0 * step) if ahead and behind else difference / step
 
 
-@inline
-def _corners(index, p, shape, low, high, weight) -> bool:
-    """The lower and upper node and their weights along each axis at point p of ``index``; False for NaN.  The
-    weights are 1 - t and 1 - (1 - t), the nodes beyond the grid its nearest (scipy's mode "nearest")."""
-    for d in range(3):
-        n = shape[d]
-        cc = index[p, d]
-        if not cc == cc:
-            return False
-        start = np.floor(cc)
-        node = int(min(max(start, -1.0), n - 1.0))  # beyond the grid: its nearest node
-        low[d] = min(max(node, 0), n - 1)
-        high[d] = min(max(node + 1, 0), n - 1)
-        weight[d, 0] = 1.0 - (cc - start)
-        weight[d, 1] = 1.0 - weight[d, 0]
-    return True
-
-
 @kernel
 def _far_difference(coarse, slots, bricks, shape, x, y, z, axis, step):
     """:func:`_difference` called, not inlined: the rare path of :func:`interpolate_gradient` stays out of its loop
@@ -108,95 +90,172 @@ def _far_difference(coarse, slots, bricks, shape, x, y, z, axis, step):
 
 
 @inline
-def _value(coarse, slots, bricks, low, high, weight):
-    """f multilinear from the corners of :func:`_corners`: summed in C order, each corner's value times its
-    weights in axis order."""
+def _axis(cc, n):
+    """The lower and upper node along one axis at fractional node index ``cc`` of ``n`` nodes, and their weights
+    1 - t and 1 - (1 - t); beyond the grid its nearest node (scipy's mode "nearest")."""
+    start = np.floor(cc)
+    node = int(min(max(start, -1.0), n - 1.0))
+    weight = 1.0 - (cc - start)
+    return min(max(node, 0), n - 1), min(max(node + 1, 0), n - 1), weight, 1.0 - weight
+
+
+@inline
+def _cell(points, p, origin, spacing, shape):
+    """The grid cell around point p of the (m, k) ``points``: (is the point a number, x0, x1, y0, y1, z0, z1,
+    and the weights a0, a1, b0, b1, c0, c1 of :func:`_axis`); a 2D grid's z is node 0 with weights 1 and 0."""
+    cx = (points[p, 0] - origin[0]) / spacing[0]
+    cy = (points[p, 1] - origin[1]) / spacing[1]
+    cz = (points[p, 2] - origin[2]) / spacing[2] if points.shape[1] == 3 else 0.0
+    x0, x1, a0, a1 = _axis(cx, shape[0])
+    y0, y1, b0, b1 = _axis(cy, shape[1])
+    z0, z1, c0, c1 = _axis(cz, shape[2])
+    return cx == cx and cy == cy and cz == cz, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1
+
+
+@inline
+def _brick_of(slots, x0, x1, y0, y1, z0, z1):
+    """(slot, its first node x, y, z) of the one brick that holds the cell's eight corners: -1 for one the coarse
+    grid's refinement holds, -2 when the corners lie in several bricks; a dense grid's one brick from node 0."""
+    if slots.size == 1:
+        return 0, 0, 0, 0
+    if (x0 >> BRICK_SHIFT == x1 >> BRICK_SHIFT and y0 >> BRICK_SHIFT == y1 >> BRICK_SHIFT
+            and z0 >> BRICK_SHIFT == z1 >> BRICK_SHIFT):
+        return slots[x0 >> BRICK_SHIFT, y0 >> BRICK_SHIFT, z0 >> BRICK_SHIFT], x0 & ~_MASK, y0 & ~_MASK, z0 & ~_MASK
+    return -2, 0, 0, 0
+
+
+@inline
+def _mix(v000, v001, v010, v011, v100, v101, v110, v111, a0, a1, b0, b1, c0, c1):
+    """The multilinear mean of a cell's corner values: summed in C order, each value times its weights in axis
+    order (scipy's ``map_coordinates`` order 1)."""
     total = 0.0
-    for corner in range(8):
-        i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
-        value = node_value(coarse, slots, bricks, low[0] if i == 0 else high[0], low[1] if j == 0 else high[1],
-                           low[2] if h == 0 else high[2])
-        total += value * weight[0, i] * weight[1, j] * weight[2, h]
+    total += v000 * a0 * b0 * c0
+    total += v001 * a0 * b0 * c1
+    total += v010 * a0 * b1 * c0
+    total += v011 * a0 * b1 * c1
+    total += v100 * a1 * b0 * c0
+    total += v101 * a1 * b0 * c1
+    total += v110 * a1 * b1 * c0
+    total += v111 * a1 * b1 * c1
     return total
 
 
 @inline
-def _gradient(coarse, slots, bricks, gradients, shape, spacing, low, high, weight, q):
-    """Component q of the central-difference gradient multilinear from the corners of :func:`_corners`."""
-    total = 0.0
-    for corner in range(8):
-        i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
-        x, y, z = low[0] if i == 0 else high[0], low[1] if j == 0 else high[1], low[2] if h == 0 else high[2]
-        if slots.size == 1:   # a dense grid
-            value = gradients[0, x, y, z, q]
-        else:   # kept in the bricks kept, else from the neighbours
-            slot = slots[x >> BRICK_SHIFT, y >> BRICK_SHIFT, z >> BRICK_SHIFT]
-            if slot < 0:
-                value = _far_difference(coarse, slots, bricks, shape, x, y, z, q, spacing[q])
-            else:
-                value = gradients[slot, x & _MASK, y & _MASK, z & _MASK, q]
-        total += value * weight[0, i] * weight[1, j] * weight[2, h]
-    return total
+def _value(coarse, slots, bricks, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1):
+    """f multilinear in the cell of :func:`_cell`: its corners read from one brick where they lie in one."""
+    slot, bx, by, bz = _brick_of(slots, x0, x1, y0, y1, z0, z1)
+    if slot >= 0:
+        f = bricks[slot]
+        x0, x1, y0, y1, z0, z1 = x0 - bx, x1 - bx, y0 - by, y1 - by, z0 - bz, z1 - bz
+        return _mix(f[x0, y0, z0], f[x0, y0, z1], f[x0, y1, z0], f[x0, y1, z1], f[x1, y0, z0], f[x1, y0, z1],
+                    f[x1, y1, z0], f[x1, y1, z1], a0, a1, b0, b1, c0, c1)
+    if slot == -1:
+        return _mix(refined_value(coarse, x0, y0, z0), refined_value(coarse, x0, y0, z1),
+                    refined_value(coarse, x0, y1, z0), refined_value(coarse, x0, y1, z1),
+                    refined_value(coarse, x1, y0, z0), refined_value(coarse, x1, y0, z1),
+                    refined_value(coarse, x1, y1, z0), refined_value(coarse, x1, y1, z1), a0, a1, b0, b1, c0, c1)
+    return _mix(node_value(coarse, slots, bricks, x0, y0, z0), node_value(coarse, slots, bricks, x0, y0, z1),
+                node_value(coarse, slots, bricks, x0, y1, z0), node_value(coarse, slots, bricks, x0, y1, z1),
+                node_value(coarse, slots, bricks, x1, y0, z0), node_value(coarse, slots, bricks, x1, y0, z1),
+                node_value(coarse, slots, bricks, x1, y1, z0), node_value(coarse, slots, bricks, x1, y1, z1),
+                a0, a1, b0, b1, c0, c1)
+
+
+@inline
+def _node_gradient(coarse, slots, bricks, gradients, shape, spacing, x, y, z, q):
+    """Component q of the central-difference gradient at node (x, y, z): kept in the bricks kept, else from the
+    neighbours."""
+    if slots.size == 1:
+        return gradients[0, x, y, z, q]
+    slot = slots[x >> BRICK_SHIFT, y >> BRICK_SHIFT, z >> BRICK_SHIFT]
+    if slot < 0:
+        return _far_difference(coarse, slots, bricks, shape, x, y, z, q, spacing[q])
+    return gradients[slot, x & _MASK, y & _MASK, z & _MASK, q]
+
+
+@inline
+def _gradient(coarse, slots, bricks, gradients, shape, spacing, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1,
+              q):
+    """Component q of the central-difference gradient multilinear in the cell of :func:`_cell`."""
+    slot, bx, by, bz = _brick_of(slots, x0, x1, y0, y1, z0, z1)
+    if slot >= 0:
+        g = gradients[slot]
+        x0, x1, y0, y1, z0, z1 = x0 - bx, x1 - bx, y0 - by, y1 - by, z0 - bz, z1 - bz
+        return _mix(g[x0, y0, z0, q], g[x0, y0, z1, q], g[x0, y1, z0, q], g[x0, y1, z1, q], g[x1, y0, z0, q],
+                    g[x1, y0, z1, q], g[x1, y1, z0, q], g[x1, y1, z1, q], a0, a1, b0, b1, c0, c1)
+    f, g, h = coarse, slots, bricks
+    return _mix(_node_gradient(f, g, h, gradients, shape, spacing, x0, y0, z0, q),
+                _node_gradient(f, g, h, gradients, shape, spacing, x0, y0, z1, q),
+                _node_gradient(f, g, h, gradients, shape, spacing, x0, y1, z0, q),
+                _node_gradient(f, g, h, gradients, shape, spacing, x0, y1, z1, q),
+                _node_gradient(f, g, h, gradients, shape, spacing, x1, y0, z0, q),
+                _node_gradient(f, g, h, gradients, shape, spacing, x1, y0, z1, q),
+                _node_gradient(f, g, h, gradients, shape, spacing, x1, y1, z0, q),
+                _node_gradient(f, g, h, gradients, shape, spacing, x1, y1, z1, q), a0, a1, b0, b1, c0, c1)
 
 
 @kernel
-def interpolate(coarse, slots, bricks, shape, index):
-    """(m,) f multilinear at (m, 3) fractional node indices of the grid of ``shape`` (3,); NaN where the index is
-    NaN.  The arithmetic of ``scipy.ndimage.map_coordinates(values, index.T, order=1, mode="nearest")`` (scipy 1.17),
-    bit for bit."""
-    out = np.empty(index.shape[0])
-    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
-    for p in range(index.shape[0]):
-        if _corners(index, p, shape, low, high, weight):
-            out[p] = _value(coarse, slots, bricks, low, high, weight)
-        else:
+def evaluate_at(coarse, slots, bricks, shape, origin, spacing, points):
+    """(m,) f multilinear at the (m, k) ``points`` of the grid of ``shape`` (3,) from ``origin`` (k,) by ``spacing``
+    (k,) (the arithmetic of ``scipy.ndimage.map_coordinates(values, index.T, order=1, mode="nearest")``, scipy
+    1.17, bit for bit); beyond the grid at most minus the distance to it; NaN at a NaN point."""
+    out = np.empty(len(points))
+    for p in range(len(points)):
+        number, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1 = _cell(points, p, origin, spacing, shape)
+        if not number:
             out[p] = np.nan
+            continue
+        value = _value(coarse, slots, bricks, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1)
+        squared = 0.0
+        for d in range(points.shape[1]):
+            beyond = (max(origin[d] - points[p, d], 0.0)
+                      + max(points[p, d] - (origin[d] + (shape[d] - 1) * spacing[d]), 0.0))
+            squared += beyond * beyond
+        out[p] = min(value, -np.sqrt(squared)) if squared > 0 else value
     return out
 
 
 @kernel
-def interpolate_gradient(coarse, slots, bricks, gradients, shape, spacing, index):
-    """(m, k) the central-difference gradient of f (``numpy.gradient(values, *spacing)``; k = len(spacing))
-    multilinear at (m, 3) fractional node indices, as :func:`interpolate` takes f; ``gradients`` is
-    :func:`brick_gradients`."""
-    out = np.empty((index.shape[0], len(spacing)))
-    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
-    for p in range(index.shape[0]):
-        if not _corners(index, p, shape, low, high, weight):
-            out[p] = np.nan
-            continue
-        for q in range(len(spacing)):
-            out[p, q] = _gradient(coarse, slots, bricks, gradients, shape, spacing, low, high, weight, q)
+def gradient_at(coarse, slots, bricks, gradients, shape, origin, spacing, points):
+    """(m, k) the central-difference gradient of f (``numpy.gradient(values, *spacing)``) multilinear at the (m, k)
+    ``points``, as :func:`evaluate_at` takes f; ``gradients`` is :func:`brick_gradients`."""
+    m, k = points.shape
+    out = np.empty((m, k))
+    for p in range(m):
+        number, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1 = _cell(points, p, origin, spacing, shape)
+        for q in range(k):
+            out[p, q] = _gradient(coarse, slots, bricks, gradients, shape, spacing, x0, x1, y0, y1, z0, z1,
+                                  a0, a1, b0, b1, c0, c1, q) if number else np.nan
     return out
 
 
 @kernel
 def newton_to_surface(coarse, slots, bricks, gradients, shape, origin, spacing, points, steps, settled):
     """(m, k) points moved onto f = 0 by up to ``steps`` Newton steps along the interpolated gradient (as
-    :func:`interpolate` and :func:`interpolate_gradient` take f and grad f), each at most the largest spacing
+    :func:`evaluate_at` and :func:`gradient_at` take f and grad f), each at most the largest spacing
     long; beyond the grid f is at most minus the distance to it.  A point stops once a step is shorter than
     ``settled`` (its next ones would be shorter still); a NaN point stays NaN."""
     m, k = points.shape
     out = points.copy()
-    index = np.zeros((1, 3))
-    low, high, weight = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros((3, 2))
     gradient = np.zeros(k)
     limit = spacing.max()
     for p in range(m):
         for _ in range(steps):
             beyond = 0.0
             for d in range(k):
-                index[0, d] = (out[p, d] - origin[d]) / spacing[d]
-                outside = max(-index[0, d], index[0, d] - (shape[d] - 1.0), 0.0) * spacing[d]
+                index = (out[p, d] - origin[d]) / spacing[d]
+                outside = max(-index, index - (shape[d] - 1.0), 0.0) * spacing[d]
                 beyond += outside * outside
-            if not _corners(index, 0, shape, low, high, weight):
+            number, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1 = _cell(out, p, origin, spacing, shape)
+            if not number:
                 break
-            value = _value(coarse, slots, bricks, low, high, weight)
+            value = _value(coarse, slots, bricks, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1)
             if beyond > 0:
                 value = min(value, -np.sqrt(beyond))
             squared = 0.0
             for q in range(k):
-                gradient[q] = _gradient(coarse, slots, bricks, gradients, shape, spacing, low, high, weight, q)
+                gradient[q] = _gradient(coarse, slots, bricks, gradients, shape, spacing, x0, x1, y0, y1, z0, z1,
+                                        a0, a1, b0, b1, c0, c1, q)
                 squared += gradient[q] * gradient[q]
             scale = -value / max(squared, 1e-12)
             length = abs(scale) * np.sqrt(squared)
@@ -263,12 +322,30 @@ def node_values(coarse, slots, bricks, shape, flat):
 
 @kernel
 def plane_values(coarse, slots, bricks, shape, first, last):
-    """(last - first, n_1, n_2) f on the nodes of the planes ``first`` to ``last`` - 1 along axis 0."""
+    """(last - first, n_1, n_2) f on the nodes of the planes ``first`` to ``last`` - 1 along axis 0: row by row
+    along axis 2, a brick's run of nodes copied, the refinement's computed from one row of the coarse grid refined
+    along axes 0 and 1 (each value as :func:`refined_value` takes it)."""
     out = np.empty((last - first, shape[1], shape[2]))
+    row = np.empty(coarse.shape[2])
     for x in range(first, last):
         for y in range(shape[1]):
-            for z in range(shape[2]):
-                out[x - first, y, z] = node_value(coarse, slots, bricks, x, y, z)
+            refined = False   # row holds the coarse grid refined along axes 0 and 1 at this (x, y)
+            for brick in range(slots.shape[2]):
+                start = brick << BRICK_SHIFT if slots.size > 1 else 0
+                end = min(start + (1 << BRICK_SHIFT), shape[2]) if slots.size > 1 else shape[2]
+                slot = 0 if slots.size == 1 else slots[x >> BRICK_SHIFT, y >> BRICK_SHIFT, brick]
+                if slot >= 0:
+                    bx, by = (x, y) if slots.size == 1 else (x & _MASK, y & _MASK)
+                    for z in range(start, end):
+                        out[x - first, y, z] = bricks[slot, bx, by, z - start]
+                    continue
+                if not refined:
+                    for cz in range(coarse.shape[2]):
+                        row[cz] = _refined_1(coarse, x, y, cz)
+                    refined = True
+                for z in range(start, end):
+                    half = z // 2
+                    out[x - first, y, z] = row[half] if z % 2 == 0 else 0.5 * (row[half] + row[half + 1])
     return out
 
 
