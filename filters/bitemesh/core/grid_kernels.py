@@ -150,10 +150,10 @@ def _value(coarse, slots, bricks, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1
         return _mix(f[x0, y0, z0], f[x0, y0, z1], f[x0, y1, z0], f[x0, y1, z1], f[x1, y0, z0], f[x1, y0, z1],
                     f[x1, y1, z0], f[x1, y1, z1], a0, a1, b0, b1, c0, c1)
     if slot == -1:
-        return _mix(refined_value(coarse, x0, y0, z0), refined_value(coarse, x0, y0, z1),
-                    refined_value(coarse, x0, y1, z0), refined_value(coarse, x0, y1, z1),
-                    refined_value(coarse, x1, y0, z0), refined_value(coarse, x1, y0, z1),
-                    refined_value(coarse, x1, y1, z0), refined_value(coarse, x1, y1, z1), a0, a1, b0, b1, c0, c1)
+        return _mix(_far_refined(coarse, x0, y0, z0), _far_refined(coarse, x0, y0, z1),
+                    _far_refined(coarse, x0, y1, z0), _far_refined(coarse, x0, y1, z1),
+                    _far_refined(coarse, x1, y0, z0), _far_refined(coarse, x1, y0, z1),
+                    _far_refined(coarse, x1, y1, z0), _far_refined(coarse, x1, y1, z1), a0, a1, b0, b1, c0, c1)
     return _mix(node_value(coarse, slots, bricks, x0, y0, z0), node_value(coarse, slots, bricks, x0, y0, z1),
                 node_value(coarse, slots, bricks, x0, y1, z0), node_value(coarse, slots, bricks, x0, y1, z1),
                 node_value(coarse, slots, bricks, x1, y0, z0), node_value(coarse, slots, bricks, x1, y0, z1),
