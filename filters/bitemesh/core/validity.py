@@ -3,8 +3,9 @@
 :func:`boundary_euler_characteristic`); also the checks of a mesh's arrays that every measure makes.  The element
 quality is :mod:`bitemesh.core.quality`, which re-exports these names.
 
-Topology is computed exactly with integers: every facet or edge becomes an integer key of its sorted vertex
-indices, and ``np.unique`` groups equal keys.
+Topology is computed exactly with integers: the cells across each facet come from a hash table of the facets'
+sorted vertices (:func:`~bitemesh.core.adjacency.cell_neighbours`), and edges are grouped by their sorted vertices
+(:func:`~bitemesh.core.topology.face_groups`).
 """
 from __future__ import annotations
 
