@@ -60,6 +60,14 @@ def test_the_dense_grid_interpolates_as_scipy_and_numpy_do(dim):
     inside = np.all((points >= dense.origin) & (points <= dense.upper), axis=1)
     expected = map_coordinates(dense.values, index, order=1, mode="nearest")
     assert np.array_equal(dense.evaluate(points)[inside], expected[inside])
+    # beyond the grid (up to 3 box sizes away): at most minus the distance to its box, the nearest node's value
+    # where that is lower
+    far = np.random.default_rng(3).uniform(-4.0, 4.0, (3000, dim))
+    nearest = map_coordinates(dense.values, ((far - dense.origin) / dense.spacing).T, order=1, mode="nearest")
+    distance = np.linalg.norm(np.maximum(dense.origin - far, 0) + np.maximum(far - dense.upper, 0), axis=1)
+    beyond = distance > 0
+    assert (beyond & (-distance < nearest)).sum() > 100 and (beyond & (-distance > nearest)).sum() > 100
+    assert np.array_equal(dense.evaluate(far), np.where(beyond, np.minimum(nearest, -distance), nearest))
     for axis, component in enumerate(np.gradient(dense.values, *dense.spacing)):
         expected = map_coordinates(component, index, order=1, mode="nearest")
         assert np.array_equal(dense.gradient(points)[:, axis], expected, equal_nan=True)

@@ -95,15 +95,15 @@ def _grouped_faces(simplices: np.ndarray, corners: np.ndarray, n_points: int, wi
                 origin[fill[face[0]]] = c * faces + q
             fill[face[0]] += 1
     inverse = np.empty(m * faces if with_inverse else 0, np.int64)
-    low, key, counts = np.empty(m * faces, np.int64), np.empty(m * faces, np.int64), np.zeros(m * faces, np.int64)
-    group = -1
+    low, key, counts = np.empty(m * faces, np.int64), np.empty(m * faces, np.int64), np.empty(m * faces, np.int64)
+    group = -1   # the arrays of the groups are filled as far as the groups go: only those pages are touched
     for v in range(n_points):
         bucket = rest[start[v]:start[v + 1]]
         order = np.argsort(bucket)
         for i in range(len(order)):
             if i == 0 or bucket[order[i]] != bucket[order[i - 1]]:
                 group += 1
-                low[group], key[group] = v, bucket[order[i]]
+                low[group], key[group], counts[group] = v, bucket[order[i]], 0
             counts[group] += 1
             if with_inverse:
                 inverse[origin[start[v] + order[i]]] = group
