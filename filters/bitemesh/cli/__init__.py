@@ -76,12 +76,19 @@ def main(argv=None) -> int:
                 raise KeyboardInterrupt
         return _run(argv)
     except KeyboardInterrupt:
+        if _held_back is not None:   # the program: what the interrupt left half-built is torn down in silence
+            sys.unraisablehook = _silent
         print("\nbitemesh: cancelled", file=sys.stderr)
         return 130
     finally:
         logger.removeHandler(handler)
         logger.setLevel(previous_level)
         warnings.showwarning = shown
+
+
+def _silent(unraisable) -> None:
+    """After a cancel, an object whose construction the interrupt cut short (numba's compiler, for one) may fail
+    in its ``__del__``; Python would print that as "Exception ignored ... Traceback".  The user asked to stop."""
 
 
 def command() -> None:
