@@ -38,7 +38,8 @@ import warnings
 
 import numpy as np
 
-from .cell_measures import mean_edge_length, off_surface_nodes, signed_radius_ratio, smallest_angles
+from .cell_measures import (boundary_nodes, mean_edge_length, off_surface_nodes, signed_radius_ratio,
+                            smallest_angles)
 from .errors import BitemeshWarning, InvalidInputError, MeshingError
 from .grid import ImplicitGrid
 from .mesh import Mesh
@@ -49,6 +50,11 @@ from .relax import (INTERIOR_MARGIN, MAX_MOVE, MEAN_GAIN, PATIENCE, REVERT_ROUND
                     SMOOTH_POWER, STEP_FRACTIONS, SURFACE_TOLERANCE, odt_targets, relax, smooth)
 from .slivers import SLIVER_ROUNDS, SMOOTH_ITERATIONS, peel, poor_cells, remove_slivers  # noqa: F401 (re-exported)
 from .validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
+
+
+#: a cell whose nodes all lie on the boundary is flat against one side of the surface when the unit normal
+#: (grad f) at each node is within acos(FLAT_AGREEMENT) = 60 degrees of their mean; across a wall they oppose.
+FLAT_AGREEMENT = 0.5
 
 
 def _defects(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters, tolerance: float) -> tuple:
@@ -119,19 +125,43 @@ def optimize_mesh(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters
                                   f"below {parameters.min_dihedral:g} degrees or a radius ratio below "
                                   f"{parameters.min_quality:g}, {off} boundary nodes off f = 0")
             if poor:
-                warn_missed_bounds(states[index], parameters, poor)
+                warn_missed_bounds(grid, states[index], parameters, poor)
             return states[index]
     raise MeshingError("the mesh is not a valid domain, and optimising did not make it one: "
                        + "; ".join(check_valid_domain(start)))
 
 
-def warn_missed_bounds(mesh: Mesh, parameters: OptimizeParameters, poor: int) -> None:
-    """A :class:`BitemeshWarning` with the figures: the optimised mesh still has ``poor`` cells below its bounds."""
+def warn_missed_bounds(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParameters, poor: int) -> None:
+    """A :class:`BitemeshWarning` with the figures: the optimised mesh still has ``poor`` cells below its bounds,
+    and where they lie (flat against the surface, or across a wall a few cells thick), each with the hint that
+    works there."""
+    cells = mesh.cells[poor_cells(mesh.points, mesh.cells, parameters.min_dihedral, parameters.min_quality)]
+    normals = grid.gradient(mesh.points[cells].reshape(-1, mesh.dim)).reshape(*cells.shape, mesh.dim)
+    normals /= np.maximum(np.linalg.norm(normals, axis=2, keepdims=True), 1e-300)
+    mean = normals.sum(axis=1)
+    mean /= np.maximum(np.linalg.norm(mean, axis=1, keepdims=True), 1e-300)
+    facing_one_way = np.einsum("ckd,cd->ck", normals, mean).min(axis=1) > FLAT_AGREEMENT
+    near_flat = np.zeros(len(mesh.points), bool)   # the nodes of the cells flat against one side of the surface
+    near_flat[cells[boundary_nodes(mesh.cells, len(mesh.points))[cells].all(axis=1) & facing_one_way]] = True
+    flat = int(near_flat[cells].any(axis=1).sum())   # those cells and the poor cells beside them
     angle = float(smallest_angles(mesh.points, mesh.cells).min())
     quality = float(signed_radius_ratio(mesh.points, mesh.cells).min())
+    where = []
+    if flat:
+        where.append(f"{flat} {_lie(flat)} flat against the surface, every node on the boundary, or beside such a "
+                     "cell (where the surface triangulation folds over a curved or creased part; the optimiser keeps "
+                     "the boundary facets): another seed places the nodes differently")
+    if len(cells) > flat:
+        where.append(f"{len(cells) - flat} {_lie(len(cells) - flat)} elsewhere: across walls only a few cells thick, "
+                     "which leave no room to repair them (lower radius, or raise cells, to put more cells across the "
+                     "thinnest wall), or below bounds stricter than uniform cells allow (lower min_dihedral or "
+                     "min_quality)")
     warnings.warn(
         f"the optimiser could not meet its bounds: {poor} of {len(mesh.cells)} cells remain below min_dihedral = "
         f"{parameters.min_dihedral:g} degrees or min_quality = {parameters.min_quality:g} (smallest angle "
-        f"{angle:.1f} degrees, smallest radius ratio {quality:.3f}); walls only a few cells thick leave no room to "
-        "repair them: lower radius (or raise cells) to put more cells across the thinnest wall", BitemeshWarning,
+        f"{angle:.1f} degrees, smallest radius ratio {quality:.3f}); " + "; ".join(where), BitemeshWarning,
         stacklevel=2)
+
+
+def _lie(count: int) -> str:
+    return "lies" if count == 1 else "lie"
