@@ -71,13 +71,11 @@ def main(argv=None) -> int:
     warnings.showwarning = _show_warning
     try:
         if _held_back is not None:   # the program's start: Ctrl-C cancels from here on
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGINT, _interrupt)
             if _held_back:
-                raise KeyboardInterrupt
+                _interrupt()
         return _run(argv)
     except KeyboardInterrupt:
-        if _held_back is not None:   # the program: what the interrupt left half-built is torn down in silence
-            sys.unraisablehook = _silent
         print("\nbitemesh: cancelled", file=sys.stderr)
         return 130
     finally:
@@ -86,9 +84,13 @@ def main(argv=None) -> int:
         warnings.showwarning = shown
 
 
-def _silent(unraisable) -> None:
-    """After a cancel, an object whose construction the interrupt cut short (numba's compiler, for one) may fail
-    in its ``__del__``; Python would print that as "Exception ignored ... Traceback".  The user asked to stop."""
+def _interrupt(number=None, frame=None):
+    """The program's Ctrl-C: a KeyboardInterrupt, and from then on the errors of ``__del__`` methods are not shown.
+    An object whose construction the interrupt cut short (numba's compiler, on a first run) may fail in its
+    ``__del__`` as the interrupt unwinds; Python would print "Exception ignored ... Traceback".  The user asked to
+    stop."""
+    sys.unraisablehook = lambda unraisable: None
+    raise KeyboardInterrupt
 
 
 def command() -> None:
