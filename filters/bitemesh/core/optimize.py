@@ -14,19 +14,21 @@
    (:func:`bitemesh.core.relax.smooth`), which moves the nodes down sum over the cells of (1 / mean ratio)^2
    (Knupp's inverse mean ratio, infinite for a flat cell) with the boundary nodes sliding on f = 0.  A poor cell
    left (an angle below ``min_dihedral`` or a radius ratio below ``min_quality``) that lies on the surface is
-   peeled (:func:`bitemesh.core.slivers.peel`).  The rounds end when no cell is poor (within ``SLIVER_ROUNDS``).
+   peeled (:func:`bitemesh.core.slivers.peel`); from the second round, one that lies flat against it, every node
+   on the boundary (where the surface triangulation folds), loses a boundary edge to a collapse
+   (:mod:`bitemesh.core.collapse`).  The rounds end when no cell is poor (within ``SLIVER_ROUNDS``).
 4. Nothing turns a valid mesh into an invalid one: flips only replace cells inside the domain and smoothing keeps
    every cell positive; :func:`bitemesh.core.validity.check_valid_domain` then judges the states met, and the best
    valid one is returned (the input itself when nothing did better).  Nor does anything change its topology (the
    boundary's components and Euler characteristic, :func:`topology`): the relaxation and the flips keep the
-   boundary facets, and a state whose topology differs all the same is abandoned (the sliver removal then starts
-   from the input).
+   boundary facets, a collapse is checked around it, and a state whose topology differs all the same is abandoned
+   (the sliver removal then starts from the input).
 
-The nodes are the biting's, only moved: the node spacing stays uniform.  Everything is deterministic.  Measured on
-the sphere of 10,000 cells of ``benchmarks/peers.py``: mean radius ratio 0.81 -> 0.90, smallest dihedral angle
-0.8 -> 31 degrees, edge-length CV 0.17 -> 0.13, in 0.4 s; on the two-cavity heart of 136,000 cells 10 s (19 s with
-the passes of independent Delaunay flips that Lawson's replaced, 27 s with a new Delaunay triangulation per
-iteration before them), with the same quality.
+The nodes are the biting's, only moved (but for the few collapsed away at folds): the node spacing stays uniform.
+Everything is deterministic.  Measured on the sphere of 10,000 cells of ``benchmarks/peers.py``: mean radius ratio
+0.81 -> 0.90, smallest dihedral angle 0.8 -> 31 degrees, edge-length CV 0.17 -> 0.13, in 0.4 s; on the two-cavity
+heart of 136,000 cells 10 s (19 s with the passes of independent Delaunay flips that Lawson's replaced, 27 s with a
+new Delaunay triangulation per iteration before them), with the same quality.
 
 This module runs the steps and picks the state returned (:func:`optimize_mesh`); the relaxation and the smoothing
 live in :mod:`bitemesh.core.relax`, the sliver removal in :mod:`bitemesh.core.slivers`, and their names are
@@ -149,8 +151,8 @@ def warn_missed_bounds(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeParam
     where = []
     if flat:
         where.append(f"{flat} {_lie(flat)} flat against the surface, every node on the boundary, or beside such a "
-                     "cell (where the surface triangulation folds over a curved or creased part; the optimiser keeps "
-                     "the boundary facets): another seed places the nodes differently")
+                     "cell (where the surface triangulation folds over a curved or creased part and no edge "
+                     "collapse helped): another seed places the nodes differently")
     if len(cells) > flat:
         where.append(f"{len(cells) - flat} {_lie(len(cells) - flat)} elsewhere: across walls only a few cells thick, "
                      "which leave no room to repair them (lower radius, or raise cells, to put more cells across the "

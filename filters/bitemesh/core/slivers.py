@@ -2,7 +2,8 @@
 (:mod:`bitemesh.core.flips`), which replace the cells around an interior edge (edge removal: 3-2, 4-4, 5-6 ...
 flips) or on both sides of an interior facet (2-3 flips; 2-2 in 2D) when that raises the worst radius ratio among
 them, then of smoothing (:func:`bitemesh.core.relax.smooth`).  A poor cell left (an angle below ``min_dihedral`` or
-a radius ratio below ``min_quality``, :func:`poor_cells`) that lies on the surface is peeled (:func:`peel`).  The
+a radius ratio below ``min_quality``, :func:`poor_cells`) that lies on the surface is peeled (:func:`peel`); from
+the second round, one flat against it loses a boundary edge to a collapse (:mod:`bitemesh.core.collapse`).  The
 rounds end when no cell is poor (within ``SLIVER_ROUNDS``).
 """
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .cell_measures import signed_radius_ratio, smallest_angles
+from .collapse import collapse_flat_cells
 from .flips import flip
 from .grid import ImplicitGrid
 from .progress import ProgressCallback, report, sub_progress
@@ -58,7 +60,8 @@ def remove_slivers(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, mi
                    min_quality: float, progress: ProgressCallback = None) -> list:
     """Rounds of :func:`flip` and :func:`smooth` until no cell is poor (:func:`poor_cells`).
 
-    After a round's smoothing, the poor cells that lie on the surface are peeled (:func:`peel`).  At least two
+    After a round's smoothing, the poor cells that lie on the surface are peeled (:func:`peel`), and from the
+    second round those flat against it collapse (:func:`collapse_flat_cells`).  At least two
     rounds (the second gains from the first's flips), at most ``SLIVER_ROUNDS``; they stop once no cell is poor
     and the mean radius ratio no longer rises by ``MEAN_GAIN``.
 
@@ -79,6 +82,11 @@ def remove_slivers(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, mi
         if peeled is not cells:
             cells, quality = peeled, signed_radius_ratio(points, peeled)
             poor = poor_cells(points, cells, min_angle, min_quality, quality)
+        if round_ >= 1 and len(poor):   # what a round of flips and smoothing left flat against the surface
+            points, collapsed = collapse_flat_cells(points, cells, poor)
+            if collapsed is not cells:
+                cells, quality = collapsed, signed_radius_ratio(points, collapsed)
+                poor = poor_cells(points, cells, min_angle, min_quality, quality)
         states.append((points, cells))
         previous, mean = mean, quality.mean()
         report(progress, (round_ + 1) / SLIVER_ROUNDS,
