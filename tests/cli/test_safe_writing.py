@@ -75,15 +75,8 @@ def test_a_full_disk_leaves_the_previous_file(points_file, previous, tmp_path):
 def test_ctrl_c_while_the_program_loads_cancels_once_main_runs(points_file, previous):
     """A Ctrl-C that arrives while the bitemesh package is imported (before main's guard) is held back, not lost and
     not a traceback: main cancels at once.  Deterministic: the signal is sent in the middle of the imports."""
-    path, before = previous
-    script = ("import os, signal, sys; sys.argv = ['bitemesh', *sys.argv[1:]]; import bitemesh.cli as cli; "
-              "os.kill(os.getpid(), signal.SIGINT); import bitemesh.cli.mesh; cli.command()")
-    env = {**os.environ, "PYTHONPATH": str(FILTERS)}
-    done = subprocess.run([sys.executable, "-c", script, "mesh", str(points_file), "-o", str(path)], env=env,
-                          capture_output=True, text=True, timeout=120)
-    assert done.returncode == 130, done.stderr
-    assert done.stderr.strip().splitlines() == ["bitemesh: cancelled"], done.stderr
-    assert path.read_bytes() == before
+    assert_cancelled_once("os.kill(os.getpid(), signal.SIGINT); import bitemesh.cli.mesh; cli.command()",
+                          points_file, previous)
 
 
 @POSIX
@@ -91,18 +84,23 @@ def test_ctrl_c_that_cuts_an_object_short_prints_no_traceback(points_file, previ
     """Ctrl-C inside a constructor (numba's compiler, on the first run) leaves a half-built object whose __del__
     fails as the interrupt unwinds; that is not the user's business: one line, 130.  Deterministic: the signal
     arrives inside such a constructor."""
+    assert_cancelled_once("\nclass HalfBuilt:\n"
+                          "    def __init__(self):\n"
+                          "        os.kill(os.getpid(), signal.SIGINT)\n"
+                          "        self.handle = open(os.devnull)\n"
+                          "    def __del__(self): self.handle.close()\n"
+                          "def run(argv): HalfBuilt()\n"
+                          "cli._run = run; cli.command()", points_file, previous)
+
+
+def assert_cancelled_once(script, points_file, previous):
+    """Run ``script`` as the ``bitemesh mesh`` program (after its imports: os, signal, sys, bitemesh.cli as cli):
+    exit code 130, the one line "bitemesh: cancelled" on stderr, the previous file kept."""
     path, before = previous
-    script = ("import os, signal, sys; sys.argv = ['bitemesh', *sys.argv[1:]]; import bitemesh.cli as cli\n"
-              "class HalfBuilt:\n"
-              "    def __init__(self):\n"
-              "        os.kill(os.getpid(), signal.SIGINT)\n"
-              "        self.handle = open(os.devnull)\n"
-              "    def __del__(self): self.handle.close()\n"
-              "def run(argv): HalfBuilt()\n"
-              "cli._run = run; cli.command()")
+    start = ("import os, signal, sys; sys.argv = ['bitemesh', *sys.argv[1:]]; import bitemesh.cli as cli; ")
     env = {**os.environ, "PYTHONPATH": str(FILTERS)}
-    done = subprocess.run([sys.executable, "-c", script, "mesh", str(points_file), "-o", str(path)], env=env,
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-c", start + script, "mesh", str(points_file), "-o", str(path)],
+                          env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 130, done.stderr
     assert done.stderr.strip().splitlines() == ["bitemesh: cancelled"], done.stderr
     assert path.read_bytes() == before
