@@ -70,7 +70,8 @@ def _order_runs(order, key, tie) -> None:
         if end < order.size and key[order[end]] == key[order[start]]:
             continue
         if end - start > 1:
-            run = np.sort(order[start:end])   # by index, then stably by tie
+            run = order[start:end]
+            run = run[np.argsort(run, kind="mergesort")]   # by index, then stably by tie (one sort compiled)
             order[start:end] = run[np.argsort(tie[run], kind="mergesort")]
         start = end
 
