@@ -24,9 +24,9 @@ from tests.cohorts.conftest import FLAGS, OPTIONS, write_manifest
 #: case -> (input, its own options): the manifest's rows
 CASES = {"sphere": ("sphere", {}), "sphere_seed3": ("sphere", {"seed": 3}), "annulus": ("annulus", {"method": "rbf"}),
          "ball": ("ball", {}), "ball_ras": ("ball", {"ras": 1}), "broken": ("broken", {})}
-#: the biv-me GPFile, kept at this coarse size by its own allow_implausible column (20 s a run: slow)
-HEART = {"heart": ("heart", {"allow_implausible": 1})}
-COLUMNS = ("seed", "method", "ras", "allow_implausible")
+#: the biv-me GPFile, kept at this coarse size by its own allow_implausible column, with its fibres (20 s a run: slow)
+HEART = {"heart": ("heart", {"allow_implausible": 1, "fibres": 1})}
+COLUMNS = ("seed", "method", "ras", "allow_implausible", "fibres")
 #: one BLAS thread, as Dask gives each worker: the RBF solves' last bits depend on the BLAS thread count
 ONE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
 
@@ -34,7 +34,7 @@ ONE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", 
 def flags_of(own: dict) -> list:
     """The ``bitemesh mesh`` flags of a case's own manifest columns."""
     return [flag for option, value in own.items() for flag in
-            ([f"--{option.replace('_', '-')}"] if option in ("allow_implausible", "ras") else
+            ([f"--{option.replace('_', '-')}"] if option in ("allow_implausible", "ras", "fibres") else
              [f"--{option}", str(value)])]
 
 
@@ -95,7 +95,16 @@ def test_a_gpfile_case_is_its_single_run_bit_for_bit(client, inputs, tmp_path):
     rows, output, single, _ = mesh_both(client, {**HEART, "sphere": CASES["sphere"]}, inputs, tmp_path)
     assert [row["status"] for row in rows] == ["done", "done"]
     assert "not plausible" in rows[0]["message"]   # kept by its own allow_implausible column, and said so
-    assert_same_meshes(rows, output, single)
+    assert_same_meshes(rows, output, single)   # the fibres of its fibres column too, as bitemesh mesh --fibres
+    assert {"Fibre", "Sheet", "SheetNormal", "HelixAngle"} <= read_mesh(output / "heart.vtu").cell_data.keys()
+
+
+def test_fibres_into_a_format_without_cell_arrays_fail_that_case_before_any_work(inputs, tmp_path):
+    """No cluster starts: the case is refused while the cases are read, with the message of bitemesh mesh."""
+    rows = batch([str(inputs["sphere"])], {**OPTIONS, "fibres": 1}, output_dir=tmp_path / "out", extension=".msh")
+    assert [row["status"] for row in rows] == ["failed"]
+    assert "--fibres: a .msh file keeps no cell arrays" in rows[0]["message"] and ".vtu" in rows[0]["message"]
+    assert not (tmp_path / "out" / "sphere.msh").exists()
 
 
 def test_a_broken_case_is_its_failed_row_and_the_others_go_on(cohort):

@@ -23,7 +23,6 @@ def add_parser(subcommands) -> None:
     parser.add_argument("input", help="the scattered points, or a label map")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_mesh_options(parser)
-    add_fibre_options(parser)
     parser.set_defaults(run=run)
 
 
@@ -39,6 +38,7 @@ def add_mesh_options(parser) -> None:
     labels.add_argument("--label", type=int, action="append", metavar="N",
                         help=describe(label.metadata, None) + " (repeat for a union)")
     labels.add_argument("--ras", action="store_true", help="write the mesh in RAS (3D Slicer) instead of LPS (ITK)")
+    add_fibre_options(parser)
 
 
 def run(args) -> None:

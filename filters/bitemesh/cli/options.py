@@ -7,6 +7,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 
 from ..core.errors import InvalidInputError
+from ..cohorts.meshing import fibres_asked
 from ..core.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
 from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
 from ..core.quality import quality_summary
@@ -50,10 +51,6 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
                                default=item.default, help=help)
 
 
-#: the mesh formats that keep no cell arrays but the regions (see bitemesh.io.meshes): the fibres cannot go there.
-NO_CELL_ARRAYS = (".msh", ".inp", ".mesh")
-
-
 def add_fibre_options(parser) -> None:
     """``--fibres`` and the angles of the rule (FibreParameters)."""
     add_parameter_options(parser, (FibreParameters,))
@@ -62,14 +59,7 @@ def add_fibre_options(parser) -> None:
 def fibre_parameters(args):
     """The FibreParameters of ``--fibres`` and the angles, checked (ranges) before any work, or None without
     ``--fibres``; an output that would drop the fibres is refused."""
-    parameters = parameters_from_args(args, (FibreParameters,))[0]
-    if not parameters.fibres:
-        return None
-    suffix = Path(args.output).suffix.lower()
-    if suffix in NO_CELL_ARRAYS:
-        raise InvalidInputError(f"--fibres: a {suffix} file keeps no cell arrays but the regions, so the fibres "
-                                f"would be lost; write .vtu or .vtk, which keep {', '.join(FIBRE_ARRAYS)}")
-    return parameters
+    return fibres_asked({item.name: getattr(args, item.name) for item in fields(FibreParameters)}, args.output)
 
 
 def add_fibres(result, parameters):

@@ -7,16 +7,19 @@ from __future__ import annotations
 
 import difflib
 from dataclasses import fields
+from pathlib import Path
 
 from ..core.errors import InvalidInputError
+from ..core.fibres import FIBRE_ARRAYS, FibreParameters
 from ..core.parameters import (AUTOMATIC, STEP_PARAMETERS, LabelledParameters, LabelMapParameters,
                                TableParameters, is_optional)
 from ..core.pipeline import run as run_pipeline
 from ..core.spine import MeshingResult
-from ..io import LABEL_MAP_EXTENSIONS, looks_labelled, read_labelled_config, read_labelled_points, read_points
+from ..io import (LABEL_MAP_EXTENSIONS, NO_CELL_ARRAYS, looks_labelled, read_labelled_config, read_labelled_points,
+                  read_points)
 
 #: the parameter dataclasses of ``bitemesh mesh``, in the order its help lists them.
-OPTION_CLASSES = (TableParameters, *STEP_PARAMETERS, LabelledParameters)
+OPTION_CLASSES = (TableParameters, *STEP_PARAMETERS, LabelledParameters, FibreParameters)
 #: the options of ``bitemesh mesh`` that are no dataclass field: label map labels, RAS output, a config file.
 EXTRA_OPTIONS = {"label": None, "ras": False, "config": None}
 OPTION_NAMES = tuple(item.name for cls in OPTION_CLASSES for item in fields(cls)) + tuple(EXTRA_OPTIONS)
@@ -56,6 +59,20 @@ def resolved(options) -> dict:
     full["ras"] = bool(full["ras"])
     full["config"] = None if full["config"] in (None, "") else str(full["config"])
     return full
+
+
+def fibres_asked(options: dict, output) -> FibreParameters | None:
+    """The FibreParameters of ``options`` (names of ``bitemesh mesh`` flags; the angles checked) when ``fibres`` is
+    on, else None; an ``output`` (path) in a format that keeps no cell arrays is refused, before any work."""
+    parameters = FibreParameters(**{item.name: options[item.name] for item in fields(FibreParameters)
+                                    if item.name in options})
+    if not parameters.fibres:
+        return None
+    suffix = Path(output).suffix.lower()
+    if suffix in NO_CELL_ARRAYS:
+        raise InvalidInputError(f"--fibres: a {suffix} file keeps no cell arrays but the regions, so the fibres "
+                                f"would be lost; write .vtu or .vtk, which keep {', '.join(FIBRE_ARRAYS)}")
+    return parameters
 
 
 def parse_option(name: str, text: str, where: str = "manifest"):

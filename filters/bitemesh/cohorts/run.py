@@ -13,14 +13,16 @@ import os
 import secrets
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 from ..core.errors import BitemeshError, InvalidInputError
+from ..core.fibres import with_fibres
 from ..core.progress import ProgressCallback
 from ..core.quality import quality_summary
 from ..io import stale_partials, write_mesh
 from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
-from .meshing import mesh_input, resolved
+from .meshing import fibres_asked, mesh_input, resolved
 from .report import picture_path, render_cut, save_picture, write_report, write_summary
 
 #: the columns of summary.csv (R, fidelity and volume in input units; seconds of wall clock on the worker)
@@ -84,7 +86,11 @@ def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            result = mesh_input(case.input, {**options, **case.options})
+            full = {**options, **case.options}
+            result = mesh_input(case.input, full)
+            fibres = fibres_asked(full, case.output_name)
+            if fibres is not None:   # as bitemesh mesh --fibres adds them
+                result = replace(result, mesh=with_fibres(result.mesh, fibres)[0])
             write_mesh(result.mesh, output_dir / case.output_name)
     except Exception as error:   # noqa: BLE001 (one case's failure, whatever it is, is its row)
         message = str(error) if isinstance(error, BitemeshError) else f"{type(error).__name__}: {error}"
@@ -221,7 +227,7 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
     digests, rows = {}, {}
     for case in cases:
         try:
-            resolved({**options, **case.options})
+            fibres_asked(resolved({**options, **case.options}), case.output_name)   # refused before any work
             digests[case.name] = case_hash(case, options)
         except OSError as error:
             rows[case.name] = row_of(case, "failed", f"cannot read '{case.input}': {error.strerror or error}")

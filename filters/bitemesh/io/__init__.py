@@ -13,8 +13,8 @@ from .contours import (LABELLED_EXTENSIONS, LABELLED_CONFIG_KEYS, looks_labelled
                        read_labelled_points)
 from .files import atomic_output, stale_partials  # noqa: F401
 from .labelmaps import LABEL_MAP_EXTENSIONS, LabelMap, read_label_map  # noqa: F401
-from .meshes import (FACET_ARRAY, MESH_EXTENSIONS, MESHIO_FORMATS, REGION_ARRAYS, mesh_files, read_mesh,  # noqa: F401
-                     write_mesh)
+from .meshes import (FACET_ARRAY, MESH_EXTENSIONS, MESHIO_FORMATS, NO_CELL_ARRAYS, REGION_ARRAYS,  # noqa: F401
+                     mesh_files, read_mesh, write_mesh)
 from .pointsets import POINT_EXTENSIONS, TEXT_POINT_EXTENSIONS, VTK_POINT_EXTENSIONS, read_points  # noqa: F401
 
 

@@ -32,6 +32,8 @@ from .files import atomic_outputs, existing_file, meshio_warnings, native, suppo
 from .xdmf import write_grid
 
 MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf")
+#: the mesh formats that keep no cell arrays but the regions: the fibres (or any cell vector) cannot go there.
+NO_CELL_ARRAYS = (".msh", ".inp", ".mesh")
 
 #: meshio file format written for each extension meshio writes (``.msh`` is gmsh 2.2 ASCII, ``.vtk`` legacy 4.2
 #: binary); ``.xdmf`` is written by :mod:`.xdmf` and read by meshio.
