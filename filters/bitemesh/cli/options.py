@@ -6,8 +6,8 @@ import time
 from dataclasses import fields, replace
 from pathlib import Path
 
-from ..core.errors import InvalidInputError
 from ..cohorts.meshing import fibres_asked
+from ..core.errors import InvalidInputError
 from ..core.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
 from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
 from ..core.quality import quality_summary
