@@ -154,33 +154,28 @@ def located(mesh, points, candidates: int = 32) -> np.ndarray:
 
 
 def base_opening(mesh, function, name, lower, upper, depth=1.0, spacing=1.0) -> float:
-    """Fraction of the cavity's section ``depth`` below the base plane (where its implicit exceeds 1 mm) that lies
+    """Fraction of the cavity's section ``depth`` below the base (where its implicit exceeds 1 mm) that lies
     outside the mesh: about 1 when the cavity opens through the base, about 0 under a lid."""
-    point, normal = function.base
-    first = np.cross(normal, [1.0, 0, 0] if abs(normal[0]) < 0.9 else [0, 1.0, 0])
-    first /= np.linalg.norm(first)
-    second = np.cross(normal, first)
-    reach = float(np.linalg.norm(upper - lower))
-    u = np.arange(-reach, reach, spacing)
-    grid = (point - depth * normal + u[:, None, None] * first + u[None, :, None] * second).reshape(-1, 3)
-    grid = grid[((grid >= lower) & (grid <= upper)).all(axis=1)]
+    axes = [np.arange(lo, hi, spacing) for lo, hi in zip(lower, upper)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    grid = grid[np.abs(function.base.below(grid) - depth) < spacing / 2]
     inside = grid[function.surfaces[name](grid) > 1.0]
     return float(np.mean(~located(mesh, inside))) if len(inside) else float("nan")
 
 
 def height(function, x):
-    """Signed height above the base plane (> 0: cut away)."""
+    """About the signed height above the base (> 0: cut away)."""
     if function.base is None:
         return np.full(len(x), -np.inf)
-    return (x - function.base[0]) @ function.base[1]
+    return -function.base.below(x)
 
 
 def deepest_point(surface, base, lower, upper, spacing=1.5):
-    """The point of largest implicit value of a cavity, at least 5 mm below the base plane."""
+    """The point of largest implicit value of a cavity, at least 5 mm below the base."""
     axes = [np.arange(lo, hi, spacing) for lo, hi in zip(lower, upper)]
     nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     if base is not None:
-        nodes = nodes[(nodes - base[0]) @ base[1] < -5.0]
+        nodes = nodes[base.below(nodes) > 5.0]
     values = surface(nodes)
     return nodes[int(np.argmax(values))], float(values.max())
 
@@ -225,7 +220,7 @@ def leave_one_slice_out(points, labels, slices, options):
         members = np.isin(labels, surfaces[name])
         _, first = np.unique(points[members], axis=0, return_index=True)
         index = np.flatnonzero(members)[np.sort(first)]
-        normals = contour_normals(points[index], slices[index], planes, name=name)
+        normals = contour_normals(points[index], slices[index], planes)
         for held in np.unique(slices[index]):
             keep = slices[index] != held
             rbf = labelled.fit_contour_rbf(points[index][keep], normals[keep], **fit_options)

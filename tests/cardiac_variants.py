@@ -117,3 +117,106 @@ def variant_file(shipped, name: str, folder) -> Path:
     build, header = VARIANTS[name]
     stem = "".join(c if c.isalnum() else "_" for c in name)
     return write_gpfile(build(read_gpfile(shipped)), Path(folder) / f"GPFile_{stem}.txt", header)
+
+
+# --- classes of variation on the frames of a cine (issue 30) ---------------------------------------------------------
+
+def contours(gp: dict):
+    """(label, slice id, indices in file order) of each contour: one label on one slice, three points or more."""
+    for label, slice_id in dict.fromkeys(zip(gp["labels"].tolist(), gp["slices"].tolist())):
+        members = np.flatnonzero((gp["labels"] == label) & (gp["slices"] == slice_id))
+        if len(members) >= 3 and "VALVE" not in label and "POINT" not in label and label != "RV_INSERT":
+            yield label, slice_id, members
+
+
+def in_plane_axes(points: np.ndarray) -> np.ndarray:
+    """(2, 3) orthonormal axes of the least-squares plane of (n, 3) points."""
+    return np.linalg.svd(points - points.mean(axis=0), full_matrices=False)[2][:2]
+
+
+def short_axis_slices(gp: dict) -> list:
+    """The slice ids of the short-axis contours, in file order."""
+    return list(dict.fromkeys(gp["slices"][np.char.startswith(gp["labels"].astype(str), "SAX_")].tolist()))
+
+
+def open_arcs(gp: dict, seed: int = 0, keep=(0.35, 0.7), share: float = 0.4) -> dict:
+    """A share of the contours (at random, seeded) traced only in part: each keeps one run of its points in file
+    order, 35 to 70 % of them, so that a closed contour becomes an open arc and an open one a shorter arc."""
+    rng = np.random.default_rng(seed)
+    drop = np.zeros(len(gp["labels"]), bool)
+    for _, _, members in contours(gp):
+        if rng.random() < share:
+            length = max(4, int(len(members) * rng.uniform(*keep)))
+            start = rng.integers(0, len(members) - length + 1)
+            drop[members] = True
+            drop[members[start:start + length]] = False
+    return subset(gp, ~drop)
+
+
+def short_arcs(gp: dict, seed: int = 0, slices: int = 4) -> dict:
+    """On ``slices`` short-axis slices (the most basal and apical among them), every contour cut to a short arc of 4
+    to 10 points, as dense exports leave at the base and the apex."""
+    rng = np.random.default_rng(seed)
+    chosen = short_axis_slices(gp)
+    chosen = set(chosen[:slices // 2] + chosen[len(chosen) - (slices - slices // 2):])
+    drop = np.zeros(len(gp["labels"]), bool)
+    for _, slice_id, members in contours(gp):
+        if slice_id in chosen:
+            length = int(rng.integers(4, 11))
+            start = rng.integers(0, max(1, len(members) - length + 1))
+            drop[members] = True
+            drop[members[start:start + length]] = False
+    return subset(gp, ~drop)
+
+
+def shifted_slices(gp: dict, seed: int = 0, largest: float = 5.0):
+    """Each short-axis slice moved in its plane by a random shift of up to ``largest`` mm (separate breath-holds);
+    the variant and slice id -> (3,) shift applied (mm)."""
+    rng = np.random.default_rng(seed)
+    points, shifts = gp["points"].copy(), {}
+    for slice_id in short_axis_slices(gp):
+        members = gp["slices"] == slice_id
+        axes = in_plane_axes(points[members])
+        angle, length = rng.uniform(0, 2 * np.pi), rng.uniform(0.4, 1.0) * largest
+        shifts[slice_id] = length * (np.cos(angle) * axes[0] + np.sin(angle) * axes[1])
+        points[members] += shifts[slice_id]
+    return {**gp, "points": points}, shifts
+
+
+def thinned_contours(gp: dict, step: int = 3) -> dict:
+    """Every ``step``-th point of each contour (a sparser export), the valves and landmarks kept."""
+    keep = np.ones(len(gp["labels"]), bool)
+    for _, _, members in contours(gp):
+        keep[members] = False
+        keep[members[::step]] = True
+    return subset(gp, keep)
+
+
+def merged(first: dict, second: dict) -> dict:
+    """Two frames in one file (each keeps its time-frame column)."""
+    return {key: np.concatenate([first[key], second[key]]) for key in first}
+
+
+#: name -> builder (the frames' folder, the frame) -> (the variant, the time frame to read or None)
+CLASSES = {
+    "open arcs": lambda folder, frame: (open_arcs(read_frame(folder, frame)), None),
+    "short arcs": lambda folder, frame: (short_arcs(read_frame(folder, frame)), None),
+    "slices shifted 5 mm": lambda folder, frame: (shifted_slices(read_frame(folder, frame))[0], None),
+    "sparser 3x": lambda folder, frame: (thinned_contours(read_frame(folder, frame)), None),
+    "denser 4x": lambda folder, frame: (denser(read_frame(folder, frame)), None),
+    "no RV epicardium": lambda folder, frame: (without(read_frame(folder, frame), RV_EPICARDIUM), None),
+    "frames merged": lambda folder, frame: (merged(read_frame(folder, frame), read_frame(folder, (frame + 8) % 25)),
+                                            float(frame)),
+}
+
+
+def read_frame(folder, frame: int) -> dict:
+    """Frame ``frame`` of a cine's folder of GPFile_NNN.txt."""
+    return read_gpfile(Path(folder) / f"GPFile_{frame:03d}.txt")
+
+
+def class_file(folder, frame: int, name: str, scratch):
+    """Write the class of variation ``name`` of ``frame`` into ``scratch``: its path and the time frame to read."""
+    gp, time_frame = CLASSES[name](folder, frame)
+    stem = "".join(c if c.isalnum() else "_" for c in name)
+    return write_gpfile(gp, Path(scratch) / f"GPFile_{frame:03d}_{stem}.txt"), time_frame

@@ -192,34 +192,40 @@ def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
 
 
 #: field-data arrays on the implicit image that carry the data's surface samples to the SpuriousCellFilter, which
-#: checks the mesh's fidelity against them: (n, 3) samples, their noise level and gap, the base plane (6 values).
-SAMPLE_ARRAYS = ("Samples", "SampleNoise", "SampleGap", "BasePlane")
+#: checks the mesh's fidelity against them: (n, 3) samples, their noise level and gap; and the point array
+#: :data:`UNSAMPLED_ARRAY`.
+SAMPLE_ARRAYS = ("Samples", "SampleNoise", "SampleGap")
+#: a point array of the implicit image, 1 where the boundary near a node is made by the method rather than the
+#: data (a heart's base, a derived surface), left out of the fidelity's boundary-to-samples measure.
+UNSAMPLED_ARRAY = "Unsampled"
 
 
-def attach_samples(image, samples: np.ndarray, noise: float, gap: float, base=None) -> None:
-    """Put the data's surface samples (n, k) on ``image``'s field data (see :data:`SAMPLE_ARRAYS`)."""
+def attach_samples(image, samples: np.ndarray, noise: float, gap: float, unsampled=None) -> None:
+    """Put the data's surface samples (n, k) on ``image``'s field data (see :data:`SAMPLE_ARRAYS`) and, when given,
+    the ``unsampled`` mask of its nodes (an ImplicitGrid of the image's layout, 1 or 0) as a point array."""
     array = numpy_support.numpy_to_vtk(np.ascontiguousarray(_as_3d(samples)), deep=True)
     array.SetName("Samples")
     data = image.GetFieldData()
     data.AddArray(array)
     data.AddArray(field_array("SampleNoise", [noise]))
     data.AddArray(field_array("SampleGap", [gap]))
-    if base is not None:
-        data.AddArray(field_array("BasePlane", np.concatenate(base)))
+    if unsampled is not None:
+        mask = numpy_support.numpy_to_vtk(np.ascontiguousarray(unsampled.values.ravel(order="F")), deep=True)
+        mask.SetName(UNSAMPLED_ARRAY)
+        image.GetPointData().AddArray(mask)
 
 
 def attached_samples(image, dim: int):
-    """(samples (n, dim), noise, gap, base plane (point, normal) or None) from ``image``'s field data, or None
-    when it carries no samples."""
+    """(samples (n, dim), noise, gap, the unsampled mask as an ImplicitGrid or None) from ``image``'s field and
+    point data, or None when it carries no samples."""
     data = image.GetFieldData() if image is not None else None
     array = data.GetArray("Samples") if data is not None else None
     if array is None:
         return None
     samples = numpy_support.vtk_to_numpy(array).astype(np.float64).reshape(-1, 3)[:, :dim]
     scalar = {name: data.GetArray(name).GetValue(0) for name in ("SampleNoise", "SampleGap") if data.GetArray(name)}
-    base = data.GetArray("BasePlane")
-    base = None if base is None else numpy_support.vtk_to_numpy(base).astype(np.float64).reshape(2, 3)
-    return samples, scalar.get("SampleNoise", 0.0), scalar.get("SampleGap", 0.0), base
+    unsampled = image_to_grid(image, UNSAMPLED_ARRAY) if image.GetPointData().GetArray(UNSAMPLED_ARRAY) else None
+    return samples, scalar.get("SampleNoise", 0.0), scalar.get("SampleGap", 0.0), unsampled
 
 
 def add_field_values(dataset, values: dict, prefix: str = "") -> None:

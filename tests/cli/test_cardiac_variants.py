@@ -82,7 +82,7 @@ def deepest_cavity_points(function) -> dict:
         if name in function.surfaces:
             grid = function.surfaces[name]
             nodes = grid.node_coordinates(np.arange(grid.values.size))
-            values = np.where((nodes - function.base[0]) @ function.base[1] < -2.0, grid.values.reshape(-1), -np.inf)
+            values = np.where(function.base.below(nodes) > 2.0, grid.values.reshape(-1), -np.inf)
             deepest[name] = nodes[np.argmax(values)]
     return deepest
 

@@ -12,7 +12,7 @@ import pytest
 from bitemesh.core import labelled
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.fidelity import distances_to_facets
-from bitemesh.core.parameters import BitingParameters, OptimizeParameters
+from bitemesh.core.parameters import BitingParameters, SpuriousParameters, OptimizeParameters
 from bitemesh.core.pipeline import mesh_from_grid
 from bitemesh.core.quality import count_boundary_components
 from bitemesh.io import read_labelled_points
@@ -43,7 +43,7 @@ def guide_point_distances(result):
     facets, surface = labelled.boundary_surfaces(result.mesh, function)
     distances = {}
     for number, (name, points) in enumerate(function.points.items()):
-        below = (points - function.base[0]) @ function.base[1] < 0
+        below = function.base.below(points) > 0
         distances[name] = distance_to_surface(points[below], result.mesh.points, facets[surface == number])
     return distances
 
@@ -78,13 +78,16 @@ def test_the_patient_meshes_as_one_valid_myocardium_near_its_contours(gpfile):
 
 def test_the_myocardium_is_one_closed_surface_whatever_the_seed():
     """At 30,000 cells seeds 7, 8 and 13 gave Euler characteristics -2, 0 and 0 (a hole punched through the RV wall
-    where it is about one cell thick, a one-cell void at the RV cavity's tip) before the repair weighed topology."""
+    where it is about one cell thick, a one-cell void at the RV cavity's tip) before the repair weighed topology.
+    A heart's handles are removed (handles 'auto'): at this size (R about 3 mm) the top of the septum, where the
+    base cuts it between the tricuspid and the aortic annuli, is a bridge about a cell thick for most seeds."""
     points, labels, slices = read_labelled_points(PACKAGED / "GPFile_000.txt")
     first = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=30000, seed=7),
                                   optimize=PLAIN)
     for seed in (7, 8, 13):
         biting = BitingParameters(radius=first.radius, seed=seed)
-        mesh = first.mesh if seed == 7 else mesh_from_grid(first.implicit, biting, optimize=PLAIN).mesh
+        mesh = first.mesh if seed == 7 else mesh_from_grid(first.implicit, biting, SpuriousParameters(handles="remove"),
+                                                           optimize=PLAIN).mesh
         assert_valid_domain(mesh, euler=2, components=1)
         assert count_boundary_components(mesh) == 1
 
@@ -118,7 +121,8 @@ def test_a_gpfile_without_rv_labels_names_the_missing_surface(gpfile):
         labelled.labelled_implicit(points[keep], labels[keep], labelled.BIVME_DEFAULT_DOMAIN, slices=slices[keep])
     # by default, without RV contours, the domain is the LV's
     function, _, _ = labelled.labelled_implicit(points[keep], labels[keep], slices=slices[keep])
-    assert function.expression == "LV_EPI - LV_ENDO" and "meshed as the left ventricle" in function.notes[-1]
+    assert function.expression == "LV_EPI - LV_ENDO"
+    assert any("meshed as the left ventricle" in note for note in function.notes)
     # an LV-only domain needs none of them
     lv_only = ~np.isin(labels, ["SAX_RV_FREEWALL", "LAX_RV_FREEWALL"])
     function, _, _ = labelled.labelled_implicit(points[lv_only], labels[lv_only], "LV_EPI - LV_ENDO",
@@ -133,11 +137,15 @@ def test_a_domain_naming_an_unknown_surface_lists_the_biv_me_surfaces(gpfile):
         labelled.labelled_implicit(points, labels, "EPI - LV_ENDO - RV")
 
 
-def test_a_contour_that_encloses_nothing_is_named(gpfile):
-    """The LV endocardium of slice 4 replaced by a straight line of points in that slice."""
+def test_a_contour_that_encloses_nothing_is_a_sample_not_a_refusal(gpfile):
+    """The LV endocardium of slice 4 replaced by a straight line of points in that slice: an arc that does not tell
+    its side (issue 30: a refusal before).  Its points are samples of the LV endocardium all the same."""
     points, labels, slices = read_labelled_points(gpfile)
     contour = np.flatnonzero((labels == "SAX_LV_ENDOCARDIAL") & (slices == 4))
     start, end = points[contour[0]], points[contour[len(contour) // 2]]
     points[contour] = start + np.linspace(0, 1, len(contour))[:, None] * (end - start)
-    with pytest.raises(InvalidInputError, match=r"the contour of LV_ENDO in slice 4 encloses no area"):
-        labelled.labelled_implicit(points, labels, slices=slices)
+    function, _, _ = labelled.labelled_implicit(points, labels, slices=slices)
+    row = function.slices["LV_ENDO"] == 4
+    assert row.sum() >= len(contour) - 1   # distinct points
+    # on its zero level, but for the sampled surface's interpolation (half its 1 mm spacing)
+    assert np.abs(function.surfaces["LV_ENDO"](function.points["LV_ENDO"][row])).max() < 0.5

@@ -126,14 +126,30 @@ def test_a_contour_nested_in_another_of_its_region_bounds_a_hole():
     assert (np.einsum("ij,ij->i", normals[60:], inner / 8) < -0.98).all()
 
 
-def test_a_contour_along_a_line_encloses_nothing():
+@pytest.mark.parametrize("arc", [(0.0, 0.5), (2.5, 3.3), (4.0, 6.0)])
+def test_an_open_arc_takes_the_side_its_neighbouring_slices_show(arc):
+    """A contour traced only in part (an arc of 0.5 to 2 radians, its chord on the wrong side of the region for a
+    septum's row) between two closed contours of the same surface: its normals point out, as theirs do."""
+    angle = np.linspace(*arc, 9)
+    part = np.column_stack([10 * np.cos(angle), 10 * np.sin(angle), np.zeros_like(angle)])
+    points = np.vstack([circle(40, 10.0, -8.0), part, circle(40, 10.0, 8.0)])
+    slices = np.repeat([0, 1, 2], [40, 9, 40])
+    planes = slice_planes(circle(40, 10.0, 0.0), np.zeros(40, int))
+    planes = {0: slice_planes(points[:40], np.zeros(40, int))[0], 1: planes[0],
+              2: slice_planes(points[49:], np.zeros(40, int))[0]}
+    normals = contour_normals(points, slices, planes)
+    outward = points[:, :2] / np.linalg.norm(points[:, :2], axis=1, keepdims=True)
+    agreement = np.einsum("ij,ij->i", normals[:, :2], outward)
+    assert np.nanmin(agreement[40:49]) > 0.95 and np.count_nonzero(np.isfinite(agreement[40:49])) >= 7
+    assert agreement[:40].min() > 0.98 and agreement[49:].min() > 0.98
+
+
+def test_a_straight_row_alone_keeps_no_normal():
+    """A line of points and no other contour of the surface: nothing tells its side, so its points are samples of
+    f = 0 alone."""
     line = np.column_stack([np.linspace(0, 30, 20), np.zeros(20), np.zeros(20)])
-    points = np.vstack([line, circle(20, 5.0, z=10.0)])
-    slices = np.repeat([0, 1], 20)
     planes = {0: SlicePlane(np.zeros(3), np.array([0, 0, 1.0]), np.array([[1.0, 0, 0], [0, 1.0, 0]]))}
-    planes.update({1: slice_planes(points, slices)[1]})
-    with pytest.raises(InvalidInputError, match=r"the contour of LV in slice 0 encloses no area"):
-        contour_normals(points, slices, planes, name="LV")
+    assert np.isnan(contour_normals(line, np.zeros(20, int), planes)).all()
 
 
 def test_slices_are_found_from_coplanar_contours(shell):
@@ -215,8 +231,8 @@ def test_the_base_plane_fits_the_valves_with_the_apex_inside():
     rng = np.random.default_rng(1)
     valves = np.column_stack([rng.uniform(-20, 20, (8, 2)), 0.1 * rng.normal(size=8)])
     for apex_z, expected in ((-90.0, 1.0), (90.0, -1.0)):
-        point, normal = fit_base_plane(valves, [0.0, 0.0, apex_z])
-        assert normal[2] == pytest.approx(expected, abs=0.01) and abs(point[2]) < 0.1
+        base = fit_base_plane(valves, [0.0, 0.0, apex_z])
+        assert base.is_plane and base.normal[2] == pytest.approx(expected, abs=0.01) and abs(base.point[2]) < 0.1
     with pytest.raises(InvalidInputError, match="lie on one line"):
         fit_base_plane(np.column_stack([np.arange(5.0), np.zeros(5), np.zeros(5)]), [0, 0, -1])
 

@@ -16,7 +16,7 @@ from ..core.biting import bite
 from ..core.delaunay import delaunay
 from ..core.repair import carve_domain
 from ..core.errors import InvalidInputError
-from ..core.fidelity import check_fidelity, measure_fidelity, on_plane
+from ..core.fidelity import check_fidelity, measure_fidelity
 from ..core.mesh import Mesh
 from ..core.cell_measures import mean_edge_length
 from ..core.optimize import optimize_mesh
@@ -171,10 +171,9 @@ class PointsToImplicit(BitemeshAlgorithm):
         output = vtkImageData.GetData(outInfo)
         grid_to_image(grid, output)
         output.GetFieldData().AddArray(field_array("Radius", [radius]))
-        frame, function = source.frame, source.function
-        base = getattr(function, "base", None)
+        frame = source.frame
         attach_samples(output, frame.to_user(source.samples), source.noise * frame.scale, source.gap * frame.scale,
-                       None if base is None else (frame.to_user(base[0][None])[0], base[1]))
+                       source.unsampled_on(grid))
         if source.handles == "remove":   # SpuriousCellFilter's Handles "auto" then removes handles
             output.GetFieldData().AddArray(field_array("Myocardium", [1.0]))
 
@@ -272,11 +271,11 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
         output.GetFieldData().PassData(delaunay_mesh.GetFieldData())
         attached = attached_samples(vtkImageData.GetData(inInfo[1]), domain.dim)
         if attached is not None:
-            samples, noise, gap, base = attached
+            samples, noise, gap, unsampled = attached
             radius = output.GetFieldData().GetArray("Radius")
             radius = radius.GetValue(0) if radius is not None else mean_edge_length(domain.points, domain.cells)
             fidelity = measure_fidelity(domain, samples, radius, noise, gap,
-                                        None if base is None else on_plane(*base, 0.1 * radius))
+                                        None if unsampled is None else lambda x: unsampled.evaluate(x) > 0.5)
             check_fidelity(fidelity, self.parameters(FidelityParameters))
             add_field_values(output, asdict(fidelity), "Fidelity")
 

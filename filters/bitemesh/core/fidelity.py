@@ -4,13 +4,16 @@
   in 2D).  A mesh that lost a part of the shape, or filled a cavity, leaves samples far from its boundary.
 - **the boundary to the samples**: the distance of every boundary facet (its centroid, weighted by its area) to
   the nearest sample.  A surface that the data does not support (a blob around outliers, a sheet from wrong
-  normals) lies far from every sample.
+  normals) lies far from every sample, off to one side of them; a surface the data leaves a wide gap in (a scan's
+  hole, a heart's base between its long-axis contours) lies far from the samples too, but they surround it.
 
 The bounds follow from what a correct mesh can do.  Its boundary is a piecewise linear surface with edges about R
 long on the zero level of f, which itself lies within the noise of the samples: a sample is within about R plus a
 few noise levels of it (features smaller than R are rounded).  Between samples the boundary is at most half the
-data's largest gap from them (contours on slices leave gaps of the slice spacing), plus R.  :func:`check_fidelity`
-refuses a mesh when more than a small fraction of either measure exceeds its bound.
+data's largest gap from them (contours on slices leave gaps of the slice spacing), plus R; beyond that, a facet still
+counts as supported when the samples within twice its distance from them surround it in its tangent plane (no gap
+of their directions wider than a half turn).  :func:`check_fidelity` refuses a mesh when more than a small fraction
+of either measure exceeds its bound.
 """
 from __future__ import annotations
 
@@ -47,7 +50,9 @@ class Fidelity:
     far_samples : percent of the samples farther than ``far_bound`` from the boundary
     from_samples_mean, from_samples_max : distances of the boundary (area-weighted mean) to the nearest sample
     support_bound : R + half the data's largest gap, the distance beyond which the boundary counts as unsupported
-    unsupported_area : percent of the boundary's area farther than ``support_bound`` from every sample
+        unless the samples surround it
+    unsupported_area : percent of the boundary's area farther than ``support_bound`` from every sample and not
+        surrounded by them
     """
 
     samples: int
@@ -173,8 +178,12 @@ def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: floa
     area = facet_measures(corners)
     if open_boundary is not None:
         area = np.where(open_boundary(centroids), 0.0, area)
-    from_samples = cKDTree(samples).query(centroids)[0]
+    tree = cKDTree(samples)
+    from_samples = tree.query(centroids)[0]
     support_bound = radius + 0.5 * gap
+    far = np.flatnonzero((from_samples > support_bound) & (area > 0))
+    unsupported = far[~surrounded(centroids[far], facet_normals(corners[far]), samples, tree,
+                                  2 * from_samples[far] + radius)]
     total = max(float(area.sum()), 1e-300)
     return Fidelity(
         samples=len(measured), noise=float(noise),
@@ -183,7 +192,35 @@ def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: floa
         far_samples=100.0 * float(np.mean(to_boundary > far_bound)),
         from_samples_mean=float((from_samples * area).sum() / total),
         from_samples_max=float(from_samples[area > 0].max(initial=0.0)), support_bound=float(support_bound),
-        unsupported_area=100.0 * float(area[from_samples > support_bound].sum() / total))
+        unsupported_area=100.0 * float(area[unsupported].sum() / total))
+
+
+def facet_normals(corners: np.ndarray) -> np.ndarray:
+    """(f, k) unit normals of triangles (f, 3, 3) or segments (f, 2, 2)."""
+    if corners.shape[1] == 2:
+        edge = corners[:, 1] - corners[:, 0]
+        normal = np.column_stack([edge[:, 1], -edge[:, 0]])
+    else:
+        normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    return normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+
+
+def surrounded(points: np.ndarray, normals: np.ndarray, samples: np.ndarray, tree, reach: np.ndarray) -> np.ndarray:
+    """(m,) True where the samples within ``reach`` (m,) of each point surround it in the plane (line, in 2D)
+    normal to its ``normals`` row: their directions leave no gap wider than a half turn."""
+    result = np.zeros(len(points), bool)
+    for row, near in enumerate(tree.query_ball_point(points, reach) if len(points) else []):
+        offsets = samples[near] - points[row]
+        offsets -= np.outer(offsets @ normals[row], normals[row])   # into the tangent plane
+        if points.shape[1] == 2:
+            along = offsets @ np.array([-normals[row, 1], normals[row, 0]])
+            result[row] = (along > 0).any() and (along < 0).any()
+            continue
+        first = np.cross(normals[row], [1.0, 0.0, 0.0] if abs(normals[row, 0]) < 0.9 else [0.0, 1.0, 0.0])
+        angles = np.sort(np.arctan2(offsets @ np.cross(normals[row], first), offsets @ first))
+        if len(angles) >= 3:
+            result[row] = np.diff(np.r_[angles, angles[0] + 2 * np.pi]).max() < np.pi
+    return result
 
 
 def on_plane(point, normal, tolerance: float):

@@ -3,7 +3,7 @@
 fit, and the source on the meshing spine)."""
 from __future__ import annotations
 
-from .contours.base_plane import fit_base_plane  # noqa: F401
+from .contours.base import fit_base_plane  # noqa: F401
 from .contours.cardiac import (BIVME_APEX, BIVME_DEFAULT_DOMAIN, BIVME_LABELS, BIVME_OUTLETS,  # noqa: F401
                                BIVME_SURFACES, BIVME_VALVES, CARDIAC_RADIUS, LV_DOMAIN, RV_WALL)
 from .contours.fit import labelled_implicit  # noqa: F401

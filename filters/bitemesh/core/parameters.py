@@ -116,8 +116,9 @@ class SpuriousParameters(Parameters):
     min_component: float = parameter(0.01, "drop connected parts smaller than this fraction of the largest part's "
                                      "volume", low=0, high=1)
     handles: str = parameter("auto", "remove: cut or fill the handles of the domain (tunnels and bridges thinner "
-                             "than a cell), for a domain known to have none; keep: the topology the cells give; "
-                             "auto: remove for a biv-me heart (a myocardium with its cavities open), else keep",
+                             "than a cell) and fill its closed voids, for a domain known to be a ball (its cavities "
+                             "open); keep: the topology the cells give; auto: remove for a biv-me heart (a "
+                             "myocardium with its cavities open through the base), else keep",
                              choices=("auto", "keep", "remove"))
 
 
@@ -136,9 +137,10 @@ class LabelledParameters(Parameters):
     domain: str = parameter("", "CSG of the labelled surfaces, e.g. 'EPI - LV_ENDO - RV_ENDO' (- difference, "
                             "+ union, & intersection, parentheses); empty: the two-cavity myocardium for biv-me "
                             "labels, else the only surface", text=True)
-    base_plane: str = parameter("auto", "the plane that closes the domain: auto (the valve plane when valve points "
-                                "are labelled, else for biv-me labels the basal short-axis slice), valves "
-                                "(required), or none", choices=("auto", "valves", "none"))
+    base_plane: str = parameter("auto", "what closes the domain at the base: auto (biv-me labels: the surface "
+                                "through the valve annuli and the long-axis contours' upper ends, else the "
+                                "basal short-axis slice; other labels: the plane of the valve points, if any), "
+                                "valves (valve points required), or none", choices=("auto", "valves", "none"))
     min_wall: Optional[float] = parameter(
         None, "the thinnest wall the domain keeps between a surface and what is subtracted from it (a wall thinner "
         "than a cell opens in holes); default the larger of 2.5 and 1.25 R (R = 4 grid spacings in "
@@ -156,11 +158,14 @@ class LabelledParameters(Parameters):
                               "(halved where another contour is near)", unit="input units", low=0, low_open=True)
     smoothing: float = parameter(0.0, "added to the diagonal of each patch's kernel matrix, in units of phi(patch "
                                  "diameter): 0 interpolates the contours, more smooths tracing noise", low=0)
-    base_offset: float = parameter(0.0, "moves the base plane along its normal (> 0: away from the apex)",
+    base_offset: float = parameter(0.0, "moves the base along its normal (> 0: away from the apex)",
                                    unit="input units", low=-50, high=50)
     resolution: Optional[float] = parameter(
         None, "the spacing of the grid each surface is sampled on; default 0.35 x the median spacing of its points "
         "(at least offset / 4 and 1/400 of its box's diagonal)", unit="input units", low=0, low_open=True)
+    slice_shifts: str = parameter("auto", "auto: each short-axis slice moved in its plane onto the long-axis "
+                                  "contours (breath-hold misregistration, reported in the notes); none: the slices "
+                                  "as given", choices=("auto", "none"))
 
 
 @dataclass(frozen=True)

@@ -58,11 +58,13 @@ class DelaunayCells:
                    quality < FLAT_QUALITY, quality < DEGENERATE)
 
 
-def enclosed_inside_voids(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray) -> np.ndarray:
+def enclosed_inside_voids(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray,
+                          every: bool = False) -> np.ndarray:
     """(m,) bool, the dropped cells that form voids closed off from the hull and lie inside (mean f > 0 there), or
-    are smaller than :data:`SMALL_VOID` cells (a pocket of a cavity thinner than a cell, cut off from it).
+    are smaller than :data:`SMALL_VOID` cells (a pocket of a cavity thinner than a cell, cut off from it); with
+    ``every``, every void closed off from the hull (a domain known to have none: a myocardium).
 
-    A cavity that f says is outside (a ventricle, the hole of a shell) stays open.
+    A cavity that f says is outside (a ventricle, the hole of a shell) stays open unless ``every``.
     """
     dropped = np.flatnonzero(~keep)
     if len(dropped) == 0:
@@ -77,7 +79,7 @@ def enclosed_inside_voids(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.
     mean_value = np.bincount(labels, weights=volume * centroid_value) / void_volume
     small = void_volume < SMALL_VOID * np.median(delaunay.volume[keep]) if keep.any() else False
     fill = np.zeros(len(keep), bool)
-    fill[dropped] = (~touches_hull & ((mean_value > 0) | small))[labels]
+    fill[dropped] = (~touches_hull & ((mean_value > 0) | small | every))[labels]
     return fill
 
 
@@ -184,8 +186,15 @@ def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, para
 def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
                     progress: ProgressCallback = None) -> np.ndarray:
     """``keep`` with its handles thinner than about two cells cut or filled, repaired (a repair can reopen a fill:
-    then once more); what was done is logged."""
+    then once more), and every enclosed void filled (a domain without handles has none: a spurious bubble of a
+    fitted surface inside a wall); what was done is logged."""
     points, cells = delaunay.points, delaunay.cells
+    voids = enclosed_inside_voids(grid, delaunay, keep, every=True)
+    if voids.any():
+        logger.info("%d enclosed void(s) filled, %.3g in all (a bubble of a fitted surface inside the wall; "
+                    "handles = 'remove')", int(delaunay.complex.components(voids).max() + 1),
+                    float(delaunay.volume[voids].sum()))
+        keep = repaired(grid, delaunay, keep | voids, parameters)
     before, handles = keep, handle_count(cells[keep])
     for round_ in range(HANDLE_ROUNDS):
         report(progress, round_ / HANDLE_ROUNDS, "removing handles")

@@ -120,7 +120,7 @@ class Source:
     noise : the samples' noise level (local units); gap : the largest gap the data leaves between its samples
         (local units), e.g. the spacing of contour slices
     open_boundary : callable (f, k) points -> (f,) bool, where the boundary is made by the method rather than the
-        data (a base plane), or None
+        data (a heart's base, a derived surface), or None
     notes : what the source did to the data that the user should hear of (points dropped, columns read)
     radius : R (local units) when the user gives neither radius nor cells (cells left at its default): the data's
         own element size (2 mm for cardiac contours), or None to choose R for the default cell count;
@@ -156,3 +156,15 @@ class Source:
     def size(self) -> float:
         """The longest side of the box (local units)."""
         return float(np.max(np.asarray(self.upper) - np.asarray(self.lower)))
+
+    def unsampled_on(self, grid: ImplicitGrid) -> Optional[ImplicitGrid]:
+        """:attr:`open_boundary` on the nodes of ``grid`` (f sampled in user coordinates) within two spacings of
+        f = 0, 1.0 where it holds and 0.0 elsewhere (the VTK chain carries it to the fidelity check); None without
+        an open boundary."""
+        if self.open_boundary is None:
+            return None
+        values = grid.values
+        near = np.flatnonzero(np.abs(values.reshape(-1)) <= 2 * float(np.max(grid.spacing)))
+        mask = np.zeros(values.size)
+        mask[near] = self.open_boundary(self.frame.to_local(grid.node_coordinates(near)))
+        return ImplicitGrid(origin=grid.origin, spacing=grid.spacing, values=mask.reshape(values.shape))

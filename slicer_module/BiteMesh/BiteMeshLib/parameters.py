@@ -32,6 +32,7 @@ SECTIONS = {
         "smoothing": ("LabelledParameters", "smoothing"),
         "baseOffset": ("LabelledParameters", "base_offset"),
         "resolution": ("LabelledParameters", "resolution"),
+        "sliceShifts": ("LabelledParameters", "slice_shifts"),
     },
     "fibresCollapsibleButton": {   # "Fibres (labelled heart contours)", open
         "fibres": ("FibreParameters", "fibres"),

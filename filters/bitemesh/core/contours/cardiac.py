@@ -8,8 +8,8 @@ which surfaces they sample, what to derive when a surface is missing, and what a
   RV cavity grown by the RV wall thickness (:data:`RV_WALL`, 3 mm, the normal adult RV free wall; biv-me uses the
   same): ``EPI = LV_EPI + RV_EPI``.  The union meets the LV epicardium at the RV insertions.
 - **LV only**: without RV contours the domain is ``LV_EPI - LV_ENDO``.
-- **Base plane** (:func:`base_plane`): through the valves' centres, perpendicular to the short-axis stack; without
-  valve points, the basal short-axis slice.
+- **Base**: the surface through the valve annuli (:mod:`bitemesh.core.contours.base`), its heights measured along
+  the short-axis stack (:func:`short_axis_stack`).
 - **Size**: R = :data:`CARDIAC_RADIUS` (2 mm) unless a radius or a cell count is given.
 - **Plausibility** (:func:`check_heart`): each cavity open at the base and not filled, the myocardial volume and
   mean wall thickness in physiological ranges, the guide points near their surface; otherwise a refusal naming what
@@ -192,39 +192,13 @@ def short_axis_stack(points, labels, slices, planes):
     return axis * toward_base, [numbers[i] for i in stack], heights * toward_base
 
 
-def base_plane(points, labels, slices, planes):
-    """The base plane of biv-me contours, its normal out of the domain, and a note.
-
-    With valve points: through the mean of the valves' centres (each valve counts once), perpendicular to the
-    short-axis stack (planned perpendicular to the long axis; a least-squares plane through a dozen annulus points
-    traced on three or four long-axis slices tilts by 15 degrees when a valve is missing).  Without a stack: the
-    least-squares plane of the valve points.  Without valve points: the basal short-axis slice.
-
-    Returns
-    -------
-    (point (3,), normal (3,)) or None; notes
-    """
-    axis, numbers, heights = short_axis_stack(points, labels, slices, planes)
-    valves = [name for name in BIVME_VALVES if np.count_nonzero(labels == name)]
-    if np.isin(labels, BIVME_VALVES).sum() >= 3:
-        if axis is None:
-            return None, ()   # the caller fits the least-squares plane
-        centre = np.mean([points[labels == name].mean(axis=0) for name in valves], axis=0)
-        return (centre, axis), ()
-    if axis is None:
-        return None, ()
-    basal = int(np.argmax(heights))
-    return (planes[numbers[basal]].centre, axis), (
-        f"no valve points: the base plane is the basal short-axis slice (slice {numbers[basal]})",)
-
-
 def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: bool = False) -> list:
     """What a cardiac user checks on a myocardium mesh; raise :class:`MeshingError` naming what failed (a
     :class:`BitemeshWarning` with ``allow_implausible``).
 
     - each cavity (LV_ENDO, RV_ENDO) not filled: at most 10 % of the mesh's cells whose centroids lie deeper than
       max(min_wall, R) + 1 mm inside a cavity, by volume of the cavity;
-    - each cavity open at the base plane: at least half of its section 1 mm below the plane outside the mesh;
+    - each cavity open at the base: at least half of its section 1 mm below the base outside the mesh;
     - the myocardial volume and the mean wall thickness (2 x volume / walls' area) in :data:`MYOCARDIAL_VOLUME`
       and :data:`WALL_THICKNESS`;
     - the guide points near the boundary: mean <= 0.5 x noise + R / 4 and 95th percentile <= noise + R (the
@@ -259,7 +233,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
             inside_mesh = np.asarray(function(section)) > 0
             if inside_mesh.mean() > 0.5:
                 problems.append(f"the {name} cavity is closed at the base: {inside_mesh.mean():.0%} of its section "
-                                "1 mm below the base plane is myocardium")
+                                "1 mm below the base is myocardium")
         volume = cavity.inside_volume() if function.base is None else _volume_below(cavity, function.base)
         if volume > 0 and filled > 0.1 * volume:
             problems.append(f"the {name} cavity is filled: {filled / 1000:.1f} ml of cells lie deeper than "
@@ -299,23 +273,19 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     return problems
 
 
-def _below(grid, base) -> np.ndarray:
-    nodes = grid.node_coordinates(np.arange(grid.values.size))
-    return (nodes - base[0]) @ base[1] < 0
-
-
 def _volume_below(grid, base) -> float:
-    """The volume (input units^3) of {f > 0} below the base plane, counted on the grid's nodes."""
-    return float(np.count_nonzero((grid.values.reshape(-1) > 0) & _below(grid, base)) * np.prod(grid.spacing))
+    """The volume (input units^3) of {f > 0} below the base, counted on the grid's nodes."""
+    inside = np.flatnonzero(grid.values.reshape(-1) > 0)
+    return float(np.count_nonzero(base.below(grid.node_coordinates(inside)) > 0) * np.prod(grid.spacing))
 
 
 def _cavity_section(grid, base, depth: float = 1.0) -> np.ndarray:
-    """(m, 3) the nodes of the cavity's grid with f > 0 within one spacing of the plane ``depth`` below the base."""
+    """(m, 3) the nodes of the cavity's grid with f > 0 within one spacing of the surface ``depth`` below the
+    base."""
     if base is None:
         return np.zeros((0, 3))
     nodes = grid.node_coordinates(np.flatnonzero(grid.values.reshape(-1) > 0))
-    height = (nodes - base[0]) @ base[1] + depth
-    return nodes[np.abs(height) < grid.spacing.max()]
+    return nodes[np.abs(base.below(nodes) - depth) < grid.spacing.max()]
 
 
 def time_frame(frames, slices, frame, where: str, how: str):

@@ -1,4 +1,4 @@
-"""Labelled contour points -> one implicit function per surface -> a domain by CSG, closed at the base by a plane:
+"""Labelled contour points -> one implicit function per surface -> a domain by CSG, closed at the base:
 :func:`labelled_implicit`, the fit of a :class:`~bitemesh.core.contours.function.LabelledImplicit`.
 
 The input is sparse contours (short- and long-axis slices of a cardiac MR study, 8 to 18 mm apart), each point with
@@ -23,7 +23,8 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    level (:func:`bitemesh.core.grid.sample_function` with levels), so the domain is cheap to evaluate on the grid I.
 5. The domain: a CSG expression (:mod:`bitemesh.core.contours.csg`) of the surfaces, ``-`` difference, ``+``
    union, ``&`` intersection, by min/max of the implicit values (a difference keeps a thinnest wall where two
-   surfaces interpolated independently would cross), cut by a base plane (:mod:`bitemesh.core.contours.base_plane`).
+   surfaces interpolated independently would cross), closed by the base (:mod:`bitemesh.core.contours.base`: for a
+   heart, the surface through the valve annuli).
 
 The septum: biv-me's ``*_RV_SEPTUM`` points lie on the right-ventricular face of the interventricular septum.  They
 bound the RV cavity (with the free wall, in ``RV_ENDO``) and, seen from the LV, they are the outer face of the LV
@@ -42,21 +43,25 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import InvalidInputError, check_number, check_points
+from ..errors import InvalidInputError, check_choice, check_number, check_points
 from ..grid import ImplicitGrid, sample_function
 from ..parameters import LabelledParameters
 from ..progress import ProgressCallback, report, sub_progress
 from ..samples import slice_spacing
-from .base_plane import choose_base_plane
+from .base import choose_base
 from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
                       default_surfaces, grown, is_bivme, needs_derived_epicardium, unused_labels_note)
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
+from .registration import register_short_axis
+from .valves import across_valves, outlet_points
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .surface_fit import fit_contour_rbf
 
 logger = logging.getLogger("bitemesh")
 
+#: the cavities whose valve points (their :data:`BIVME_OUTLETS`) are samples of their walls too.
+CAVITY_RINGS = ("LV_ENDO", "RV_ENDO")
 #: no patch of a surface's fit is narrower than this x the median distance between its slices.
 PATCH_PER_GAP = 1.0
 
@@ -126,20 +131,8 @@ def _distinct(points, index) -> np.ndarray:
     return index[keep]
 
 
-def _outlet_points(points, labels, valves, wall=0.0):
-    """Per valve label present: the centre of its points and its radius (mean distance of its points to it) plus
-    ``wall``."""
-    centres, radii = [], []
-    for valve in valves:
-        members = points[labels == valve]
-        if len(members) >= 2:
-            centre = members.mean(axis=0)
-            centres.append(centre)
-            radii.append(float(np.linalg.norm(members - centre, axis=1).mean()) + wall)
-    return (np.array(centres), np.array(radii)) if centres else None
-
-
 def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=None, surfaces=None, outlets=None,
+                      slice_shifts: str = LabelledParameters.slice_shifts,
                       kernel: str = LabelledParameters.kernel, offset: float = LabelledParameters.offset,
                       smoothing: float = LabelledParameters.smoothing,
                       base_offset: float = LabelledParameters.base_offset, min_wall: float = 2.5,
@@ -155,18 +148,20 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     domain : str, CSG expression of surface names (``-``, ``+``, ``&``, parentheses); default: for biv-me labels
         :data:`BIVME_DEFAULT_DOMAIN` (``LV_EPI - LV_ENDO`` without RV contours; without RV epicardial contours EPI
         is ``LV_EPI + RV_EPI``, RV_EPI derived: :mod:`bitemesh.core.contours.cardiac`), else the only surface
-    base_plane : "auto" (the valve plane when at least 3 valve points are present, else for biv-me labels the
-        basal short-axis slice, else none), "valves" (required: for biv-me labels through the valves' centres,
-        perpendicular to the short-axis stack, :func:`bitemesh.core.contours.cardiac.base_plane`; without a stack the
-        least-squares plane of the valve points, the apex inside), None (no cut), or (point, normal) with the
-        normal pointing out of the domain
+    base_plane : "auto" (for biv-me labels the surface through the valve annuli and the long-axis contours' upper
+        ends, :func:`bitemesh.core.contours.base.annulus_surface`, without them the basal short-axis slice; for other
+        labels the least-squares plane of at least 3 valve points, else none), "valves" (required: the same with
+        valve points, without a short-axis stack their least-squares plane, the apex inside), None (no cut), or
+        (point, normal) a plane, the normal pointing out of the domain
     slices : (n,) int slice id per point (a GPFile's frameID), or None to find them
         (:func:`~bitemesh.core.contours.slices.infer_slices`)
+    slice_shifts : "auto" (each short-axis slice moved in its plane onto the long-axis contours of the same
+        surfaces: :mod:`bitemesh.core.contours.registration`) or "none"
     surfaces : dict name -> labels, default :func:`default_surfaces`
     outlets : dict surface name -> valve labels through which that cavity opens (see :data:`BIVME_OUTLETS`, the
         default for biv-me labels; {} for none)
     kernel, offset, smoothing : of :func:`fit_contour_rbf`
-    base_offset : float, input units, moves the base plane along its normal (> 0: away from the apex)
+    base_offset : float, input units, moves the base along its normal (> 0: away from the apex)
     min_wall : float, input units, the thinnest wall between a surface and what is subtracted from it (see
         :func:`~bitemesh.core.contours.csg.evaluate_domain`); 0 lets walls open where the surfaces cross
     rv_wall : float, mm, the RV free wall thickness a missing RV epicardium is derived with
@@ -214,21 +209,40 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
             raise InvalidInputError(f"slices must hold one integer id per point ({len(points)}), got shape "
                                     f"{slices.shape} of {slices.dtype}")
         slices = np.where(slices >= 0, slices, -1).astype(np.int64)
+    fitted = [name for name in used if name not in grown_from]
+    if is_bivme(labels):
+        across, note = across_valves(points, labels, slices, [label for name in fitted for label in surfaces[name]])
+        points, labels, slices, notes = points[~across], labels[~across], slices[~across], notes + note
     planes = slice_planes(points, slices)
+    shifts = {}
+    if check_choice(slice_shifts, "slice_shifts", ("auto", "none")) == "auto":
+        registration = register_short_axis(points, labels, slices, planes,
+                                           {name: surfaces[name] for name in fitted})
+        notes += registration.notes()
+        shifts = registration.shifts
+        if shifts or registration.outliers:
+            points = points.copy()
+            for number, shift in shifts.items():
+                points[slices == number] += shift
+            kept = ~np.isin(slices, list(registration.outliers))
+            points, labels, slices = points[kept], labels[kept], slices[kept]
+            planes = slice_planes(points, slices)
     outlets = (BIVME_OUTLETS if is_bivme(labels) else {}) if outlets is None else dict(outlets)
     in_any = np.isin(labels, [label for name in used if name not in grown_from for label in surfaces[name]])
-    base, note = choose_base_plane(base_plane, points, labels, points[in_any], slices, planes)
+    base, note = choose_base(base_plane, points, labels, points[in_any], slices, planes)
     notes += note
     if base is not None:
-        base = (base[0] + check_number(base_offset, "base_offset") * base[1], base[1])
+        base = base.raised(check_number(base_offset, "base_offset"))
 
     functions, surface_points, surface_normals, surface_slices = {}, {}, {}, {}
-    fitted = [name for name in used if name not in grown_from]
     for number, name in enumerate(fitted):
         report(progress, 0.05 + 0.9 * number / len(fitted), f"fitting surface {name}")
         index = _distinct(points, np.flatnonzero(np.isin(labels, surfaces[name])))
         normals = _surface_normals(points[index], slices[index], planes, name, gap_factor)
-        interior = _outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
+        if name in CAVITY_RINGS:   # a cavity's valve annuli lie on its wall: samples of f = 0, without a normal
+            rings = _distinct(points, np.flatnonzero(np.isin(labels, outlets.get(name, ()))))
+            index, normals = np.r_[index, rings], np.vstack([normals, np.full((len(rings), 3), np.nan)])
+        interior = outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
         rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
                               interior=interior, min_patch=PATCH_PER_GAP * slice_spacing(points[index], slices[index]))
         functions[name] = _sampled_surface(rbf, points[index], offset, resolution, sub_progress(
@@ -240,7 +254,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
                                 base=base, min_wall=check_number(min_wall, "min_wall", low=0),
                                 lower=points[in_any].min(axis=0), upper=points[in_any].max(axis=0),
                                 points=surface_points, normals=surface_normals, slices=surface_slices,
-                                derived=derived, notes=notes)
+                                derived=derived, shifts=shifts, notes=notes)
     lower, upper = _domain_box(function)
     report(progress, 1.0, "surfaces fitted")
     function = replace(function, lower=lower, upper=upper)
@@ -272,7 +286,7 @@ def _surface_normals(points, slices, planes, name: str, gap_factor: float) -> np
         raise InvalidInputError(
             f"the contours of surface {name} all lie in one plane, so they enclose no volume; it needs "
             "contours on at least two slices")
-    return contour_normals(points, slices, planes, gap_factor=gap_factor, name=name)
+    return contour_normals(points, slices, planes, gap_factor=gap_factor)
 
 
 def _sampled_surface(rbf, points, offset: float, resolution, progress) -> ImplicitGrid:
@@ -307,6 +321,6 @@ def _domain_box(function: LabelledImplicit):
     if not inside.any():
         raise InvalidInputError(
             f"the domain {function.expression!r} is empty: no point is inside it"
-            + (" below the base plane" if function.base is not None else "")
-            + "; check that the contours enclose the regions the expression combines (and the base plane's side)")
+            + (" below the base" if function.base is not None else "")
+            + "; check that the contours enclose the regions the expression combines (and the base's side)")
     return nodes[inside].min(axis=0) - step, nodes[inside].max(axis=0) + step

@@ -1,5 +1,5 @@
 """The implicit function of a domain bounded by labelled contour surfaces: the CSG of one implicit per surface,
-cut by the base plane, and which surface gives f where."""
+closed by the base, and which surface gives f where."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -12,32 +12,34 @@ from ..samples import contour_gap
 from ..topology import boundary_facets
 from .csg import evaluate_domain
 
-#: the name the base plane takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
+#: the name the base takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
 BASE = "BASE"
 
 
 @dataclass(frozen=True, eq=False)
 class LabelledImplicit:
-    """The domain's f: the CSG of one implicit per surface, cut by the base plane; callable (m, 3) -> (m,).
+    """The domain's f: the CSG of one implicit per surface, closed by the base; callable (m, 3) -> (m,).
 
     Attributes
     ----------
     surfaces : name -> callable implicit (f > 0 inside), the surfaces the domain uses
     tree : the parsed domain (see :func:`~bitemesh.core.contours.csg.parse_domain`); expression : its text
-    base : (point, normal) of the base plane (normal out of the domain), or None
+    base : the :class:`~bitemesh.core.contours.base.BaseSurface` that closes the domain, or None
     min_wall : float, input units, the thinnest wall a difference keeps (see
         :func:`~bitemesh.core.contours.csg.evaluate_domain`)
     lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
     points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
         where none); slices : name -> (n,) their slice ids
     derived : names of the surfaces built from others, not fitted to contours (an RV epicardium grown from the
-        RV endocardium); notes : what was read, derived or chosen, one sentence each
+        RV endocardium); shifts : slice id -> (3,) the in-plane shift each short-axis slice was moved by
+        (:mod:`~bitemesh.core.contours.registration`; ``points`` are the moved ones); notes : what was read, derived
+        or chosen, one sentence each
     """
 
     surfaces: dict
     tree: tuple
     expression: str
-    base: tuple
+    base: object
     min_wall: float
     lower: np.ndarray
     upper: np.ndarray
@@ -45,6 +47,7 @@ class LabelledImplicit:
     normals: dict
     slices: dict = field(default_factory=dict)
     derived: tuple = ()
+    shifts: dict = field(default_factory=dict)
     notes: tuple = ()
 
     @property
@@ -57,7 +60,7 @@ class LabelledImplicit:
         value, source = evaluate_domain(self.tree, {name: function(x) for name, function in self.surfaces.items()},
                                         self.min_wall)
         if self.base is not None:
-            below = -(x - self.base[0]) @ self.base[1]
+            below = self.base.below(x)
             cut = below < value
             value, source = np.where(cut, below, value), np.where(cut, len(self.surfaces), source)
         return value, source
@@ -75,18 +78,18 @@ class LabelledImplicit:
         return replace(self, min_wall=check_number(min_wall, "min_wall", low=0))
 
     def moved(self, shift) -> LabelledImplicit:
-        """The same domain translated by ``shift`` (3,): every sampled surface, the base plane, the box, the points."""
+        """The same domain translated by ``shift`` (3,): every sampled surface, the base, the box, the points."""
         shift = np.asarray(shift, dtype=np.float64)
         return replace(self, surfaces={name: replace(grid, origin=grid.origin + shift)
                                        for name, grid in self.surfaces.items()},
-                       base=None if self.base is None else (self.base[0] + shift, self.base[1]),
+                       base=None if self.base is None else self.base.moved(shift),
                        lower=self.lower + shift, upper=self.upper + shift,
                        points={name: points + shift for name, points in self.points.items()})
 
     def surface_samples(self) -> np.ndarray:
-        """(n, 3) the points of every surface that lie below the base plane (those above it are cut away)."""
+        """(n, 3) the points of every surface that lie below the base (those above it are cut away)."""
         samples = np.vstack(list(self.points.values()))
-        return samples if self.base is None else samples[(samples - self.base[0]) @ self.base[1] <= 0]
+        return samples if self.base is None else samples[self.base.below(samples) >= 0]
 
     def contour_gap(self) -> float:
         """The gap the contours leave between their slices (:func:`bitemesh.core.samples.contour_gap`), the
@@ -101,11 +104,11 @@ class LabelledImplicit:
         return 0.5 * float(np.median(np.concatenate(spacing))) if spacing else 0.0
 
     def is_base(self, x) -> np.ndarray:
-        """(m,) True where the base plane, not a surface, gives f at (m, 3) points."""
+        """(m,) True where the base, not a surface, gives f at (m, 3) points."""
         return self.active_surface(x) == len(self.surfaces)
 
     def is_unsampled(self, x) -> np.ndarray:
-        """(m,) True where no contour gives f at (m, 3) points: the base plane or a :attr:`derived` surface."""
+        """(m,) True where no contour gives f at (m, 3) points: the base or a :attr:`derived` surface."""
         unsampled = [len(self.surfaces)] + [list(self.surfaces).index(name) for name in self.derived]
         return np.isin(self.active_surface(x), unsampled)
 

@@ -41,10 +41,11 @@ LabelledMeshingResult = MeshingResult
 
 
 def is_myocardium(function: LabelledImplicit) -> bool:
-    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV): a ball, its cavities open
-    through the base plane (handles = "auto" removes the handles of its mesh)."""
+    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV) closed by a base: a ball, its
+    cavities open through the base (handles = "auto" removes the handles of its mesh and fills its voids).  Without
+    a base the cavities are closed voids of the domain."""
     return (set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
-            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
+            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN) and function.base is not None)
 
 
 def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:

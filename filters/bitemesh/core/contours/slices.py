@@ -13,12 +13,16 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist
 
-from ..errors import InvalidInputError, check_number, check_points
+from ..errors import check_number, check_points
+from .surface_fit import fit_contour_rbf
 
 #: a polyline breaks where its points are more than this x the median spacing apart.
 GAP_FACTOR = 3.0
-#: a contour loop encloses nothing when 4 pi area / perimeter^2 is below this.
-MIN_ROUNDNESS = 0.005
+#: a contour orients itself when it is closed, or open across less than this share of its perimeter and at least this
+#: round (4 pi area / perimeter^2, its area closed across the gap); other arcs take the side their neighbours show.
+OPEN_SHARE, MIN_ROUNDNESS = 0.35, 0.05
+#: a polyline whose ends are near is closed only when it is at least this many times longer than their distance.
+CLOSED_LENGTH = 3.0
 #: a slice's contour of more points than this is ordered from a nearest-neighbour graph instead of all pairs.
 _DENSE_POINTS = 1500
 #: infer_slices counts the points of each candidate plane among at most this many points.
@@ -130,7 +134,7 @@ def _tree_path(tree, start: int):
     return farthest, predecessors
 
 
-def _polylines(q: np.ndarray, gap_factor: float):
+def polylines(q: np.ndarray, gap_factor: float):
     """Order 2D points into polylines: the longest paths of the pieces of their minimum spanning tree.
 
     The tree (of all pairs, or of the 16 nearest neighbours of each point when there are more than
@@ -186,6 +190,14 @@ def _inside_polygon(point: np.ndarray, polygon: np.ndarray) -> bool:
     return bool(np.count_nonzero(crosses & (point[0] < at)) % 2)
 
 
+def is_closed(q: np.ndarray, path: np.ndarray, spacing: float, gap_factor: float) -> bool:
+    """Whether the polyline ``path`` through (m, 2) points closes on itself: its ends within ``gap_factor`` x
+    ``spacing`` and its length at least :data:`CLOSED_LENGTH` x their distance (a short arc's ends are near too)."""
+    gap = float(np.linalg.norm(q[path[0]] - q[path[-1]]))
+    length = float(np.linalg.norm(np.diff(q[path], axis=0), axis=1).sum())
+    return len(path) > 3 and gap <= gap_factor * spacing and length >= CLOSED_LENGTH * gap
+
+
 def _loops(q: np.ndarray, paths, spacing: float, gap_factor: float):
     """Group polylines into closed loops: a polyline whose ends meet is a loop; the open ones are chained, nearest
     end to nearest end, into one loop (closed across the remaining gap, e.g. a valve)."""
@@ -193,8 +205,7 @@ def _loops(q: np.ndarray, paths, spacing: float, gap_factor: float):
     for path in paths:
         if len(path) < 2:
             continue
-        meets = len(path) > 3 and np.linalg.norm(q[path[0]] - q[path[-1]]) <= gap_factor * spacing
-        (closed if meets else open_).append(path)
+        (closed if is_closed(q, path, spacing, gap_factor) else open_).append(path)
     if open_:
         open_.sort(key=len, reverse=True)
         chain = [open_.pop(0)]
@@ -238,32 +249,36 @@ def _tangents(xy: np.ndarray, closed: bool, jump: float) -> np.ndarray:
     return tangent
 
 
-def _normals_2d(q: np.ndarray, gap_factor: float, where: str) -> np.ndarray:
-    """(m, 2) outward in-plane unit normals of the points of one region in one slice (NaN where undefined)."""
-    normals = np.full(q.shape, np.nan)
+def _normals_2d(q: np.ndarray, gap_factor: float):
+    """Outward in-plane unit normals of the points of one region in one slice: (m, 2), NaN where undefined; and
+    (m,) int, -1 where the loop's own shape orients the normal, else the number of the open arc whose side the
+    neighbouring contours must tell (:func:`contour_normals`)."""
+    normals, unsure = np.full(q.shape, np.nan), np.full(len(q), -1)
     if len(q) < 3:
-        return normals
-    paths, piece, spacing = _polylines(q, gap_factor)
+        return normals, unsure
+    paths, piece, spacing = polylines(q, gap_factor)
     loops = _loops(q, paths, spacing, gap_factor)
     polygons = [q[np.concatenate(loop)] for loop in loops]
+    arcs = 0
     for loop, polygon in zip(loops, polygons):
         area = _signed_area(polygon)
         perimeter = _perimeter(polygon)
-        if 4 * np.pi * abs(area) < MIN_ROUNDNESS * perimeter ** 2:
-            raise InvalidInputError(
-                f"the contour of {where} encloses no area: its {len(polygon)} points lie along a line or a curve "
-                f"that does not bend around a region (4 pi area / perimeter^2 = "
-                f"{4 * np.pi * abs(area) / max(perimeter ** 2, 1e-300):.2g} < {MIN_ROUNDNESS}); "
-                "check its label, or remove it")
+        closed_loop = len(loop) == 1 and is_closed(q, loop[0], spacing, gap_factor)
+        jumps = sum(np.linalg.norm(q[after[0]] - q[before[-1]]) for before, after in zip(loop, loop[1:] + loop[:1]))
+        # The loop's own area orients it when it is closed, or open across a short share of its perimeter (a valve)
+        # and round enough; an arc closed by its chord (a partial contour, a septum's row) may bend either way.
+        sure = closed_loop or (jumps < OPEN_SHARE * perimeter
+                               and 4 * np.pi * abs(area) >= MIN_ROUNDNESS * perimeter ** 2)
         # A loop inside an odd number of other loops of the region bounds a hole: its normals point into it.
         inner = sum(_inside_polygon(polygon[0], other) for other in polygons if other is not polygon) % 2
-        turn = (1.0 if area > 0 else -1.0) * (-1.0 if inner else 1.0)
-        closed_loop = len(loop) == 1 and np.linalg.norm(polygon[0] - polygon[-1]) <= gap_factor * spacing
+        turn = (1.0 if area >= 0 else -1.0) * (-1.0 if inner else 1.0)
         for path in loop:
             tangent = _tangents(q[path], closed_loop, 1.5 * spacing)
             length = np.linalg.norm(tangent, axis=1)
             ok = length > 0
             normals[path[ok]] = turn * np.column_stack([tangent[ok, 1], -tangent[ok, 0]]) / length[ok, None]
+            if not sure:   # each arc of an unsure chain takes its own side
+                unsure[path], arcs = arcs, arcs + 1
     # Points off the paths (side branches of the tree): the normal of the nearest path point of the same piece when
     # they lie beside it (a doubled row of points); a longer branch (a hook where two contours meet) gets none.
     known = np.flatnonzero(np.isfinite(normals[:, 0]))
@@ -275,16 +290,20 @@ def _normals_2d(q: np.ndarray, gap_factor: float, where: str) -> np.ndarray:
             distance, nearest = cKDTree(q[sources]).query(q[missing])
             beside = distance <= 0.5 * spacing
             normals[missing[beside]] = normals[sources[nearest[beside]]]
-    return normals
+            unsure[missing[beside]] = unsure[sources[nearest[beside]]]
+    return normals, unsure
 
 
-def contour_normals(points, slices, planes=None, *, gap_factor: float = GAP_FACTOR, name: str = "the surface"):
+def contour_normals(points, slices, planes=None, *, gap_factor: float = GAP_FACTOR):
     """Outward in-plane unit normals of the contour points of one surface (one region).
 
     Per slice, the points are projected on the slice plane and ordered into polylines (the longest path of each
     piece of their minimum spanning tree, cut at edges longer than ``gap_factor`` x the median edge); the polylines
     are chained into loops (see the module docstring) and each point's normal is the in-plane perpendicular of
-    its polyline, pointing out of the loop's region (out of a hole for a loop nested in another).
+    its polyline, pointing out of the loop's region (out of a hole for a loop nested in another).  An open arc
+    whose shape does not tell its side (a partial contour, a short or straight arc: see :data:`OPEN_SHARE`) takes
+    the side the other contours give it: that of the surface fitted to them (:func:`~.surface_fit.fit_contour_rbf`,
+    the arcs' points samples of f = 0); without other contours, its points keep no normal (samples of f = 0 alone).
 
     Parameters
     ----------
@@ -292,27 +311,43 @@ def contour_normals(points, slices, planes=None, *, gap_factor: float = GAP_FACT
     slices : (n,) int, slice id per point (-1: none)
     planes : dict slice id -> SlicePlane, default fitted to these points (better: to all points of each slice)
     gap_factor : float, polyline break, x the median point spacing
-    name : str, the surface's name in error messages
 
     Returns
     -------
     (n, 3) float64 unit normals in the slice planes; NaN rows for points without a slice, in slices with fewer
-    than 3 points of this surface, or isolated
-
-    Raises
-    ------
-    InvalidInputError
-        When a slice's contour of this surface encloses no area (its points lie along a line).
+    than 3 points of this surface, isolated, or on an arc no oriented contour tells the side of
     """
     points = check_points(points, dims=(3,))
     slices = np.asarray(slices)
     planes = slice_planes(points, slices) if planes is None else planes
     normals = np.full(points.shape, np.nan)
+    arcs = np.full(len(points), -1)
     for number in np.unique(slices[slices >= 0]).tolist():
         members = np.flatnonzero(slices == number)
         plane = planes.get(number)
         if plane is None or len(members) < 3:
             continue
-        in_plane = _normals_2d(plane.project(points[members]), gap_factor, f"{name} in slice {number}")
+        in_plane, unsure = _normals_2d(plane.project(points[members]), gap_factor)
         normals[members] = in_plane @ plane.axes
-    return normals
+        arcs[members[unsure >= 0]] = unsure[unsure >= 0] + len(points) * number   # one id per arc
+    return _sided(points, normals, arcs)
+
+
+def _sided(points: np.ndarray, normals: np.ndarray, arcs: np.ndarray) -> np.ndarray:
+    """``normals`` with each open arc (``arcs`` >= 0: one id per arc) turned to the side where the surface fitted
+    without the arcs' normals (their points samples of f = 0 alone) rises inward: the vote of the cosines between
+    each arc point's normal and that fit's outward gradient; NaN where it is silent."""
+    unsure = arcs >= 0
+    if not unsure.any():
+        return normals
+    known = np.where(unsure[:, None], np.nan, normals)
+    if not np.isfinite(known[:, 0]).any():
+        return np.where(unsure[:, None], np.nan, normals)
+    outward = -fit_contour_rbf(points, known).gradient(points[unsure])
+    cosine = np.einsum("md,md->m", np.nan_to_num(normals[unsure]), outward) / np.maximum(
+        np.linalg.norm(outward, axis=1), 1e-300)
+    arc = np.unique(arcs[unsure], return_inverse=True)[1]
+    sign = np.sign(np.bincount(arc, weights=cosine))[arc]
+    result = normals.copy()
+    result[unsure] *= np.where(sign != 0, sign, np.nan)[:, None]
+    return result

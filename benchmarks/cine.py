@@ -1,0 +1,139 @@
+#!/usr/bin/env python
+"""Every frame of a cardiac cycle meshed as ``bitemesh mesh GPFile_NNN.txt`` meshes it (no flags), measured against
+the guide points and against biv-me's own fitted surfaces of the same frame (``benchmarks/heart_measures.py``).
+
+The data: ``../shared/data/bivme_patient1_cine`` (biv-me patient1, 25 frames, with biv-me's fits), or $BITEMESH_DATA.
+``--variants`` adds the classes of variation of ``tests/cardiac_variants.py`` built on chosen frames (open arcs,
+shifted slices, frames merged into one file, sparser and denser exports); ``--gpfile PATH[:FRAME]`` adds any other
+GPFile (another patient's, another tool's export), measured against its guide points alone.
+
+Usage (from the repository root)::
+
+    python benchmarks/cine.py                              # all 25 frames
+    python benchmarks/cine.py --frames 0 8 16 --variants   # three frames, and the variants of frame 0
+    python benchmarks/cine.py --gpfile other/GPFile_000.txt:0 --frames
+    python benchmarks/cine.py --output benchmarks/cine.md
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "filters"))
+sys.path.insert(0, str(HERE.parent))
+
+from bitemesh.cohorts.meshing import mesh_input, parse_option
+from bitemesh.core.errors import BitemeshError
+from bitemesh.io import read_labelled_points
+from heart_measures import read_surface, measure_heart
+
+from tests.cardiac_variants import CLASSES, class_file
+
+
+def cine_folder() -> Path:
+    root = Path(os.environ.get("BITEMESH_DATA", HERE.parent.parent / "shared" / "data"))
+    folder = root / "bivme_patient1_cine"
+    if not (folder / "guidepoints" / "GPFile_000.txt").is_file():
+        raise SystemExit(f"no guide points in {folder}")
+    return folder
+
+
+def reference(folder: Path, frame: int) -> dict:
+    """biv-me's fitted surfaces of ``frame``: name -> (vertices, triangles)."""
+    return {name: read_surface(folder / "fitted" / f"patient1_{name}_{frame:03d}.vtk")
+            for name in ("EPICARDIAL", "LV_ENDOCARDIAL", "RV_ENDOCARDIAL")}
+
+
+def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> dict:
+    """Mesh ``path`` as bitemesh mesh does with no flag but ``--frame`` (and ``options``, names of bitemesh mesh's
+    flags); its measures against the guide points the mesh was made from (short-axis slices moved where the
+    registration moved them), or its refusal."""
+    options = {**(options or {}), **({} if frame is None else {"frame": frame})}
+    clock = time.perf_counter()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = mesh_input(path, options)
+    except BitemeshError as error:
+        return {"name": name, "refused": str(error), "seconds": time.perf_counter() - clock}
+    seconds = time.perf_counter() - clock
+    points, labels, slices = read_labelled_points(path, frame=frame)
+    for number, shift in getattr(result.function, "shifts", {}).items():
+        points[slices == number] += shift
+    row = measure_heart(result.mesh, points, labels, surfaces)
+    row.update(name=name, seconds=seconds, notes=result.notes, warnings=[str(w.message) for w in caught])
+    return row
+
+
+def line(row: dict) -> str:
+    """One markdown row."""
+    if "refused" in row:
+        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 12
+    surfaces = row.get("surfaces", {})
+    both = " / ".join(f"{surfaces[name][0]:.2f}, {surfaces[name][1]:.2f}" if name in surfaces else "-"
+                      for name in ("EPICARDIAL", "LV_ENDOCARDIAL", "RV_ENDOCARDIAL"))
+    valves = " / ".join(f"{row[valve]:.1f}" if valve in row else "-"
+                        for valve in ("MITRAL_VALVE", "TRICUSPID_VALVE", "AORTA_VALVE", "PULMONARY_VALVE"))
+    volumes = f"{row['LV_ENDO_ml']:.0f} / {row['RV_ENDO_ml']:.0f}"
+    if "bivme_LV_ENDO_ml" in row:
+        volumes += f" ({row['bivme_LV_ENDO_ml']:.0f} / {row['bivme_RV_ENDO_ml']:.0f})"
+    flags = "; ".join(text.split(":")[0][:60] for text in row["warnings"])
+    return (f"| {row['name']} | {row['cells']:,} | {'yes' if row['valid'] else 'NO'} | {row['components']} | "
+            f"{row['boundaries']} | {row['euler']} | {row['wall_mean']:.2f} / {row['wall_p95']:.2f} / "
+            f"{row['wall_max']:.1f} | {valves} | {both} | {row.get('surface_mean', np.nan):.2f} | "
+            f"{row['myocardium_ml']:.0f} | {volumes} | {row['seconds']:.1f} | {flags} |")
+
+
+HEADER = ("| case | cells | valid | parts | boundaries | Euler | wall guide points mean / 95 % / max (mm) | "
+          "valves MV / TV / AV / PV max (mm) | biv-me EPI / LV / RV: ref->mesh, mesh->ref (mm) | surfaces mean (mm) | "
+          "myocardium (ml) | LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 14 + "|")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, nargs="*", default=None, help="frames of the cine (default all)")
+    parser.add_argument("--variants", action="store_true", help="the classes of variation on the first frame given")
+    parser.add_argument("--classes", nargs="*", default=None, help="only these classes of variation")
+    parser.add_argument("--gpfile", action="append", default=[], help="another GPFile, PATH or PATH:FRAME")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="an option of bitemesh mesh for every case (e.g. slice_shifts=none)")
+    parser.add_argument("--output", type=Path, help="write the table (markdown) here too")
+    args = parser.parse_args(argv)
+    options = {}
+    for text in args.set:
+        name, _, value = text.partition("=")
+        options[name] = parse_option(name, value, "--set")
+    folder = cine_folder()
+    frames = list(range(25)) if args.frames is None else args.frames
+    rows = []
+    print(HEADER, flush=True)
+    for frame in frames:
+        path = folder / "guidepoints" / f"GPFile_{frame:03d}.txt"
+        rows.append(run_case(f"frame {frame}", path, surfaces=reference(folder, frame), options=options))
+        print(line(rows[-1]), flush=True)
+    if args.variants:
+        base = frames[0] if frames else 0
+        with tempfile.TemporaryDirectory() as scratch:
+            for name in args.classes or CLASSES:
+                path, frame = class_file(folder / "guidepoints", base, name, scratch)
+                rows.append(run_case(f"frame {base}, {name}", path, frame, reference(folder, base), options))
+                print(line(rows[-1]), flush=True)
+    for text in args.gpfile:
+        path, _, frame = text.partition(":")
+        rows.append(run_case(f"{Path(path).parent.name}/{Path(path).name}" + (f" frame {frame}" if frame else ""),
+                             Path(path), float(frame) if frame else None, options=options))
+        print(line(rows[-1]), flush=True)
+    if args.output:
+        args.output.write_text(HEADER + "\n" + "\n".join(line(row) for row in rows) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,122 @@
+"""What a cardiac modeller measures on a heart mesh made from guide points, against the data and against biv-me's
+own fitted surfaces of the same frame (``benchmarks/cine.py``).
+
+- every guide point of every label to the mesh's boundary (none excluded), and the valve points;
+- the mesh's EPI / LV_ENDO / RV_ENDO against biv-me's EPICARDIAL / LV_ENDOCARDIAL / RV_ENDOCARDIAL, both ways: each
+  reference vertex to the mesh's surface of that name, each mesh facet (by area) to the reference triangles;
+- the cavity volumes, each cavity's surface closed across its openings by a fan from each rim's centroid (the
+  mesh's cavity is closed where its endocardium meets the base; biv-me's at its valve rings);
+- topology: components, boundary surfaces, the boundary's Euler characteristic.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "filters"))
+
+from bitemesh.core.fidelity import distances_to_facets, facet_measures
+from bitemesh.core.quality import (boundary_euler_characteristic, check_valid_domain, connected_components,
+                                   count_boundary_components)
+from bitemesh.core.topology import boundary_facets
+
+#: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.
+REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL": ("LV_ENDO",),
+                      "RV_ENDOCARDIAL": ("RV_ENDO",)}
+#: the guide-point labels of the walls (every one measured), and the valves (mitral and tricuspid held to 3 mm).
+WALL_WORDS = ("ENDOCARDIAL", "EPICARDIAL", "FREEWALL", "SEPTUM")
+VALVES = ("MITRAL_VALVE", "TRICUSPID_VALVE", "AORTA_VALVE", "PULMONARY_VALVE")
+
+
+def read_surface(path: Path):
+    """Vertices (n, 3) and triangles (t, 3) of a legacy VTK polydata surface."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkFiltersCore import vtkTriangleFilter
+    from vtkmodules.vtkIOLegacy import vtkPolyDataReader
+
+    reader = vtkPolyDataReader()
+    reader.SetFileName(str(path))
+    triangulate = vtkTriangleFilter()
+    triangulate.SetInputConnection(reader.GetOutputPort())
+    triangulate.Update()
+    surface = triangulate.GetOutput()
+    vertices = vtk_to_numpy(surface.GetPoints().GetData()).astype(np.float64)
+    cells = vtk_to_numpy(surface.GetPolys().GetConnectivityArray()).astype(np.int64).reshape(-1, 3)
+    return vertices, cells
+
+
+def closed_volume(points: np.ndarray, triangles: np.ndarray) -> float:
+    """|volume| (mm^3) enclosed by a triangle patch closed across each hole by a fan from the hole rim's centroid.
+
+    The patch must be consistently oriented; the rims are its directed edges without a twin."""
+    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    keys = {tuple(edge) for edge in edges.tolist()}
+    rim = np.array([edge for edge in edges.tolist() if (edge[1], edge[0]) not in keys], dtype=np.int64)
+    corners = points[triangles]
+    volume = np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6
+    if len(rim):
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components as components
+        size = int(rim.max()) + 1
+        _, loop = components(coo_matrix((np.ones(len(rim)), (rim[:, 0], rim[:, 1])), shape=(size, size)),
+                             directed=False)
+        for number in np.unique(loop[rim[:, 0]]):
+            ring = rim[loop[rim[:, 0]] == number]
+            centre = points[np.unique(ring)].mean(axis=0)
+            a, b = points[ring[:, 1]], points[ring[:, 0]]   # reversed: the cap continues the patch's orientation
+            volume += np.einsum("ij,ij->i", a, np.cross(b, np.broadcast_to(centre, a.shape))).sum() / 6
+    return abs(float(volume))
+
+
+def tagged(mesh, names) -> np.ndarray:
+    """(b, 3) the mesh's facets tagged with any of ``names``."""
+    tags = [mesh.tag_names[name][0] for name in names if name in mesh.tag_names and mesh.tag_names[name][1] == 2]
+    return mesh.facets[np.isin(mesh.facet_tags, tags)]
+
+
+def surface_distances(mesh, names, vertices, triangles):
+    """(mean reference -> mesh, mean mesh -> reference by area, 95 % of both pooled) in mm; NaN without facets."""
+    facets = tagged(mesh, names)
+    if not len(facets):
+        return np.nan, np.nan, np.nan
+    corners = mesh.points[facets]
+    to_mesh = distances_to_facets(vertices, corners)
+    area = facet_measures(corners)
+    to_reference = distances_to_facets(corners.mean(axis=1), vertices[triangles])
+    return (float(to_mesh.mean()), float((to_reference * area).sum() / area.sum()),
+            float(np.percentile(np.r_[to_mesh, to_reference], 95)))
+
+
+def measure_heart(mesh, points, labels, reference: dict | None = None) -> dict:
+    """Every measure of the module docstring on ``mesh`` (a tagged bitemesh heart, mm) of the guide ``points``
+    (n, 3) with their ``labels`` (n,); ``reference``: biv-me surface name -> (vertices, triangles)."""
+    facets = boundary_facets(mesh.cells)
+    corners = mesh.points[facets]
+    distance = distances_to_facets(points, corners)
+    wall = np.array([any(word in label for word in WALL_WORDS) for label in labels])
+    row = {"cells": len(mesh.cells), "valid": not check_valid_domain(mesh),
+           "components": int(connected_components(mesh.cells).max() + 1),
+           "boundaries": count_boundary_components(mesh), "euler": boundary_euler_characteristic(mesh),
+           "myocardium_ml": float(mesh.cell_data["Volume"].sum()) / 1000,
+           "wall_mean": float(distance[wall].mean()), "wall_p95": float(np.percentile(distance[wall], 95)),
+           "wall_max": float(distance[wall].max()),
+           "labels": {label: (float(distance[labels == label].mean()), float(distance[labels == label].max()))
+                      for label in np.unique(labels)}}
+    for valve in VALVES:
+        if (labels == valve).any():
+            row[valve] = float(distance[labels == valve].max())
+    for cavity in ("LV_ENDO", "RV_ENDO"):
+        facets = tagged(mesh, (cavity,))
+        row[f"{cavity}_ml"] = closed_volume(mesh.points, facets) / 1000 if len(facets) else np.nan
+    row["surfaces"] = {}
+    for name, (vertices, triangles) in (reference or {}).items():
+        row["surfaces"][name] = surface_distances(mesh, REFERENCE_SURFACES[name], vertices, triangles)
+        if name != "EPICARDIAL":
+            row[f"bivme_{REFERENCE_SURFACES[name][0]}_ml"] = closed_volume(vertices, triangles) / 1000
+    if row["surfaces"]:
+        both = [value for means in row["surfaces"].values() for value in means[:2]]
+        row["surface_mean"] = float(np.nanmean(both))
+    return row
