@@ -76,7 +76,7 @@ def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> 
 def line(row: dict) -> str:
     """One markdown row."""
     if "refused" in row:
-        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 12
+        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 13
     surfaces = row.get("surfaces", {})
     both = " / ".join(f"{surfaces[name][0]:.2f}, {surfaces[name][1]:.2f}" if name in surfaces else "-"
                       for name in ("EPICARDIAL", "LV_ENDOCARDIAL", "RV_ENDOCARDIAL"))
@@ -86,15 +86,19 @@ def line(row: dict) -> str:
     if "bivme_LV_ENDO_ml" in row:
         volumes += f" ({row['bivme_LV_ENDO_ml']:.0f} / {row['bivme_RV_ENDO_ml']:.0f})"
     flags = "; ".join(text.split(":")[0][:60] for text in row["warnings"])
+    peer = f"{row['bivme_wall_mean']:.2f} / {row['bivme_wall_p95']:.2f}" if "bivme_wall_mean" in row else "-"
     return (f"| {row['name']} | {row['cells']:,} | {'yes' if row['valid'] else 'NO'} | {row['components']} | "
             f"{row['boundaries']} | {row['euler']} | {row['wall_mean']:.2f} / {row['wall_p95']:.2f} / "
-            f"{row['wall_max']:.1f} | {valves} | {both} | {row.get('surface_mean', np.nan):.2f} | "
+            f"{row['wall_max']:.1f} | {peer} | {valves} | {both} | {row.get('to_bivme', np.nan):.2f} / "
+            f"{row.get('from_bivme', np.nan):.2f} | "
             f"{row['myocardium_ml']:.0f} | {volumes} | {row['seconds']:.1f} | {flags} |")
 
 
 HEADER = ("| case | cells | valid | parts | boundaries | Euler | wall guide points mean / 95 % / max (mm) | "
-          "valves MV / TV / AV / PV max (mm) | biv-me EPI / LV / RV: ref->mesh, mesh->ref (mm) | surfaces mean (mm) | "
-          "myocardium (ml) | LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 14 + "|")
+          "biv-me's fit: wall guide points mean / 95 % (mm) | valves MV / TV / AV / PV max (mm) | "
+          "biv-me EPI / LV / RV: ref->mesh, mesh->ref (mm) | mesh->biv-me / biv-me->mesh, mean of 3 (mm) | "
+          "myocardium (ml) | "
+          "LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 15 + "|")
 
 
 def main(argv=None) -> None:

@@ -1,7 +1,8 @@
 """What a cardiac modeller measures on a heart mesh made from guide points, against the data and against biv-me's
 own fitted surfaces of the same frame (``benchmarks/cine.py``).
 
-- every guide point of every label to the mesh's boundary (none excluded), and the valve points;
+- every guide point of every label to the mesh's boundary (none excluded), and the valve points; the wall guide
+  points to biv-me's own surfaces too (the peer's fit of the same points);
 - the mesh's EPI / LV_ENDO / RV_ENDO against biv-me's EPICARDIAL / LV_ENDOCARDIAL / RV_ENDOCARDIAL, both ways: each
   reference vertex to the mesh's surface of that name, each mesh facet (by area) to the reference triangles;
 - the cavity volumes, each cavity's surface closed across its openings by a fan from each rim's centroid (the
@@ -112,11 +113,17 @@ def measure_heart(mesh, points, labels, reference: dict | None = None) -> dict:
         facets = tagged(mesh, (cavity,))
         row[f"{cavity}_ml"] = closed_volume(mesh.points, facets) / 1000 if len(facets) else np.nan
     row["surfaces"] = {}
+    if reference:   # the peer: biv-me's own fit against the same guide points
+        offsets = np.cumsum([0] + [len(vertices) for vertices, _ in reference.values()])
+        vertices = np.vstack([vertices for vertices, _ in reference.values()])
+        triangles = np.vstack([triangles + offset for (_, triangles), offset in zip(reference.values(), offsets)])
+        peer = distances_to_facets(points[wall], vertices[triangles])
+        row["bivme_wall_mean"], row["bivme_wall_p95"] = float(peer.mean()), float(np.percentile(peer, 95))
     for name, (vertices, triangles) in (reference or {}).items():
         row["surfaces"][name] = surface_distances(mesh, REFERENCE_SURFACES[name], vertices, triangles)
         if name != "EPICARDIAL":
             row[f"bivme_{REFERENCE_SURFACES[name][0]}_ml"] = closed_volume(vertices, triangles) / 1000
     if row["surfaces"]:
-        both = [value for means in row["surfaces"].values() for value in means[:2]]
-        row["surface_mean"] = float(np.nanmean(both))
+        row["from_bivme"] = float(np.nanmean([means[0] for means in row["surfaces"].values()]))
+        row["to_bivme"] = float(np.nanmean([means[1] for means in row["surfaces"].values()]))
     return row

@@ -6,7 +6,7 @@ from __future__ import annotations
 from functools import cache
 
 import numpy as np
-from bitemesh.core import fibres
+from bitemesh.core import fem, fibres
 from bitemesh.core.contours.run import run_labelled
 from bitemesh.core.mesh import Mesh
 from bitemesh.core.parameters import BitingParameters
@@ -109,11 +109,12 @@ def free_wall_lines(mesh, lines=6, heights=(0.3, 0.65), facing=0.9, smoothing=10
 
 def geometric_helix(fibre, direction, axis) -> np.ndarray:
     """(c,) degrees in [-90, 90]: the angle of fibre lines (c, 3) against the circumferential direction e_L x e_T
-    of the frame e_T = ``direction`` (the wall normal, endo to epi), e_L = the long ``axis`` (apex to base) made
-    orthogonal to it, towards e_L."""
-    e_l = axis - (axis @ direction) * direction
-    e_l /= np.linalg.norm(e_l)
-    along, up = fibre @ np.cross(e_l, direction), fibre @ e_l
+    of the frame e_T = ``direction`` (the wall normal, endo to epi), e_L = the long ``axis`` (apex to base; (3,),
+    or one per fibre (c, 3)) made orthogonal to it, towards e_L."""
+    axis = np.broadcast_to(axis, fibre.shape)
+    e_l = axis - np.outer(axis @ direction, direction)
+    e_l /= np.linalg.norm(e_l, axis=1, keepdims=True)
+    along, up = np.einsum("ci,ci->c", fibre, np.cross(e_l, direction)), np.einsum("ci,ci->c", fibre, e_l)
     return np.degrees(np.arctan2(np.where(along < 0, -up, up), np.abs(along)))
 
 
@@ -137,14 +138,20 @@ def check_free_wall(mesh, field, parameters, *, lines=6, depth=0.3, window=0.03,
     and lies within ``tolerance`` degrees of the rule's on an ideal wall somewhere within ``window`` of the cell's
     phi_epi.
 
+    The longitudinal direction e_L is each cell's grad psi (apex to base), the rule's own: where the base follows
+    the annuli, tilted against the short-axis plane, grad psi tilts with it (7-25 degrees from the apex-to-base
+    axis on the real heart), and so do the fibres.
+
     Returns the profiles: a list of (phi_epi (c,), helix angle (c,) degrees), endo to epi.
     """
-    found, axis = free_wall_lines(mesh, lines)
+    found, _ = free_wall_lines(mesh, lines)
     phi = field.laplace["PhiEpi"][mesh.cells].mean(axis=1)
+    gradients, _ = fem.basis_gradients(mesh.points, mesh.cells)
+    along = np.einsum("mai,ma->mi", gradients, field.laplace["Psi"][mesh.cells])
     offsets = np.linspace(-window, window, 7)
     profiles = []
     for cells, direction, leaves in found:
-        helix = geometric_helix(field.fibre[cells], direction, axis)
+        helix = geometric_helix(field.fibre[cells], direction, along[cells])
         depths = phi[cells]
         assert leaves == "EPI", leaves
         assert depths[0] <= depth and depths[-1] >= 1 - depth, depths

@@ -98,7 +98,10 @@ def inside_mesh(mesh, point) -> bool:
     return False
 
 
-MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x")]
+#: the variants meshed here; the others are the shipped heart renamed (their reading is tested above), or denser
+#: still (benchmarks/bivme.py --variants meshes every one)
+MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x", "sliceID header, frame 1",
+                                                     "no SAX/LAX prefix")]
 
 
 @pytest.mark.slow
@@ -122,10 +125,8 @@ def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart)
         assert abs(volume - full) <= 0.1 * full
     elif name == "LV only":
         assert set(result.function.surfaces) == {"LV_EPI", "LV_ENDO"} and volume < 0.9 * full
-    elif name == "no valves":
-        assert volume < full   # cut at the basal short-axis slice, below the valves
-    else:
-        assert abs(volume - full) <= 0.03 * full   # the same heart: renamed, moved or resampled
+    else:   # no valves: the base still follows the long-axis contours' upper ends
+        assert abs(volume - full) <= 0.03 * full   # the same heart: renamed, moved, resampled or without valves
 
 
 def test_guide_points_far_from_the_boundary_are_refused_or_warned(full_heart):

@@ -198,7 +198,8 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
 
     - each cavity (LV_ENDO, RV_ENDO) not filled: at most 10 % of the mesh's cells whose centroids lie deeper than
       max(min_wall, R) + 1 mm inside a cavity, by volume of the cavity;
-    - each cavity open at the base: at least half of its section 1 mm below the base outside the mesh;
+    - each cavity open at the base: at least half of its section 1 mm below the base outside the mesh (its core,
+      deeper than min_wall: the walls are kept at least that thick, narrowing the cavity by as much);
     - the myocardial volume and the mean wall thickness (2 x volume / walls' area) in :data:`MYOCARDIAL_VOLUME`
       and :data:`WALL_THICKNESS`;
     - the guide points near the boundary: mean <= 0.5 x noise + R / 4 and 95th percentile <= noise + R (the
@@ -228,7 +229,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
         cavity = function.surfaces[name]
         depth = max(function.min_wall, radius) + 1.0
         filled = volumes[cavity(centroids) > depth].sum()
-        section = _cavity_section(cavity, function.base)
+        section = _cavity_section(cavity, function.base, core=function.min_wall)
         if len(section):
             inside_mesh = np.asarray(function(section)) > 0
             if inside_mesh.mean() > 0.5:
@@ -279,12 +280,12 @@ def _volume_below(grid, base) -> float:
     return float(np.count_nonzero(base.below(grid.node_coordinates(inside)) > 0) * np.prod(grid.spacing))
 
 
-def _cavity_section(grid, base, depth: float = 1.0) -> np.ndarray:
-    """(m, 3) the nodes of the cavity's grid with f > 0 within one spacing of the surface ``depth`` below the
-    base."""
+def _cavity_section(grid, base, depth: float = 1.0, core: float = 0.0) -> np.ndarray:
+    """(m, 3) the nodes of the cavity's grid with f > ``core`` (deeper than the thinnest wall the domain keeps, which
+    may narrow the cavity by that much) within one spacing of the surface ``depth`` below the base."""
     if base is None:
         return np.zeros((0, 3))
-    nodes = grid.node_coordinates(np.flatnonzero(grid.values.reshape(-1) > 0))
+    nodes = grid.node_coordinates(np.flatnonzero(grid.values.reshape(-1) > core))
     return nodes[np.abs(base.below(nodes) - depth) < grid.spacing.max()]
 
 
@@ -321,4 +322,13 @@ def time_frame(frames, slices, frame, where: str, how: str):
     if not keep.all():
         logging.getLogger("bitemesh").info("%s: time frame %g, %d of %d points", where, frame, int(keep.sum()),
                                            len(keep))
+    if slices is not None:
+        missing = sorted(set(np.unique(slices[~keep]).tolist()) - set(np.unique(slices[keep]).tolist()))
+        if missing:
+            listed = ", ".join("slice {} (frames {})".format(number, ", ".join(
+                map("{:g}".format, np.unique(frames[slices == number])))) for number in missing[:6])
+            warnings.warn(BitemeshWarning(
+                f"{where}: {len(missing)} slice(s) hold no point of time frame {frame:g} and are left out: {listed}; "
+                "a series that numbers its frames otherwise (biv-me writes 1 for its three-chamber view) cannot be "
+                "told apart in a file of several frames: give each frame its own file"), stacklevel=2)
     return keep

@@ -23,12 +23,16 @@ from .slices import GAP_FACTOR, is_closed, polylines
 
 #: a crossing farther than this (input units, mm) from the slice's contour is no pair (another part of the heart).
 OUTLIER = 10.0
+#: a slice whose contours stay this far (mm, median) from the crossings whatever the shift is left out: beyond any
+#: breath-hold's shift (2 to 5 mm) and a basal slice's through-plane motion (up to about 12 mm at end-systole).
+MISPLACED = 15.0
 #: the normal matrix's smallest eigenvalue, per crossing, below which a direction is not pinned.
 MIN_PIN = 0.05
 #: at least this many crossings in all for a slice's shift.
 MIN_CROSSINGS = 4
-#: shifts smaller than this (mm) are left out of the note (but applied).
-NOTED = 0.5
+#: a shift smaller than this (mm, about the tracing noise of contours on 1.4 mm pixels) is no misregistration: the
+#: slice stays where it is (and a synthetic heart's exact contours are not moved by the rounding of the fit).
+SMALLEST = 0.5
 
 
 def segment_ends(q: np.ndarray, gap_factor: float = GAP_FACTOR) -> np.ndarray:
@@ -53,8 +57,10 @@ def crossings(segments: np.ndarray, plane) -> np.ndarray:
     return a + t[:, None] * (b - a)
 
 
-def _nearest_on_segments(points: np.ndarray, segments: np.ndarray):
-    """For (c, 2) points, the nearest point on (s, 2, 2) segments and the unit normal of that segment."""
+def _nearest_on_segments(points: np.ndarray, segments: np.ndarray, tips: np.ndarray | None = None):
+    """For (c, 2) points, the nearest point on (s, 2, 2) segments, the unit normal of that segment and the
+    distance; inf where the nearest point is an open contour's tip (``tips`` (s, 2) bool: which segment ends are a
+    polyline's ends), so that a point beyond an arc's end pairs with nothing."""
     a, b = segments[:, 0], segments[:, 1]
     edge = b - a
     length = np.maximum(np.einsum("sk,sk->s", edge, edge), 1e-300)
@@ -64,20 +70,27 @@ def _nearest_on_segments(points: np.ndarray, segments: np.ndarray):
     best = np.argmin(distance, axis=1)
     rows = np.arange(len(points))
     normal = np.column_stack([-edge[best, 1], edge[best, 0]]) / np.sqrt(length[best])[:, None]
-    return nearest[rows, best], normal, distance[rows, best]
+    closest = distance[rows, best]
+    if tips is not None:
+        at = t[rows, best]
+        closest = np.where((tips[best, 0] & (at <= 0.0)) | (tips[best, 1] & (at >= 1.0)), np.inf, closest)
+    return nearest[rows, best], normal, closest
 
 
 def _residuals(pairs, shift) -> np.ndarray:
-    """The distance of every crossing, moved by -``shift``, to its slice's contour."""
-    return np.concatenate([_nearest_on_segments(points - shift, segments)[2] for segments, points in pairs
-                           if len(segments) and len(points)] or [np.zeros(0)])
+    """The distance of every crossing, moved by -``shift``, to its slice's contour (those beside it)."""
+    distances = np.concatenate([_nearest_on_segments(points - shift, segments, tips)[2]
+                                for segments, tips, points in pairs if len(segments) and len(points)]
+                               or [np.zeros(0)])
+    return distances[np.isfinite(distances)]
 
 
-def in_plane_shift(pairs, iterations: int = 30):
+def in_plane_shift(pairs, iterations: int = 100):
     """The 2D translation t of a slice's contours that lays them through the crossings: pairs is a list of
-    ((s, 2, 2) segments of the slice's contour of a surface, (c, 2) crossings of that surface), all in the slice's
-    coordinates.  Each step is a weighted least-squares one (Tukey's biweight of the residuals, scale
-    :data:`OUTLIER`), so that crossings of another part of the heart do not pull.
+    ((s, 2, 2) segments of the slice's contour of a surface, (s, 2) which of their ends are a polyline's tips,
+    (c, 2) crossings of that surface), all in the slice's coordinates; a crossing beyond an arc's tip pairs with
+    nothing (an arc may slide along it).  Each step is a weighted least-squares one (Tukey's biweight of the
+    residuals, scale :data:`OUTLIER`), so that crossings of another part of the heart do not pull.
 
     Returns
     -------
@@ -90,12 +103,12 @@ def in_plane_shift(pairs, iterations: int = 30):
         return None, np.nan, np.nan   # too few to judge
     for _ in range(iterations):
         matrix, right, weight_sum = np.zeros((2, 2)), np.zeros(2), 0.0
-        for segments, points in pairs:
+        for segments, tips, points in pairs:
             if not len(segments) or not len(points):
                 continue
-            nearest, normal, distance = _nearest_on_segments(points - shift, segments)
+            nearest, normal, distance = _nearest_on_segments(points - shift, segments, tips)
             weight = np.clip(1.0 - (distance / OUTLIER) ** 2, 0.0, None) ** 2
-            residual = np.einsum("ck,ck->c", points - shift - nearest, normal)
+            residual = np.where(weight > 0, np.einsum("ck,ck->c", points - shift - nearest, normal), 0.0)
             matrix += (normal * weight[:, None]).T @ normal
             right += (normal * weight[:, None]).T @ residual
             weight_sum += float(weight.sum())
@@ -103,7 +116,7 @@ def in_plane_shift(pairs, iterations: int = 30):
             return None, float(np.median(before)), np.nan
         step = np.linalg.solve(matrix, right)
         shift = shift + step
-        if np.linalg.norm(step) < 1e-3:
+        if np.linalg.norm(step) < 1e-9:   # converged to rounding: the same shift whatever the platform
             break
     return shift, float(np.median(before)), float(np.median(_residuals(pairs, shift)))
 
@@ -114,10 +127,11 @@ class Registration:
 
     Attributes
     ----------
-    shifts : slice id -> (3,) float64, the in-plane translation added to that slice's points (input units)
+    shifts : slice id -> (3,) float64, the in-plane translation added to that slice's points (input units), those of
+        at least :data:`SMALLEST`
     unpinned : the slice ids whose crossings do not pin a shift (left in place)
     outliers : slice id -> the median distance (input units) of the crossings to its contours, beyond
-        :data:`OUTLIER` whatever the shift: contours no long-axis contour agrees with, left out
+        :data:`MISPLACED` whatever the shift: contours no long-axis contour agrees with, left out
     """
 
     shifts: dict = field(default_factory=dict)
@@ -125,8 +139,8 @@ class Registration:
     outliers: dict = field(default_factory=dict)
 
     def notes(self) -> tuple:
-        """What was moved (shifts of at least :data:`NOTED`), left in place and left out, one sentence each."""
-        moved = {number: shift for number, shift in self.shifts.items() if np.linalg.norm(shift) >= NOTED}
+        """What was moved, left in place and left out, one sentence each."""
+        moved = self.shifts
         notes = ()
         if moved:
             notes += ("short-axis slices moved onto the long-axis contours (breath-hold misregistration): "
@@ -138,7 +152,7 @@ class Registration:
         if self.outliers:
             notes += ("short-axis slice(s) left out, their contours " + ", ".join(
                 f"{distance:.0f} mm (slice {number})" for number, distance in self.outliers.items())
-                + f" from where the long-axis contours cross them, more than {OUTLIER:g} mm whatever the shift: "
+                + f" from where the long-axis contours cross them, more than {MISPLACED:g} mm whatever the shift: "
                 "check those slices' positions (the image header) or their labels",)
         return notes
 
@@ -165,22 +179,24 @@ def register_short_axis(points, labels, slices, planes, surfaces: dict,
             if mine.sum() < 3:
                 continue
             q = plane.project(points[mine])
-            segments = q[segment_ends(q, gap_factor)]
+            ends = segment_ends(q, gap_factor)
+            tips = np.bincount(ends.ravel(), minlength=len(q))[ends] == 1
             cross = []
             for other in others:
                 theirs = np.flatnonzero((slices == other) & np.isin(labels, members))
                 if len(theirs) >= 3:
-                    ends = segment_ends(planes[other].project(points[theirs]), gap_factor)
-                    cross.append(crossings(points[theirs][ends], plane))
+                    lines = segment_ends(planes[other].project(points[theirs]), gap_factor)
+                    cross.append(crossings(points[theirs][lines], plane))
             if cross:
-                pairs.append((segments, plane.project(np.concatenate(cross))))
+                pairs.append((q[ends], tips, plane.project(np.concatenate(cross))))
         if not pairs:
             continue
         shift, before, after = in_plane_shift(pairs)
-        if (after if shift is not None else before) > OUTLIER:
+        if (after if shift is not None else before) > MISPLACED:
             outliers[number] = before if shift is None else after
         elif shift is None:
             unpinned.append(number)
         else:
-            shifts[number] = shift @ plane.axes
+            if np.linalg.norm(shift) >= SMALLEST:
+                shifts[number] = shift @ plane.axes
     return Registration(shifts, tuple(unpinned), outliers)

@@ -41,11 +41,11 @@ LabelledMeshingResult = MeshingResult
 
 
 def is_myocardium(function: LabelledImplicit) -> bool:
-    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV) closed by a base: a ball, its
-    cavities open through the base (handles = "auto" removes the handles of its mesh and fills its voids).  Without
-    a base the cavities are closed voids of the domain."""
+    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV): with a base, a ball, its
+    cavities open through it (handles = "auto" removes the handles of its mesh and fills its voids); without one,
+    its cavities are closed voids."""
     return (set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
-            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN) and function.base is not None)
+            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
 
 
 def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
@@ -101,6 +101,7 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
     for note in function.notes:
         logger.info(note)
     cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+    ball = is_myocardium(function) and function.base is not None   # no handle, no void
     return Source(function, lower, upper, frame, samples=function.surface_samples(),
                   at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None
                   else None,
@@ -108,7 +109,7 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
                   open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
                   notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
                   radius_note=f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)"
-                  if cardiac else "", handles="remove" if is_myocardium(function) else "keep", tagging=labelled_tags)
+                  if cardiac else "", handles="remove" if ball else "keep", tagging=labelled_tags)
 
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
