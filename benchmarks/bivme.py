@@ -61,6 +61,7 @@ from bitemesh.core.quality import (
 )
 from bitemesh.core.topology import boundary_facets
 from bitemesh.io import read_labelled_points
+from heart_measures import read_surface
 from scipy.spatial import cKDTree
 
 REFERENCES = {"EPI": "patient1_EPICARDIAL_000.vtk", "LV_ENDO": "patient1_LV_ENDOCARDIAL_000.vtk",
@@ -122,23 +123,6 @@ def distance_to_triangles(points, vertices, triangles, candidates: int = 24):
     corners = vertices[triangles[near.ravel()]]
     repeated = np.repeat(points, k, axis=0)
     return point_triangle_distance(repeated, corners[:, 0], corners[:, 1], corners[:, 2]).reshape(-1, k).min(axis=1)
-
-
-def read_surface(path: Path):
-    """Vertices (n, 3) and triangles (t, 3) of a legacy VTK polydata surface."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-    from vtkmodules.vtkFiltersCore import vtkTriangleFilter
-    from vtkmodules.vtkIOLegacy import vtkPolyDataReader
-
-    reader = vtkPolyDataReader()
-    reader.SetFileName(str(path))
-    triangulate = vtkTriangleFilter()
-    triangulate.SetInputConnection(reader.GetOutputPort())
-    triangulate.Update()
-    surface = triangulate.GetOutput()
-    vertices = vtk_to_numpy(surface.GetPoints().GetData()).astype(np.float64)
-    cells = vtk_to_numpy(surface.GetPolys().GetConnectivityArray()).astype(np.int64).reshape(-1, 3)
-    return vertices, cells
 
 
 def located(mesh, points, candidates: int = 32) -> np.ndarray:

@@ -245,8 +245,8 @@ def gpfile(args, out: Path) -> None:
     default (empty) Domain."""
     table = simple.CSVReader(FileName=[str(args.gpfile)], FieldDelimiterCharacters="\t")
     points = simple.TableToPoints(Input=table, XColumn="x", YColumn="y", ZColumn="z")
-    # a coarse mesh (R about 5 mm, walls of 6.7 mm close the cavities at the base): kept, with the warning
-    proxy = getattr(simple, FILTERS["MeshFromPoints"])(Input=points, Cells=args.labelled_cells, AllowImplausible=1)
+    # a coarse mesh (R about 5 mm): the cavities stay open up to the valves, so no warning
+    proxy = getattr(simple, FILTERS["MeshFromPoints"])(Input=points, Cells=args.labelled_cells)
     grid = timed("Volume Mesh From Points, GPFile", proxy)
     error = proxy.GetClientSideObject().last_error
     check("gpfile: the default domain meshes the myocardium", error is None and grid.GetNumberOfCells() > 0,

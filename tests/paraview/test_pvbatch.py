@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bitemesh.core.errors import BitemeshWarning
 from bitemesh.core.labelled import run_labelled
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
 from bitemesh.core.pipeline import run
@@ -200,9 +199,7 @@ def test_a_gpfile_read_as_a_table_gives_the_myocardium_of_run_labelled(pvbatch_r
     from bitemesh.io import read_labelled_points
     assert_checks(pvbatch_run, "gpfile")
     points, labels, slices = read_labelled_points(GPFILE)
-    with pytest.warns(BitemeshWarning, match="not plausible: the LV_ENDO cavity is closed at the base"):
-        expected = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=LABELLED_CELLS),
-                                allow_implausible=True).mesh
+    expected = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=LABELLED_CELLS)).mesh
     mesh = read_back(pvbatch_run, "gpfile")
     assert np.array_equal(mesh.cells, expected.cells)
     np.testing.assert_allclose(mesh.points, expected.points, rtol=0, atol=1e-9)
@@ -217,9 +214,7 @@ def test_fibre_field_in_paraview_gives_the_fibres_of_the_core_on_the_same_mesh(p
     from bitemesh.io import read_labelled_points
     assert_checks(pvbatch_run, "gpfile: Fibre Field")
     points, labels, slices = read_labelled_points(GPFILE)
-    with pytest.warns(BitemeshWarning, match="not plausible"):
-        expected = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=LABELLED_CELLS),
-                                allow_implausible=True).mesh
+    expected = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=LABELLED_CELLS)).mesh
     expected = with_fibres(expected)[0]
     fibred = read_back(pvbatch_run, "fibres")
     assert np.array_equal(fibred.cells, expected.cells)

@@ -15,6 +15,7 @@ distance below it.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Optional
 
 import numpy as np
@@ -34,9 +35,6 @@ ABOVE_ANNULUS = 1.0
 #: the base is raised over the wall and valve points it leaves less than this (mm) below it, at most this many
 #: rounds; of the points it passes over, the highest in each square of this side (mm) of the base's plane.
 ENVELOPE_TOLERANCE, ENVELOPE_ROUNDS, ANCHOR_CELL = 0.5, 4, 5.0
-#: an end of a long-axis contour is an annulus point when it lies above the basal short-axis slice by at least
-#: this (mm): the contour's other end is at the apex.
-ABOVE_BASAL_SLICE = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,13 +111,17 @@ class PiecewiseLinear:
         nearest = cKDTree(anchors).query(ring)[1]
         return cls(np.vstack([anchors, ring]), np.r_[heights, heights[nearest]])
 
-    @property
+    @cached_property
     def _triangles(self) -> Delaunay:
         return Delaunay(self.anchors)
 
+    @cached_property
+    def _tree(self) -> cKDTree:
+        return cKDTree(self.anchors)
+
     def _weights(self, uv):
         """The triangle of each of (m, 2) points (-1 beyond the ring) and its barycentric weights (m, 3)."""
-        mesh = self.__dict__.get("_mesh") or self.__dict__.setdefault("_mesh", self._triangles)
+        mesh = self._triangles
         uv = np.asarray(uv, dtype=np.float64)
         simplex = mesh.find_simplex(uv)
         transform = mesh.transform[np.maximum(simplex, 0)]
@@ -130,7 +132,7 @@ class PiecewiseLinear:
         """(m,) h at (m, 2) points."""
         mesh, simplex, weights = self._weights(uv)
         inside = np.einsum("mi,mi->m", weights, self.heights[mesh.simplices[np.maximum(simplex, 0)]])
-        outside = self.heights[cKDTree(self.anchors).query(np.asarray(uv)[simplex < 0])[1]]
+        outside = self.heights[self._tree.query(np.asarray(uv)[simplex < 0])[1]]
         inside[simplex < 0] = outside
         return inside
 
@@ -164,7 +166,8 @@ def annulus_points(points, labels, slices, planes, axis, stack, floor: float) ->
     """(k, 3) the points the base passes through: every valve point, and each end of a wall contour on a slice out
     of the short-axis ``stack`` (a long-axis slice, whatever its labels' prefix) that lies higher than ``floor``
     along ``axis`` (its other end is at the apex; a closed contour has no end).  A contour's ends are those of the
-    longest paths of its points in its slice (:func:`~bitemesh.core.contours.slices.polylines`)."""
+    longest paths of its points in its slice (:func:`~bitemesh.core.contours.slices.polylines`); ``floor`` is the
+    basal short-axis slice's height, the other end of such a contour being at the apex."""
     chosen = [points[np.isin(labels, BIVME_VALVES)]]
     wall = np.isin(labels, [label for members in BIVME_SURFACES.values() for label in members])
     for label in np.unique(labels[wall]).tolist():
@@ -188,7 +191,7 @@ def annulus_surface(points, labels, slices, planes):
     if axis is None:
         return None, ()
     basal = int(np.argmax(heights))
-    anchors = annulus_points(points, labels, slices, planes, axis, numbers, heights[basal] + ABOVE_BASAL_SLICE)
+    anchors = annulus_points(points, labels, slices, planes, axis, numbers, heights[basal])
     if len(anchors) < 3:
         return BaseSurface.plane(planes[numbers[basal]].centre, axis), (
             f"no valve points or long-axis contours above the basal short-axis slice: the base is that slice's "

@@ -6,7 +6,8 @@ each slice registered to where the other slices' contours cross its plane).  Her
 and each short-axis slice gets the in-plane translation that best lays its contours of each surface through the
 points where the long-axis contours of the same surface cross its plane: point-to-curve least squares (the
 crossings to the nearest segment of the slice's polylines, each pair's residual along the segment's normal),
-iterated to convergence, crossings farther than :data:`OUTLIER` from the contour left out.
+iterated to convergence, with Tukey's weights of scale :data:`OUTLIER` (a crossing of another part of the heart
+does not pull), a crossing beyond the tip of an open arc pairing with nothing.
 
 A shift is estimated only when the crossings pin both in-plane directions (the smallest eigenvalue of the normal
 matrix is at least :data:`MIN_PIN` of the crossings' count): otherwise the slice stays where it is and the note says
@@ -169,26 +170,25 @@ def register_short_axis(points, labels, slices, planes, surfaces: dict,
     axis, stack, _ = short_axis_stack(points, labels, slices, planes)
     if axis is None:
         return Registration()
-    others = [number for number in planes if number not in stack]
+    lines = {}   # (surface, long-axis slice) -> its contour's segments (s, 2, 3)
+    for name, members in surfaces.items():
+        for other in (number for number in planes if number not in stack):
+            theirs = np.flatnonzero((slices == other) & np.isin(labels, members))
+            if len(theirs) >= 3:
+                lines[name, other] = points[theirs][segment_ends(planes[other].project(points[theirs]), gap_factor)]
     shifts, unpinned, outliers = {}, [], {}
     for number in stack:
         plane = planes[number]
         pairs = []
-        for members in surfaces.values():
+        for name, members in surfaces.items():
             mine = (slices == number) & np.isin(labels, members)
-            if mine.sum() < 3:
+            cross = [crossings(segments, plane) for (surface, _), segments in lines.items() if surface == name]
+            if mine.sum() < 3 or not cross:
                 continue
             q = plane.project(points[mine])
             ends = segment_ends(q, gap_factor)
             tips = np.bincount(ends.ravel(), minlength=len(q))[ends] == 1
-            cross = []
-            for other in others:
-                theirs = np.flatnonzero((slices == other) & np.isin(labels, members))
-                if len(theirs) >= 3:
-                    lines = segment_ends(planes[other].project(points[theirs]), gap_factor)
-                    cross.append(crossings(points[theirs][lines], plane))
-            if cross:
-                pairs.append((q[ends], tips, plane.project(np.concatenate(cross))))
+            pairs.append((q[ends], tips, plane.project(np.concatenate(cross))))
         if not pairs:
             continue
         shift, before, after = in_plane_shift(pairs)
@@ -196,7 +196,6 @@ def register_short_axis(points, labels, slices, planes, surfaces: dict,
             outliers[number] = before if shift is None else after
         elif shift is None:
             unpinned.append(number)
-        else:
-            if np.linalg.norm(shift) >= SMALLEST:
-                shifts[number] = shift @ plane.axes
+        elif np.linalg.norm(shift) >= SMALLEST:
+            shifts[number] = shift @ plane.axes
     return Registration(shifts, tuple(unpinned), outliers)
