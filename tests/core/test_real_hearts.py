@@ -14,6 +14,7 @@ from bitemesh.core.contours.cardiac import BIVME_SURFACES, BIVME_VALVES
 from bitemesh.core.contours.fit import labelled_implicit
 from bitemesh.core.contours.registration import register_short_axis
 from bitemesh.core.contours.slices import contour_normals, slice_planes
+from bitemesh.core.contours.valves import annulus_normals
 from tests.cardiac_variants import open_arcs, read_frame, shifted_slices, short_arcs, subset
 from tests.conftest import DATA
 
@@ -154,3 +155,16 @@ def test_without_valve_points_the_base_follows_the_long_axis_contours_ends():
     function, _, _ = labelled_implicit(plain["points"], plain["labels"], slices=plain["slices"])
     wall = np.isin(plain["labels"], [label for labels in SURFACES.values() for label in labels])
     assert function.base.below(plain["points"][wall]).min() > -3.0
+
+
+def test_the_annulus_normals_point_away_from_the_valves_centre_in_its_plane():
+    """Six points of a tilted ring (radius 12 mm): radial unit normals; two of a valve seen in one view: none."""
+    angles = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    tilt = np.array([[1, 0, 0], [0, np.cos(0.5), np.sin(0.5)], [0, -np.sin(0.5), np.cos(0.5)]])
+    ring = 12 * np.c_[np.cos(angles), np.sin(angles), np.zeros(6)] @ tilt + [5, -3, 40]
+    pair = np.array([[0.0, 0, 0], [0, 20, 0]])
+    points = np.vstack([ring, pair])
+    labels = np.array(["MITRAL_VALVE"] * 6 + ["TRICUSPID_VALVE"] * 2)
+    normals = annulus_normals(points, labels)
+    np.testing.assert_allclose(normals[:6], (ring - ring.mean(axis=0)) / 12, atol=1e-12)
+    assert np.isnan(normals[6:]).all()

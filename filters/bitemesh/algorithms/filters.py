@@ -197,13 +197,14 @@ class BitingSampler(BitemeshAlgorithm):
         laid_out = image.GetFieldData().GetArray("Radius")   # the R PointsToImplicit laid the grid out for
         if parameters.radius is not None:
             radius = parameters.radius
-        elif laid_out is not None and parameters.cells == BitingParameters().cells:
+        elif laid_out is not None and parameters.cells is None:
             radius = laid_out.GetValue(0)
         else:
-            radius = radius_on_grid(grid, parameters.cells)
+            radius = radius_on_grid(grid, parameters.aimed_cells)
         spacing = float(np.max(grid.spacing))
         if spacing > radius / 2:   # a grid laid out for a larger R cannot resolve this one
-            named = "Radius" if parameters.radius is not None else f"Radius (chosen for Cells = {parameters.cells})"
+            named = ("Radius" if parameters.radius is not None
+                     else f"Radius (chosen for Cells = {parameters.aimed_cells})")
             raise InvalidInputError(
                 f"BitingSampler: {named} = {radius:.4g} is too small for the grid I (spacing {spacing:.4g}): the "
                 f"grid must resolve R, R >= 2 x spacing = {2 * spacing:.4g}; set Radius or Cells on "

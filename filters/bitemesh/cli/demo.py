@@ -11,7 +11,8 @@ from dataclasses import fields
 from importlib import resources
 
 from ..core.errors import InvalidInputError
-from ..core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
+from ..core.parameters import (DEFAULT_CELLS, BitingParameters, ImplicitParameters, OptimizeParameters,
+                               SpuriousParameters)
 from ..core.pipeline import run as run_pipeline
 from ..core.shapes import die, sample_surface
 from ..io import read_labelled_points
@@ -30,7 +31,7 @@ def add_parser(subcommands) -> None:
     parser.add_argument("-o", "--output", help="the mesh to write; default die.vtu or heart.vtu")
     cells = {item.name: item for item in fields(BitingParameters)}["cells"]
     parser.add_argument("--cells", type=int, help=describe(cells.metadata, None)
-                        + f"; default {BitingParameters.cells} (die), 136000 (heart)")
+                        + f"; default {DEFAULT_CELLS} (die), 136000 (heart)")
     add_parameter_options(parser, (OptimizeParameters,))
     add_fibre_options(parser)
     parser.set_defaults(run=run)

@@ -92,6 +92,10 @@ class ImplicitParameters(Parameters):
                               "them (and say how many), or keep them", choices=("drop", "keep"))
 
 
+#: the cells aimed for when neither radius nor cells is given and the data carries no size of its own.
+DEFAULT_CELLS = 10000
+
+
 @dataclass(frozen=True)
 class BitingParameters(Parameters):
     """BitingSampler: node placement on the grid (Algorithm 1 of the paper)."""
@@ -99,12 +103,18 @@ class BitingParameters(Parameters):
     radius: Optional[float] = parameter(
         None, "R, the minimum distance between nodes (close to the mean edge length); default: chosen for about "
         "`cells` cells", unit="input units", low=0, low_open=True)
-    cells: int = parameter(10000, "the number of cells to aim for when radius is not given", low=100,
-                           high=50_000_000, integer=True)
+    cells: Optional[int] = parameter(
+        None, f"the number of cells to aim for when radius is not given; default: the size the data carries (R = 2 "
+        f"mm for cardiac contours), else {DEFAULT_CELLS}", low=100, high=50_000_000, integer=True)
     order: str = parameter("boundary", "SelectNode order: the border layer first then inward, or random",
                            choices=("boundary", "random"))
     seed: int = parameter(0, "seed of the random generator (same input and seed give the same mesh)", low=0,
                           high=2**32 - 1, integer=True)
+
+    @property
+    def aimed_cells(self) -> int:
+        """``cells``, or :data:`DEFAULT_CELLS` when it is left to choose."""
+        return DEFAULT_CELLS if self.cells is None else self.cells
 
 
 @dataclass(frozen=True)

@@ -113,7 +113,7 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
     biting samples like the boundary.
     """
     seconds = {} if seconds is None else seconds
-    radius = biting.radius or radius_on_grid(grid, biting.cells)
+    radius = biting.radius or radius_on_grid(grid, biting.aimed_cells)
     optimize = switched_optimizer(optimize)
     carved = 0.9 if optimize is None else 0.6
     with timed(seconds, "biting"):
@@ -219,7 +219,7 @@ def check_grid(source: Source, radius: float, implicit: ImplicitParameters, biti
     memory, naming the parameter to change in user units."""
     scale = source.frame.scale
     size = _extent(source)
-    named = "radius" if biting.radius is not None else f"radius (chosen for cells = {biting.cells})"
+    named = "radius" if biting.radius is not None else f"radius (chosen for cells = {biting.aimed_cells})"
     check_number(radius * scale, named, low=0, low_open=True, high=size * scale,
                  hint="radius is R, the node spacing; it cannot exceed the size of the data's bounding box"
                       + ("" if biting.radius is not None else "; ask for more cells"))
@@ -248,7 +248,7 @@ def check_memory(source: Source, radius: float | None, implicit: ImplicitParamet
                  else f"the {available:.0f} MiB of memory this machine has free")
         hint = (f"grid_spacing >= {implicit.grid_spacing * factor:.4g}" if implicit.grid_spacing is not None
                 else f"radius >= {radius * scale * factor:.4g}" if biting.radius is not None and radius is not None
-                else f"cells <= {int(biting.cells / factor ** len(shape))}")
+                else f"cells <= {int(biting.aimed_cells / factor ** len(shape))}")
         raise InvalidInputError(
             f"the grid I at spacing {spacing * scale:.4g} needs {' x '.join(map(str, shape))} nodes (about "
             f"{needed:.0f} MiB), more than {which}; use {hint}"
@@ -267,9 +267,10 @@ def check_inside(grid: SampledGrid, radius: float, scale: float, biting: BitingP
     extent = float(np.min(inside_extents(inside) * grid.spacing)) + float(np.max(grid.spacing))
     if radius > extent:
         given = biting.radius is not None
-        needed = biting.cells * (radius / (extent / 2)) ** grid.dim
+        needed = biting.aimed_cells * (radius / (extent / 2)) ** grid.dim
+        named = "radius" if given else f"radius (chosen for cells = {biting.aimed_cells})"
         raise InvalidInputError(
-            f"{'radius' if given else f'radius (chosen for cells = {biting.cells})'} = {radius * scale:.4g} exceeds "
+            f"{named} = {radius * scale:.4g} exceeds "
             f"the shape's thinnest extent, {extent * scale:.4g}: the shape is too thin for elements that size; give "
             f"radius <= {extent * scale / 2:.4g}" + ("" if given else f" or cells >= {int(np.ceil(needed))}"))
 
@@ -302,7 +303,7 @@ def grid_for_source(source: Source, implicit: ImplicitParameters = ImplicitParam
     PointsToImplicit takes them too, so that the chain and MeshFromPoints mesh the same grid).
 
     R is ``biting.radius``, else the source's own :attr:`~bitemesh.core.source.Source.radius` when
-    ``biting.cells`` is left at its default, else chosen for ``biting.cells`` cells (:func:`choose_radius`).
+    ``biting.cells`` is not given, else chosen for ``biting.aimed_cells`` cells (:func:`choose_radius`).
 
     Returns
     -------
@@ -310,14 +311,14 @@ def grid_for_source(source: Source, implicit: ImplicitParameters = ImplicitParam
     notes : the source's notes, and the sentence that says R was the source's own
     """
     notes = source.notes
-    if biting.radius is None and source.radius is not None and biting.cells == BitingParameters().cells:
+    if biting.radius is None and source.radius is not None and biting.cells is None:
         biting = replace(biting, radius=source.radius * source.frame.scale)
         notes += (source.radius_note,) if source.radius_note else ()
         logger.info(source.radius_note)
     check_spacing(source, implicit)
     radius = _local(biting.radius, source)
     if radius is None:
-        radius = choose_radius(source, biting.cells, implicit)
+        radius = choose_radius(source, biting.aimed_cells, implicit)
     check_grid(source, radius, implicit, biting)
     function = source.function if source.at_radius is None else source.at_radius(radius)
     grid = sample_grid(source, function, radius, implicit, progress)

@@ -54,14 +54,15 @@ from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, OUTLET_WALL, RV_WALL, bivme
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
 from .registration import register_short_axis
-from .valves import across_valves, outlet_points
+from .valves import across_valves, annulus_normals, outlet_points
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .surface_fit import fit_contour_rbf
 
 logger = logging.getLogger("bitemesh")
 
-#: the cavities whose valve points (their :data:`BIVME_OUTLETS`) are samples of their walls too.
-CAVITY_RINGS = ("LV_ENDO", "RV_ENDO")
+#: the cavities whose inflow valve points are samples of their walls too (an outflow ring as well would fold the
+#: wall between the two rings into the cavity: a bridge of myocardium across it).
+CAVITY_RINGS = {"LV_ENDO": ("MITRAL_VALVE",), "RV_ENDO": ("TRICUSPID_VALVE",)}
 #: no patch of a surface's fit is narrower than this x the median distance between its slices.
 PATCH_PER_GAP = 1.0
 
@@ -214,12 +215,12 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         across, note = across_valves(points, labels, slices, [label for name in fitted for label in surfaces[name]])
         points, labels, slices, notes = points[~across], labels[~across], slices[~across], notes + note
     planes = slice_planes(points, slices)
-    shifts = {}
+    shifts, disagreement = {}, 0.0
     if check_choice(slice_shifts, "slice_shifts", ("auto", "none")) == "auto":
         registration = register_short_axis(points, labels, slices, planes,
                                            {name: surfaces[name] for name in fitted})
         notes += registration.notes()
-        shifts = registration.shifts
+        shifts, disagreement = registration.shifts, registration.disagreement
         if shifts or registration.outliers:
             points = points.copy()
             for number, shift in shifts.items():
@@ -239,9 +240,9 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         report(progress, 0.05 + 0.9 * number / len(fitted), f"fitting surface {name}")
         index = _distinct(points, np.flatnonzero(np.isin(labels, surfaces[name])))
         normals = _surface_normals(points[index], slices[index], planes, name, gap_factor)
-        if name in CAVITY_RINGS:   # a cavity's valve annuli lie on its wall: samples of f = 0, without a normal
-            rings = _distinct(points, np.flatnonzero(np.isin(labels, outlets.get(name, ()))))
-            index, normals = np.r_[index, rings], np.vstack([normals, np.full((len(rings), 3), np.nan)])
+        if name in CAVITY_RINGS:   # a cavity's inflow annulus lies on its wall, its normal away from the valve's centre
+            rings = _distinct(points, np.flatnonzero(np.isin(labels, CAVITY_RINGS[name])))
+            index, normals = np.r_[index, rings], np.vstack([normals, annulus_normals(points[rings], labels[rings])])
         interior = outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
         rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
                               interior=interior, min_patch=PATCH_PER_GAP * slice_spacing(points[index], slices[index]))
@@ -254,7 +255,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
                                 base=base, min_wall=check_number(min_wall, "min_wall", low=0),
                                 lower=points[in_any].min(axis=0), upper=points[in_any].max(axis=0),
                                 points=surface_points, normals=surface_normals, slices=surface_slices,
-                                derived=derived, shifts=shifts, notes=notes)
+                                derived=derived, shifts=shifts, disagreement=disagreement, notes=notes)
     lower, upper = _domain_box(function)
     report(progress, 1.0, "surfaces fitted")
     function = replace(function, lower=lower, upper=upper)

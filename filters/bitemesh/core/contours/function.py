@@ -32,8 +32,9 @@ class LabelledImplicit:
         where none); slices : name -> (n,) their slice ids
     derived : names of the surfaces built from others, not fitted to contours (an RV epicardium grown from the
         RV endocardium); shifts : slice id -> (3,) the in-plane shift each short-axis slice was moved by
-        (:mod:`~bitemesh.core.contours.registration`; ``points`` are the moved ones); notes : what was read, derived
-        or chosen, one sentence each
+        (:mod:`~bitemesh.core.contours.registration`; ``points`` are the moved ones); disagreement : how far the
+        short- and long-axis contours still disagree once moved (input units, median); notes : what was read,
+        derived or chosen, one sentence each
     """
 
     surfaces: dict
@@ -48,6 +49,7 @@ class LabelledImplicit:
     slices: dict = field(default_factory=dict)
     derived: tuple = ()
     shifts: dict = field(default_factory=dict)
+    disagreement: float = 0.0
     notes: tuple = ()
 
     @property
@@ -98,10 +100,11 @@ class LabelledImplicit:
                     if name in self.slices), default=0.0)
 
     def tracing_noise(self) -> float:
-        """The uncertainty of traced contours: half the median distance between neighbouring contour points
-        (input units), about the pixel size they were traced and resampled at."""
+        """The uncertainty of traced contours (input units): half the median distance between neighbouring contour
+        points (about the pixel size they were traced and resampled at), or the :attr:`disagreement` between the
+        short- and long-axis contours when larger (no surface can pass nearer to both)."""
         spacing = [cKDTree(points).query(points, k=2)[0][:, 1] for points in self.points.values() if len(points) > 1]
-        return 0.5 * float(np.median(np.concatenate(spacing))) if spacing else 0.0
+        return max(0.5 * float(np.median(np.concatenate(spacing))) if spacing else 0.0, self.disagreement)
 
     def is_base(self, x) -> np.ndarray:
         """(m,) True where the base, not a surface, gives f at (m, 3) points."""

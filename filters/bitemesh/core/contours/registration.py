@@ -34,6 +34,8 @@ MIN_CROSSINGS = 4
 #: a shift smaller than this (mm, about the tracing noise of contours on 1.4 mm pixels) is no misregistration: the
 #: slice stays where it is (and a synthetic heart's exact contours are not moved by the rounding of the fit).
 SMALLEST = 0.5
+#: contours that still disagree by more than this (mm, median, about a pixel) once registered are said to.
+DISAGREEING = 1.5
 
 
 def segment_ends(q: np.ndarray, gap_factor: float = GAP_FACTOR) -> np.ndarray:
@@ -133,11 +135,14 @@ class Registration:
     unpinned : the slice ids whose crossings do not pin a shift (left in place)
     outliers : slice id -> the median distance (input units) of the crossings to its contours, beyond
         :data:`MISPLACED` whatever the shift: contours no long-axis contour agrees with, left out
+    disagreement : the median over the slices kept of that distance once moved (input units): how far the short-
+        and long-axis contours still disagree, which no surface through both can undo
     """
 
     shifts: dict = field(default_factory=dict)
     unpinned: tuple = ()
     outliers: dict = field(default_factory=dict)
+    disagreement: float = 0.0
 
     def notes(self) -> tuple:
         """What was moved, left in place and left out, one sentence each."""
@@ -155,6 +160,10 @@ class Registration:
                 f"{distance:.0f} mm (slice {number})" for number, distance in self.outliers.items())
                 + f" from where the long-axis contours cross them, more than {MISPLACED:g} mm whatever the shift: "
                 "check those slices' positions (the image header) or their labels",)
+        if self.disagreement > DISAGREEING:
+            notes += (f"the short- and long-axis contours still disagree by {self.disagreement:.1f} mm (median) once "
+                      "registered (motion through the slices, or views of other breath-holds): the surfaces pass "
+                      "between them, and the fidelity bounds count that disagreement as the contours' noise",)
         return notes
 
 
@@ -176,7 +185,7 @@ def register_short_axis(points, labels, slices, planes, surfaces: dict,
             theirs = np.flatnonzero((slices == other) & np.isin(labels, members))
             if len(theirs) >= 3:
                 lines[name, other] = points[theirs][segment_ends(planes[other].project(points[theirs]), gap_factor)]
-    shifts, unpinned, outliers = {}, [], {}
+    shifts, unpinned, outliers, residuals = {}, [], {}, []
     for number in stack:
         plane = planes[number]
         pairs = []
@@ -192,10 +201,14 @@ def register_short_axis(points, labels, slices, planes, surfaces: dict,
         if not pairs:
             continue
         shift, before, after = in_plane_shift(pairs)
+        moved = shift is not None and np.linalg.norm(shift) >= SMALLEST
         if (after if shift is not None else before) > MISPLACED:
             outliers[number] = before if shift is None else after
-        elif shift is None:
+            continue
+        if shift is None:
             unpinned.append(number)
-        elif np.linalg.norm(shift) >= SMALLEST:
+        elif moved:
             shifts[number] = shift @ plane.axes
-    return Registration(shifts, tuple(unpinned), outliers)
+        residuals.append(after if moved else before)
+    residuals = [value for value in residuals if np.isfinite(value)]
+    return Registration(shifts, tuple(unpinned), outliers, float(np.median(residuals)) if residuals else 0.0)

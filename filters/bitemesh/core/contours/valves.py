@@ -31,6 +31,24 @@ def outlet_points(points, labels, valves, wall: float = 0.0):
     return (np.array(centres), np.array(radii)) if centres else None
 
 
+def annulus_normals(points, labels) -> np.ndarray:
+    """(n, 3) the outward normals of a cavity's wall at its valve points (n, 3): each point's direction from its
+    valve's centre in the valve's plane (the least-squares plane of its points).  NaN for a valve of fewer than three
+    points (seen in one view: its chord's middle is no centre of a ring that is not a circle) and at a centre."""
+    normals = np.full(np.shape(points), np.nan)
+    for valve in np.unique(labels).tolist():
+        members = labels == valve
+        radial = points[members] - points[members].mean(axis=0)
+        if members.sum() < 3:
+            continue
+        axis = np.linalg.svd(radial, full_matrices=False)[2][2]
+        radial = radial - np.outer(radial @ axis, axis)
+        length = np.linalg.norm(radial, axis=1, keepdims=True)
+        away = length > 1e-6 * max(float(length.max()), 1e-300)
+        normals[members] = np.where(away, radial / np.maximum(length, 1e-300), np.nan)
+    return normals
+
+
 def across_valves(points, labels, slices, wall_labels):
     """(n,) bool, the points of ``wall_labels`` traced across a valve (see the module docstring), and a note."""
     across = np.zeros(len(points), bool)
