@@ -15,6 +15,9 @@ from bitemesh.core.contours.fit import labelled_implicit
 from bitemesh.core.contours.registration import register_short_axis
 from bitemesh.core.contours.slices import contour_normals, slice_planes
 from bitemesh.core.contours.valves import annulus_normals
+from bitemesh.core.errors import MeshingError
+from bitemesh.core.fidelity import Fidelity, check_fidelity
+from bitemesh.core.parameters import FidelityParameters
 from tests.cardiac_variants import open_arcs, read_frame, shifted_slices, short_arcs, subset
 from tests.conftest import DATA
 
@@ -168,3 +171,31 @@ def test_the_annulus_normals_point_away_from_the_valves_centre_in_its_plane():
     normals = annulus_normals(points, labels)
     np.testing.assert_allclose(normals[:6], (ring - ring.mean(axis=0)) / 12, atol=1e-12)
     assert np.isnan(normals[6:]).all()
+
+
+# --- refusals that name the slice -------------------------------------------------------------------------------------
+
+def test_samples_far_from_the_mesh_are_located_on_the_slice_that_holds_them():
+    """The sentence a fidelity refusal gives for contour points: the slice holding most of the far points, its
+    surfaces, its tilt to the short-axis stack when oblique, and a hint; nothing when they are spread."""
+    function, _ = fitted(0)
+    samples = function.surface_samples()
+    slices = np.concatenate([function.slices[name] for name in function.points])[function.base.below(
+        np.vstack(list(function.points.values()))) >= 0]
+    number = int(np.unique(slices[slices >= 0])[1])
+    sentence = function.locate(np.flatnonzero(slices == number))
+    assert f"lie on slice {number} (" in sentence and "leave its rows out of the file" in sentence, sentence
+    assert "degrees" not in sentence   # a short-axis or a long-axis slice is no oblique one
+    spread = np.flatnonzero(np.isin(slices, np.unique(slices)[:4]))[::7]
+    assert len(samples) > len(spread) and function.locate(spread) == ""
+
+
+def test_a_fidelity_refusal_says_where_the_far_samples_lie_instead_of_the_likely_causes():
+    far = Fidelity(samples=100, noise=0.5, to_boundary_mean=1.0, to_boundary_p95=5.0, to_boundary_max=12.0,
+                   far_bound=3.5, far_samples=4.0, from_samples_mean=0.5, from_samples_max=2.0, support_bound=6.0,
+                   unsupported_area=0.0)
+    with pytest.raises(MeshingError, match="4 of those 4 points lie on slice 7.*--allow-unfaithful") as refusal:
+        check_fidelity(far, FidelityParameters(), where=lambda: "4 of those 4 points lie on slice 7")
+    assert "Likely causes" not in str(refusal.value)
+    with pytest.raises(MeshingError, match="Likely causes"):
+        check_fidelity(far, FidelityParameters(), where=lambda: "")

@@ -229,11 +229,19 @@ def on_plane(point, normal, tolerance: float):
     return lambda centroids: np.abs((centroids - point) @ normal) <= tolerance
 
 
-def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "") -> list:
+def far_from(mesh: Mesh, samples: np.ndarray, bound: float) -> np.ndarray:
+    """(m,) the indices of the ``samples`` (n, k) farther than ``bound`` from the boundary of ``mesh``."""
+    return np.flatnonzero(distances_to_facets(samples, mesh.points[boundary_facets(mesh.cells)]) > bound)
+
+
+def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "", where=None) -> list:
     """The bounds of ``parameters`` that ``fidelity`` exceeds, as messages; raise :class:`MeshingError` naming them
-    unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`."""
-    problems = []
+    unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`.  ``where``: a
+    callable () -> a sentence saying where the far samples lie with a hint, said instead of the likely causes when
+    not empty (it is called only when samples are too far)."""
+    problems, located = [], ""
     if fidelity.far_samples > parameters.far_samples:
+        located = where() if where is not None else ""
         problems.append(
             f"{fidelity.far_samples:.1f}% of the input points lie farther than {fidelity.far_bound:.3g}{units} "
             f"(R + 3 x noise) from the mesh boundary (allowed: far_samples = {parameters.far_samples:g}%; up to "
@@ -245,10 +253,10 @@ def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: st
             f"unsupported_area = {parameters.unsupported_area:g}%; up to {fidelity.from_samples_max:.3g}{units}): "
             "the mesh has surfaces the data does not support")
     if problems:
-        text = ("the mesh does not follow the data: " + "; ".join(problems)
-                + ". Likely causes: outliers, normals that do not point outward, a wrong column layout, or parts "
-                "thinner than R; check the input, lower radius, or set allow_unfaithful (--allow-unfaithful) to "
-                "keep the mesh anyway")
+        causes = located or ("Likely causes: outliers, normals that do not point outward, a wrong column layout, or "
+                             "parts thinner than R; check the input, lower radius")
+        text = ("the mesh does not follow the data: " + "; ".join(problems) + f". {causes}; or set "
+                "allow_unfaithful (--allow-unfaithful) to keep the mesh anyway")
         if not parameters.allow_unfaithful:
             raise MeshingError(text)
         warnings.warn(text, BitemeshWarning, stacklevel=2)

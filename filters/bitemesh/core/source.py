@@ -132,6 +132,8 @@ class Source:
         (:func:`~bitemesh.core.tags.component_tags`)
     interfaces : regions whose interfaces the biting samples like the boundary (a label map of several labels:
         :class:`~bitemesh.core.interfaces.LabelRegions`), or None
+    locate : callable (indices into ``samples``) -> a sentence saying where those samples lie, with a hint that
+        fits ("" when it cannot tell), for a refusal of samples far from the mesh; or None
     """
 
     function: Callable[[np.ndarray], np.ndarray]
@@ -151,6 +153,7 @@ class Source:
     labels: tuple = ()
     tagging: Optional[Callable[[Mesh, Callable], Mesh]] = None
     interfaces: Optional[object] = None
+    locate: Optional[Callable[[np.ndarray], str]] = None
 
     @property
     def size(self) -> float:

@@ -88,10 +88,41 @@ class LabelledImplicit:
                        lower=self.lower + shift, upper=self.upper + shift,
                        points={name: points + shift for name, points in self.points.items()})
 
+    def _kept(self) -> np.ndarray:
+        """(n,) bool over the points of every surface in turn: those below the base (those above it are cut away)."""
+        samples = np.vstack(list(self.points.values()))
+        return np.ones(len(samples), bool) if self.base is None else self.base.below(samples) >= 0
+
     def surface_samples(self) -> np.ndarray:
         """(n, 3) the points of every surface that lie below the base (those above it are cut away)."""
-        samples = np.vstack(list(self.points.values()))
-        return samples if self.base is None else samples[self.base.below(samples) >= 0]
+        return np.vstack(list(self.points.values()))[self._kept()]
+
+    def locate(self, indices) -> str:
+        """Where the :meth:`surface_samples` of ``indices`` lie, as a sentence with a hint: the slice that holds
+        most of them when one does (and its tilt to the short-axis stack when it is neither parallel nor
+        perpendicular to it); "" when they are spread over the slices."""
+        kept = self._kept()
+        names = np.concatenate([[name] * len(points) for name, points in self.points.items()])[kept][indices]
+        slices = np.concatenate([self.slices.get(name, np.full(len(points), -1))
+                                 for name, points in self.points.items()])[kept][indices]
+        if not len(slices):
+            return ""
+        numbers, counts = np.unique(slices, return_counts=True)
+        number = int(numbers[np.argmax(counts)])
+        if number < 0 or counts.max() < 0.5 * len(slices):
+            return ""
+        mine = np.concatenate([points[self.slices[name] == number] for name, points in self.points.items()
+                               if name in self.slices])
+        tilt = ""
+        if self.base is not None and len(mine) >= 3:
+            normal = np.linalg.svd(mine - mine.mean(axis=0), full_matrices=False)[2][2]
+            angle = float(np.degrees(np.arccos(min(1.0, abs(normal @ self.base.normal)))))
+            tilt = f", a slice at {angle:.0f} degrees to the short-axis stack," if 10 < angle < 80 else ""
+        surfaces = ", ".join(f"{name} {int(np.sum(names[slices == number] == name))}"
+                             for name in dict.fromkeys(names[slices == number].tolist()))
+        return (f"{counts.max()} of those {len(slices)} points lie on slice {number} ({surfaces}){tilt} whose "
+                "contours the other slices contradict: check that slice's position and orientation (the image "
+                "header, its labels), or leave its rows out of the file")
 
     def contour_gap(self) -> float:
         """The gap the contours leave between their slices (:func:`bitemesh.core.samples.contour_gap`), the

@@ -109,7 +109,8 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
                   open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
                   notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
                   radius_note=f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)"
-                  if cardiac else "", handles="remove" if ball else "keep", tagging=labelled_tags)
+                  if cardiac else "", handles="remove" if ball else "keep", tagging=labelled_tags,
+                  locate=function.locate)
 
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
