@@ -27,6 +27,60 @@ def test_colour_columns_without_header_are_refused_with_the_columns_hint(capsys,
     assert not output.exists()
 
 
+def test_x_y_z_and_an_intensity_without_header_are_read_as_3d_points(capsys, tmp_path, unit_sphere_samples):
+    """Four columns whose last two are no unit vectors: x y z and a value (a scanner's intensity), said in a note;
+    not 2-D points with normals, which --columns x,y,nx,ny still reads."""
+    points, _ = unit_sphere_samples
+    intensity = np.random.default_rng(2).uniform(0, 255, (len(points), 1))
+    path = write_rows(tmp_path / "scan.txt", np.hstack([points, intensity]))
+    code, out, err, output = mesh_cli(capsys, tmp_path, path)
+    assert_follows(code, out, err, output)
+    assert "read as x y z and a value (column 4 not used)" in err
+
+
+def test_a_nan_normal_is_named_by_its_line(capsys, tmp_path, unit_sphere_samples):
+    points, normals = unit_sphere_samples
+    rows = np.hstack([points, normals])
+    rows[37, 4] = np.nan
+    code, _, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "cloud.xyz", rows))
+    assert_refused(code, err, "line 38 has NaN or infinite normals")
+    assert "length" not in err and not output.exists()
+
+
+def test_binary_data_is_no_table(capsys, tmp_path):
+    path = tmp_path / "scan.xyz"
+    path.write_bytes(np.random.default_rng(3).bytes(4000))
+    code, _, err, _ = mesh_cli(capsys, tmp_path, path)
+    assert_refused(code, err, "not a text table", ".ply")
+    assert "thousands separator" not in err
+
+
+def test_labelled_contours_without_z_and_in_metres_are_refused_with_their_cause(capsys, tmp_path, shared_data):
+    lines = (shared_data / "bivme_patient1" / "GPFile_000.txt").read_text().splitlines()
+    rows = [line.split("\t") for line in lines]
+    without_z = tmp_path / "noz.txt"
+    without_z.write_text("\n".join("\t".join(row[:2] + row[3:]) for row in rows) + "\n")
+    code, _, err, _ = mesh_cli(capsys, tmp_path, without_z)
+    assert_refused(code, err, "names no z column", "restore the z column")
+    metres = tmp_path / "metres.txt"
+    metres.write_text("\n".join([lines[0]] + ["\t".join([f"{float(value) / 1000:.8f}" for value in row[:3]] + row[3:])
+                                              for row in rows[1:]]) + "\n")
+    code, _, err, _ = mesh_cli(capsys, tmp_path, metres)
+    assert_refused(code, err, "in metres?", "multiply them by 1000")
+    assert "NaN" not in err
+
+
+def test_label_zero_is_out_of_the_range_help_gives(capsys, tmp_path):
+    import SimpleITK as sitk
+    with pytest.raises(SystemExit):
+        cli.main(["mesh", "--help"])
+    assert "range [1, inf]" in " ".join(capsys.readouterr().out.split())
+    ball = (np.linalg.norm(np.indices((20, 20, 20)) - 9.5, axis=0) < 7).astype(np.uint8)
+    sitk.WriteImage(sitk.GetImageFromArray(ball), str(tmp_path / "ball.nrrd"))
+    code, _, err, _ = mesh_cli(capsys, tmp_path, tmp_path / "ball.nrrd", "--label", "0")
+    assert_refused(code, err, "label must be in [1, inf], got 0")
+
+
 def test_colour_columns_read_past_with_columns(capsys, tmp_path, unit_sphere_samples):
     points, _ = unit_sphere_samples
     colours = np.random.default_rng(1).integers(0, 256, (len(points), 3))

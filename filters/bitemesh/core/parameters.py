@@ -136,8 +136,8 @@ class SpuriousParameters(Parameters):
 class LabelMapParameters(Parameters):
     """PointsToImplicit on a label map: which label is the domain."""
 
-    label: Optional[int] = parameter(None, "the label of the domain; default every nonzero label", low=0,
-                                     integer=True)
+    label: Optional[int] = parameter(None, "the label of the domain (0 is the background); default every nonzero "
+                                     "label", low=1, integer=True)
 
 
 @dataclass(frozen=True)

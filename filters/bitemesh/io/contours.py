@@ -132,6 +132,9 @@ def _read_labelled_table(path: Path, columns):
     roles = column_roles(table, columns, labelled=True)
     if "label" not in roles:
         table.fail(f"the header {table.names} names no label column; name it one of {', '.join(LABEL_COLUMNS)}")
+    if "z" not in roles:
+        table.fail(f"the header {table.names} names no z column: labelled contours are points in 3-D (x y z and "
+                   "a label); restore the z column, or name it z")
     points, _ = table_points(table, [role if role in ("x", "y", "z") else "skip" for role in roles])
     labels = table.texts(roles.index("label"))
     slice_ids = None

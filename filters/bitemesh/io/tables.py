@@ -30,6 +30,9 @@ WIDTHS = {2: ("x", "y"), 3: ("x", "y", "z"), 4: ("x", "y", "nx", "ny"), 6: ("x",
 #: columns without a header are normals when their rows' lengths are within this of 1 (values printed with 3
 #: decimals are within 0.003).
 UNIT_TOLERANCE = 0.01
+#: a file is binary, not a table, when its first BINARY_PROBE characters hold a NUL or more than BINARY_SHARE of
+#: bytes that are not UTF-8 text (a Latin-1 header's accents stay well below it).
+BINARY_PROBE, BINARY_SHARE = 65536, 0.05
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf|infinity)$", re.IGNORECASE)
 _COMMA_NUMBER = re.compile(r"^[+-]?\d+(,\d+)?([eE][+-]?\d+)?$")
@@ -128,9 +131,16 @@ def read_table(path: Path) -> Table:
     """The table in ``path``: header (the last non-comment line before the first row whose first field is a
     number), rows and their line numbers, separator and decimal mark (see the module docstring)."""
     try:
-        text = path.read_text(encoding="utf-8-sig", errors="replace")
+        raw = path.read_bytes()
     except OSError as error:
         raise InvalidInputError(f"cannot read points from '{path}': {error.strerror or error}") from None
+    text = raw.decode("utf-8-sig", errors="replace")
+    head = text[:BINARY_PROBE]
+    if "\x00" in head or head.count("\ufffd") > BINARY_SHARE * len(head):
+        raise InvalidInputError(
+            f"cannot read points from '{path}': it is not a text table (it holds binary data: NUL bytes or bytes "
+            "that are no text); a point table is text, x y z per line; a binary mesh or point cloud needs its "
+            "format's extension (.vtp, .vtu, .vtk, .ply, .stl, .obj)")
     numbered = [(number, line) for number, line in enumerate(text.splitlines(), start=1)
                 if line.split("#", 1)[0].strip()]
     if not numbered:
@@ -213,10 +223,18 @@ def column_roles(table: Table, columns: str | None = None, *, labelled: bool = F
     roles = list(WIDTHS[table.width])
     if "nx" in roles:
         dim = len(roles) // 2
-        values = np.column_stack([table.numbers(i, "value") for i in range(dim, 2 * dim)])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # a NaN is named by its line in table_points
+            values = np.column_stack([table.numbers(i, "value") for i in range(dim, 2 * dim)])
         lengths = np.linalg.norm(values, axis=1)
-        if not np.all(np.abs(lengths - 1) <= UNIT_TOLERANCE):
-            bad = int(np.argmax(np.abs(lengths - 1) > UNIT_TOLERANCE))
+        off = np.isfinite(lengths) & (np.abs(lengths - 1) > UNIT_TOLERANCE)
+        if off.any() and dim == 2:   # x y z and a value (an intensity) far more often than 2-D points with normals
+            logger.info("'%s': 4 columns without a header, the last two no unit vectors: read as x y z and a value "
+                        "(column 4 not used); --columns x,y,nx,ny for 2-D points with normals of any length",
+                        table.path.name)
+            return ["x", "y", "z", "skip"]
+        if off.any():
+            bad = int(np.argmax(off))
             points = ",".join("xyz"[:dim])
             table.fail(
                 f"it has {table.width} columns and no header, and columns {dim + 1}-{2 * dim} are not unit vectors "
@@ -253,6 +271,6 @@ def table_points(table: Table, roles: list):
         if values is not None:
             bad = ~np.isfinite(values).all(axis=1)
             if bad.any():
-                table.fail(f"{int(bad.sum())} rows have NaN or infinite {what} (first on line "
-                           f"{table.lines[np.argmax(bad)]}); remove them")
+                table.fail(f"line {table.lines[np.argmax(bad)]} has NaN or infinite {what} ({int(bad.sum())} "
+                           f"row{'s' if bad.sum() > 1 else ''} in all); remove {'them' if bad.sum() > 1 else 'it'}")
     return points, normals

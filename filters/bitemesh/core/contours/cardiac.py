@@ -80,6 +80,8 @@ CARDIAC_RADIUS = 2.0
 #: the walls, from an RV free wall (2 mm) to beyond hypertrophic LV walls (20 mm).
 MYOCARDIAL_VOLUME = (10.0, 800.0)
 WALL_THICKNESS = (1.5, 20.0)
+#: the least span (mm, the diagonal of the contours' bounding box) of a heart: a mouse heart is about 8 mm long.
+SMALLEST_HEART = 5.0
 
 
 def canonical_labels(labels):
@@ -111,6 +113,16 @@ def canonical_labels(labels):
     new = np.array([renamed.get(name, name) for name in names.tolist()])[inverse.reshape(-1)]
     shown = ", ".join(f"{old} -> {new}" for old, new in list(renamed.items())[:6])
     return new, (f"labels read as biv-me's: {shown}" + (", ..." if len(renamed) > 6 else ""),)
+
+
+def check_millimetres(points) -> None:
+    """Refuse cardiac contours (n, 3) too small to be a heart in mm (coordinates in metres), naming their span."""
+    span = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+    if span < SMALLEST_HEART:
+        raise InvalidInputError(
+            f"cardiac contours are read in mm, and a heart spans at least {SMALLEST_HEART:g} mm (a mouse heart is "
+            f"about 8 mm long); these span {span:.3g} (the diagonal of their bounding box): in metres? give the "
+            "coordinates in mm (multiply them by 1000)")
 
 
 def is_bivme(labels) -> bool:

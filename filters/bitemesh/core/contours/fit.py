@@ -50,6 +50,7 @@ from ..progress import ProgressCallback, report, sub_progress
 from ..samples import slice_spacing
 from .base import choose_base
 from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
+                      check_millimetres,
                       default_surfaces, grown, is_bivme, needs_derived_epicardium, unused_labels_note)
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
@@ -180,6 +181,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     points = check_points(points, dims=(3,))
     labels, notes = canonical_labels(_as_labels(labels, len(points)))
     if is_bivme(labels):
+        check_millimetres(points)
         notes += unused_labels_note(labels)
     surfaces = _checked_surfaces(surfaces, labels)
     if domain is None:
