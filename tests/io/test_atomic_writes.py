@@ -53,3 +53,59 @@ def test_the_stale_partials_of_a_file_are_its_own_alone(tmp_path):
     assert stale_partials(tmp_path / "seg.nii.gz") == []
     (tmp_path / ".seg.nii.0a1b2c3d.partial.nii.gz").write_text("x")
     assert stale_partials(tmp_path / "seg.nii.gz") == [tmp_path / ".seg.nii.0a1b2c3d.partial.nii.gz"]
+
+
+# --- a mesh and its companions committed together ---------------------------------------------------------------------
+
+def tagged_tetrahedron(shift: float = 0.0) -> Mesh:
+    """One tetrahedron with its four faces tagged (a .vtu of it is two files: the cells and the facets)."""
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float) + shift
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    return Mesh(points, np.array([[0, 1, 2, 3]]), facets=faces, facet_tags=np.array([1, 1, 1, 2]),
+                tag_names={"SIDE": (1, 2), "TOP": (2, 2)})
+
+
+def test_ctrl_c_between_the_two_renames_of_a_vtu_waits_until_both_are_new(monkeypatch, tmp_path):
+    """The interrupt arrives after the mesh's rename, before its facets': it is delivered once both files are in
+    place, so the pair on disk is never the new mesh with the old facets."""
+    import os
+    import signal
+
+    from bitemesh.io import files
+    path = tmp_path / "heart.vtu"
+    write_mesh(tagged_tetrahedron(), path)
+    real_replace, renamed = os.replace, []
+
+    def interrupted(source, target):
+        real_replace(source, target)
+        renamed.append(target)
+        if len(renamed) == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(files.os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_mesh(tagged_tetrahedron(shift=5.0), path)
+    monkeypatch.undo()
+    assert len(renamed) == 2
+    mesh = read_mesh(path)   # the pair reads back: both new
+    np.testing.assert_allclose(mesh.points.min(axis=0), 5.0)
+    assert leftovers(tmp_path) == []
+
+
+def test_an_output_that_is_a_symbolic_link_is_written_through_it(tmp_path):
+    target = tmp_path / "meshes" / "heart.msh"
+    target.parent.mkdir()
+    link = tmp_path / "latest.msh"
+    link.symlink_to(target)
+    write_mesh(tagged_tetrahedron(), link)
+    assert link.is_symlink() and target.is_file() and len(read_mesh(link).cells) == 1
+
+
+def test_the_half_written_files_of_a_killed_run_are_removed_with_a_note(tmp_path, caplog):
+    path = tmp_path / "heart.msh"
+    stale = tmp_path / ".heart.0a1b2c3d.partial.msh"
+    stale.write_text("$MeshFormat\n")   # a run killed (SIGKILL, out of memory) before it could remove it
+    with caplog.at_level("INFO", logger="bitemesh"):
+        write_mesh(tagged_tetrahedron(), path)
+    assert not stale.exists() and path.is_file()
+    assert "removed 1 half-written file(s) of 'heart.msh'" in caplog.text

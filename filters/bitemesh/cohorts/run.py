@@ -20,7 +20,7 @@ from ..core.errors import BitemeshError, InvalidInputError
 from ..core.fibres import with_fibres
 from ..core.progress import ProgressCallback
 from ..core.quality import quality_summary
-from ..io import stale_partials, write_mesh
+from ..io import remove_stale_partials, write_mesh
 from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
 from .meshing import fibres_asked, mesh_input, resolved
 from .report import picture_path, render_cut, save_picture, write_report, write_summary
@@ -65,9 +65,7 @@ def remove_partials(output_dir: Path, case: Case) -> None:
     """Delete what attempts of ``case`` half wrote (its mesh, picture and record) when their worker was killed
     mid-write: one attempt of a case runs at a time, so those found when it starts are stale."""
     for path in (output_dir / case.output_name, picture_path(output_dir, case.name), record_path(output_dir, case)):
-        for stale in stale_partials(path):
-            with contextlib.suppress(OSError):
-                stale.unlink()
+        remove_stale_partials(path)
 
 
 def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:

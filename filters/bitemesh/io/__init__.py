@@ -11,7 +11,7 @@ VTK, meshio and SimpleITK are imported only when a file needs them.
 """
 from .contours import (LABELLED_EXTENSIONS, LABELLED_CONFIG_KEYS, looks_labelled, read_labelled_config,  # noqa: F401
                        read_labelled_points)
-from .files import atomic_output, stale_partials  # noqa: F401
+from .files import atomic_output, remove_stale_partials, stale_partials  # noqa: F401
 from .labelmaps import LABEL_MAP_EXTENSIONS, LabelMap, read_label_map  # noqa: F401
 from .meshes import (FACET_ARRAY, MESH_EXTENSIONS, MESHIO_FORMATS, NO_CELL_ARRAYS, REGION_ARRAYS,  # noqa: F401
                      mesh_files, read_mesh, write_mesh)

@@ -10,6 +10,8 @@ import io as _stdio
 import logging
 import os
 import secrets
+import signal
+import threading
 import warnings
 from pathlib import Path
 
@@ -60,26 +62,35 @@ def atomic_output(path, what: str = "a mesh"):
 
 
 @contextlib.contextmanager
-def atomic_outputs(paths, what: str = "a mesh"):
+def atomic_outputs(paths, what: str = "a mesh", stale=()):
     """:func:`atomic_output` for the files of one output written together (a mesh and its facets, an XDMF file and
     its HDF5 file): yield a list of temporary paths, one beside each of ``paths``; once the block completes, rename
-    each onto its path, one after the other, with no writing in between.  If the block fails or is interrupted,
-    every temporary file is removed and every one of ``paths`` keeps what it held before, or stays absent (an
-    interrupt that falls between two renames, a window of microseconds, leaves the files renamed so far new).
+    each onto its path and remove the ``stale`` files (an earlier output's companions that this one has not), with
+    Ctrl-C and SIGTERM held off until all are done (:func:`signals_held`).  If the block fails or is interrupted,
+    every temporary file is removed and every one of ``paths`` keeps what it held before, or stays absent.  A path
+    that is a symbolic link is written through it (its target replaced); the half-written files that a killed
+    write of the same path left are removed first, with a note.
 
     Raises InvalidInputError when a folder does not exist or a rename fails.
     """
-    paths = [Path(path) for path in paths]
+    paths = [Path(os.path.realpath(path)) if Path(path).is_symlink() else Path(path) for path in paths]
     for path in paths:
         if not path.parent.is_dir():
             raise InvalidInputError(f"cannot write {what} to '{path}': the directory '{path.parent}' does not exist")
+        removed = remove_stale_partials(path)
+        if removed:
+            logger.info("removed %d half-written file(s) of '%s' that a killed run left beside it", removed, path.name)
     temporaries = [_temporary_beside(path) for path in paths]
     replaced = []
     try:
         yield temporaries
-        for temporary, path in zip(temporaries, paths):
-            os.replace(temporary, path)
-            replaced.append(path.name)
+        with signals_held():
+            for temporary, path in zip(temporaries, paths):
+                os.replace(temporary, path)
+                replaced.append(path.name)
+            for path in stale:
+                with contextlib.suppress(FileNotFoundError):
+                    Path(path).unlink()
     except OSError as error:
         kept = (f"only {', '.join(replaced)} replaced" if replaced else
                 f"the previous file{'s' if len(paths) > 1 else ''}, if any, unchanged")
@@ -88,6 +99,25 @@ def atomic_outputs(paths, what: str = "a mesh"):
         for temporary in temporaries:
             with contextlib.suppress(OSError):
                 temporary.unlink()
+
+
+@contextlib.contextmanager
+def signals_held():
+    """Ctrl-C (SIGINT) and SIGTERM held off while the block runs, then delivered: in the main thread, whose Python
+    handlers they run (elsewhere the block runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending = []
+    previous = {number: signal.signal(number, lambda number, _: pending.append(number))
+                for number in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        if pending:
+            signal.raise_signal(pending[0])
 
 
 #: the hex digits that make each temporary name of an atomic write fresh
@@ -116,6 +146,16 @@ def stale_partials(path) -> list:
     return sorted(other for other in path.parent.iterdir()
                   if other.name.startswith(prefix) and other.name.endswith(suffix)
                   and _is_token(other.name[len(prefix):len(other.name) - len(suffix)]))
+
+
+def remove_stale_partials(path) -> int:
+    """Remove the :func:`stale_partials` of ``path``; how many were removed."""
+    removed = 0
+    for stale in stale_partials(path):
+        with contextlib.suppress(OSError):
+            stale.unlink()
+            removed += 1
+    return removed
 
 
 def _is_token(text: str) -> bool:

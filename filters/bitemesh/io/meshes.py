@@ -19,7 +19,6 @@ Reading joins what writing split (``m.vtu`` with ``m_facets.vtu``) and gives the
 """
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -102,11 +101,8 @@ def write_mesh(mesh: Mesh, path) -> None:
     mesh, regions = _checked_mesh(mesh)
     files = mesh_files(path, with_facets=len(mesh.facets) > 0)
     writer = _write_xdmf if suffix == ".xdmf" else _write_with_meshio
-    with atomic_outputs(files) as temporaries, meshio_warnings():
+    with atomic_outputs(files, stale=mesh_files(path)[len(files):]) as temporaries, meshio_warnings():
         writer(mesh, regions, suffix, temporaries, files)
-    for stale in mesh_files(path)[len(files):]:
-        with contextlib.suppress(FileNotFoundError):
-            stale.unlink()
 
 
 def _write_with_meshio(mesh: Mesh, regions, suffix: str, temporaries: list, files: list) -> None:
