@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..core.betti import mesh_topology
 from ..core.errors import InvalidInputError, MeshingError
 from ..core.fem_check import FemParameters
 from ..core.parameters import QualityParameters
@@ -43,6 +44,8 @@ def run(args) -> None:
         raise MeshingError(f"{args.mesh} is not a valid finite-element domain: {len(problems)} kinds of defect "
                            f"({problems[0]}{', ...' if len(problems) > 1 else ''})")
     print("defects: none (a valid domain: no inverted, flat or duplicated cell, a closed manifold boundary)")
+    print(f"topology: {mesh_topology(mesh).describe()} (handles: tunnels through it, or holes in 2D; voids: "
+          "closed cavities inside it)")
     if args.fem:
         print(check(args.mesh, parameters_from_args(args, (FemParameters,))[0], mesh))
 

@@ -24,6 +24,7 @@ from .biting import bite
 from .delaunay import delaunay
 from .repair import carve_domain
 from .errors import BitemeshWarning, InvalidInputError, check_number
+from .betti import check_topology
 from .fidelity import Fidelity, check_fidelity, far_from, measure_fidelity
 from .grid import (BYTES_PER_NODE, EXACT_WITHIN, SampledGrid, available_memory_mb, grid_shape_unchecked,
                    inside_extents, sample_function)
@@ -357,6 +358,8 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
                                         source.open_boundary).scaled(frame.scale)
         check_fidelity(measured, fidelity, where=None if source.locate is None else lambda: source.locate(
             far_from(result.mesh, source.samples, measured.far_bound / frame.scale)))
+    with timed(seconds, "topology"):
+        check_topology(result.mesh, grid.inside(), radius * frame.scale, bool(fidelity.allow_unfaithful))
     report(progress, 1.0, "done")
     return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
                          radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,
