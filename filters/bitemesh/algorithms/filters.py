@@ -16,6 +16,7 @@ from ..core.biting import bite
 from ..core.delaunay import delaunay
 from ..core.repair import carve_domain
 from ..core.errors import InvalidInputError
+from ..core.betti import check_topology
 from ..core.fidelity import check_fidelity, measure_fidelity
 from ..core.mesh import Mesh
 from ..core.cell_measures import mean_edge_length
@@ -257,7 +258,7 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
     filled, flat boundary cells peeled, pinched edges and vertices repaired and parts below ``MinComponent``
     dropped.  When the image carries the data's samples (PointsToImplicit puts them there), the domain's boundary
     is compared with them (field data ``Fidelity*``) and refused beyond ``FarSamples`` / ``UnsupportedArea``
-    unless ``AllowUnfaithful``.
+    unless ``AllowUnfaithful``; so is a domain with parts, handles or voids that f > 0 on the grid I lacks.
     """
 
     def execute(self, request, inInfo, outInfo):
@@ -270,15 +271,17 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(domain, output)
         output.GetFieldData().PassData(delaunay_mesh.GetFieldData())
+        radius = output.GetFieldData().GetArray("Radius")
+        radius = radius.GetValue(0) if radius is not None else mean_edge_length(domain.points, domain.cells)
+        bounds = self.parameters(FidelityParameters)
         attached = attached_samples(vtkImageData.GetData(inInfo[1]), domain.dim)
         if attached is not None:
             samples, noise, gap, unsampled = attached
-            radius = output.GetFieldData().GetArray("Radius")
-            radius = radius.GetValue(0) if radius is not None else mean_edge_length(domain.points, domain.cells)
             fidelity = measure_fidelity(domain, samples, radius, noise, gap,
                                         None if unsampled is None else lambda x: unsampled.evaluate(x) > 0.5)
-            check_fidelity(fidelity, self.parameters(FidelityParameters))
+            check_fidelity(fidelity, bounds)
             add_field_values(output, asdict(fidelity), "Fidelity")
+        check_topology(domain, grid.inside(), radius, bool(bounds.allow_unfaithful))
 
 
 @with_parameters(QualityParameters)
