@@ -21,6 +21,30 @@ from tests.meshcheck import assert_valid_domain
 
 # --- outliers ------------------------------------------------------------------------------------------------
 
+def test_a_half_sampled_4x_more_sparsely_meshes_whole(capsys, tmp_path):
+    """16 x fewer points on one half (a scan from one side): no point of it is dropped, the mesh is the sphere."""
+    from bitemesh.core.shapes import sample_surface, sphere
+    dense, dense_normals = sample_surface(sphere(), 0.04)
+    sparse, sparse_normals = sample_surface(sphere(), 0.16)
+    upper, lower = dense[:, 2] > 0, sparse[:, 2] <= 0
+    rows = np.vstack([np.hstack([dense, dense_normals])[upper], np.hstack([sparse, sparse_normals])[lower]])
+    code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "half.xyz", rows))
+    assert_follows(code, out, err, output)
+    assert "outliers" not in err
+
+
+def test_merged_scans_repeating_every_point_are_meshed_as_one(capsys, tmp_path, unit_sphere_samples):
+    """Every point 5 times with a 1e-9 jitter, no normals (they are estimated): merged with a note, then meshed as
+    the single scan is (11 handles and a refusal before)."""
+    points, _ = unit_sphere_samples
+    repeated = np.repeat(points, 5, axis=0) + np.random.default_rng(4).normal(scale=1e-9, size=(5 * len(points), 3))
+    path = tmp_path / "merged.xyz"
+    np.savetxt(path, repeated, fmt="%.12f")
+    code, out, err, output = mesh_cli(capsys, tmp_path, path)
+    assert_follows(code, out, err, output)
+    assert f"merged {4 * len(points)} near-duplicate points into the {len(points)}" in err
+
+
 def test_far_outliers_are_dropped_and_reported(capsys, tmp_path, unit_sphere_samples):
     points, _ = unit_sphere_samples
     far = np.random.default_rng(2).uniform(-30, 30, (len(points) // 100, 3))

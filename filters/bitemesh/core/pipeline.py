@@ -15,7 +15,8 @@ from .implicit import MIN_POINTS, fit_implicit
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          STEP_PARAMETERS, SpuriousParameters, parameters_from_keywords)
-from .samples import PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, noise_level, sample_spacing
+from .samples import (PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, near_duplicates, noise_level,
+                      sample_spacing)
 from .progress import ProgressCallback, sub_progress
 from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
                     MeshingResult, check_grid, check_memory, check_spacing, grid_for_source, mesh_from_grid,
@@ -54,6 +55,19 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
             raise InvalidInputError(f"slices must hold one integer per point ({len(points)}), got shape "
                                     f"{slices.shape} of {slices.dtype}")
     notes = []
+    first = near_duplicates(points)
+    if (first != np.arange(len(points))).any():
+        kept = first == np.arange(len(points))
+        if normals is not None:   # a group's normal: the mean of its members' (its first one's where they cancel)
+            summed = np.zeros_like(normals)
+            np.add.at(summed, first, normals)
+            length = np.linalg.norm(summed, axis=1, keepdims=True)
+            normals = np.where(length > 1e-12, summed / np.maximum(length, 1e-300), normals)[kept]
+        notes.append(f"merged {len(points) - int(kept.sum())} near-duplicate points into the {int(kept.sum())} "
+                     "they repeat (within 0.1 % of the spacing: scans merged from several passes)")
+        logger.info(notes[-1])
+        points, slices = points[kept], None if slices is None else slices[kept]
+        points = _enough_points(points)
     if implicit.outliers == "drop" and len(points) > 2 * PLANE_NEIGHBOURS:
         outlier = find_outliers(points)
         if outlier.any():

@@ -5,12 +5,17 @@ cleanly and noisily (a sphere, a torus, the die with rounded and with sharp edge
 Stanford bunny scan, the nut, the biv-me guide points), none of whose points either rule flags:
 
 - **far**: the distance to the 8th nearest neighbour is more than :data:`FAR_RATIO` times its median over the
-  points (at most 2.6 times on those surfaces; 100 times or more for points scattered around a scene);
+  point's :data:`LOCAL_NEIGHBOURS` nearest (at most 2.6 times on those surfaces; 100 times or more for points
+  scattered around a scene): a region sampled more sparsely than the rest is measured against itself, not
+  against the dense part;
 - **off the surface**: the distance to the plane of the 12 nearest neighbours is more than :data:`OFF_RATIO`
   times their spread along the plane (at most 0.92 on those surfaces without noise; with Gaussian noise of half
   the sample spacing, 1.37, so the bound also grows with the median of that ratio, :data:`NOISE_RATIO`).
 
-Both run three times, so that outliers that neighbour each other are found once the others are gone.  Near outliers
+Both run three times, so that outliers that neighbour each other are found once the others are gone.  Before
+them, near-duplicates (:func:`near_duplicates`: points within :data:`DUPLICATE_SHARE` of the spacing, as scans merged
+from several passes repeat them) count as one sample, so that a tight cluster of identical points (a scanner's "no
+return" at the origin) is one far point, not a dense patch.  Near outliers
 within about one sample spacing of the surface are not distinguishable from noise and stay; the fidelity check
 (:mod:`bitemesh.core.fidelity`) measures what they do to the mesh.
 """
@@ -25,8 +30,10 @@ FAR_RATIO = 4.0
 #: NOISE_RATIO x the median of that ratio over the points (Gaussian noise: its largest value among 10,000 points is
 #: about 5.7 x its median).
 OFF_RATIO, NOISE_RATIO = 1.0, 7.0
-#: neighbours of the far rule and of the plane rule.
-FAR_NEIGHBOURS, PLANE_NEIGHBOURS = 8, 12
+#: neighbours of the far rule and of the plane rule, and those whose far-rule distances are a point's reference.
+FAR_NEIGHBOURS, PLANE_NEIGHBOURS, LOCAL_NEIGHBOURS = 8, 12, 32
+#: points nearer each other than this x the median distance to the 8th neighbour are one sample.
+DUPLICATE_SHARE = 0.001
 #: passes of the two rules.
 PASSES = 3
 #: at most this many points estimate the noise (a deterministic subsample).
@@ -61,9 +68,10 @@ def find_outliers(points: np.ndarray) -> np.ndarray:
         if len(index) <= PLANE_NEIGHBOURS + 1:
             break
         kept = points[index]
-        distances, neighbours = _neighbourhoods(kept, PLANE_NEIGHBOURS)   # FAR_NEIGHBOURS < PLANE_NEIGHBOURS
-        far = distances[:, FAR_NEIGHBOURS] > FAR_RATIO * np.median(distances[:, FAR_NEIGHBOURS])
-        centre, normal, _, spread = _planes(kept[neighbours[:, 1:]])
+        distances, neighbours = _neighbourhoods(kept, LOCAL_NEIGHBOURS)   # FAR < PLANE < LOCAL neighbours
+        reach = distances[:, min(FAR_NEIGHBOURS, distances.shape[1] - 1)]
+        far = reach > FAR_RATIO * np.median(reach[neighbours[:, 1:]], axis=1)
+        centre, normal, _, spread = _planes(kept[neighbours[:, 1:PLANE_NEIGHBOURS + 1]])
         ratio = np.abs(np.einsum("ni,ni->n", kept - centre, normal)) / np.maximum(spread, 1e-300)
         off = ratio > max(OFF_RATIO, NOISE_RATIO * float(np.median(ratio)))
         flagged = index[far | off]
@@ -71,6 +79,23 @@ def find_outliers(points: np.ndarray) -> np.ndarray:
             break
         outlier[flagged] = True
     return outlier
+
+
+def near_duplicates(points: np.ndarray) -> np.ndarray:
+    """(n,) int64: for each of (n, k) points the index of the first point of its group of near-duplicates (points
+    within :data:`DUPLICATE_SHARE` x the median distance to the 8th neighbour, chained); itself when alone."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    distances, _ = _neighbourhoods(points, FAR_NEIGHBOURS)
+    tolerance = DUPLICATE_SHARE * float(np.median(distances[:, -1]))
+    pairs = cKDTree(points).query_pairs(tolerance, output_type="ndarray")
+    if not len(pairs):
+        return np.arange(len(points))
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points),) * 2)
+    group = connected_components(graph, directed=False)[1]
+    first = np.full(group.max() + 1, len(points))
+    np.minimum.at(first, group, np.arange(len(points)))
+    return first[group]
 
 
 def sample_spacing(points: np.ndarray) -> float:
