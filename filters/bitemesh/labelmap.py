@@ -25,6 +25,7 @@ survives but thinner than the staircase makes it (``smoothing=0`` keeps the plai
 """
 from __future__ import annotations
 
+import logging
 import numbers
 from pathlib import Path
 
@@ -43,6 +44,8 @@ from .core.tags import region_labels
 from .io.labelmaps import (LABEL_MAP_EXTENSIONS, LabelMap, import_simpleitk,  # noqa: F401 (re-exported)
                            index_to_physical_matrix, read_label_map)
 
+logger = logging.getLogger("bitemesh")
+
 #: voxels of background added on every side, so that a label touching the image border still closes.
 PAD_VOXELS = 2
 #: default width (standard deviation, in voxels) of the filter that takes the staircase out of the distance.
@@ -53,6 +56,9 @@ INTERPOLATION_BIAS = 1.0 / 12.0
 CENTRE_FLOOR = 0.1
 #: bytes per voxel that the distance computation holds at once (mask, two distance maps, f and its filtering).
 DISTANCE_BYTES_PER_VOXEL = 48
+#: a part of the labels with fewer voxels than 2^dim (a 2 x 2 x 2 block) is a speck the image cannot resolve as a
+#: shape (segmentation noise): dropped with a note, or, when every part is one, refused.
+SPECK_VOXELS_PER_DIM = 2
 
 
 # --------------------------------------------------------------------------------------------- labels -> f
@@ -211,6 +217,7 @@ def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     if not (spacing > 0).all() or abs(np.linalg.det(matrix[:dim, :dim] / spacing)) < 1e-6:
         raise InvalidInputError("ijk_to_physical: its linear part must be invertible (voxel sizes > 0)")
     mask, chosen = label_mask(labels_ijk, labels)
+    mask, notes = without_specks(mask)
 
     # Crop to the domain's bounding box: the distance and the grid need not cover empty image.
     box = [np.flatnonzero(mask.any(axis=tuple(a for a in range(dim) if a != axis))) for axis in range(dim)]
@@ -241,7 +248,28 @@ def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     return Source(grid, grid.origin, grid.upper, frame, grid=grid, samples=mask_faces(mask, first * spacing, spacing),
                   noise=STAIRCASE_NOISE * voxel, gap=float(np.linalg.norm(spacing)), labels=chosen,
                   tagging=LabelRegions({int(regions[0]): grid}) if several is None else several,
-                  interfaces=several)
+                  interfaces=several, notes=notes)
+
+
+def without_specks(mask: np.ndarray):
+    """``mask`` without its parts of fewer than 2^dim voxels (26- or 8-connected), and a note saying how many went;
+    refuse a mask whose every part is such a speck."""
+    from scipy import ndimage
+    parts, count = ndimage.label(mask, structure=np.ones((3,) * mask.ndim))
+    sizes = np.bincount(parts.ravel())[1:]
+    smallest = SPECK_VOXELS_PER_DIM ** mask.ndim
+    specks = np.flatnonzero(sizes < smallest) + 1
+    if len(specks) == count:
+        raise InvalidInputError(
+            f"the labels hold {int(sizes.sum())} voxel(s) in {count} part(s), the largest of {int(sizes.max())}: "
+            f"too small for the image to resolve a shape (a part needs {smallest} voxels or more, a block of "
+            f"{SPECK_VOXELS_PER_DIM} voxels a side); check the label, or resample the label map to finer voxels")
+    if not len(specks):
+        return mask, ()
+    note = (f"dropped {len(specks)} speck(s) of the labels, part(s) of fewer than {smallest} voxels "
+            f"({int(sizes[specks - 1].sum())} voxels in all): segmentation noise the image cannot resolve as a shape")
+    logger.info(note)
+    return mask & ~np.isin(parts, specks), (note,)
 
 
 def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
