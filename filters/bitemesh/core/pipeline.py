@@ -57,12 +57,8 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     notes = []
     first = near_duplicates(points)
     if (first != np.arange(len(points))).any():
-        kept = first == np.arange(len(points))
-        if normals is not None:   # a group's normal: the mean of its members' (its first one's where they cancel)
-            summed = np.zeros_like(normals)
-            np.add.at(summed, first, normals)
-            length = np.linalg.norm(summed, axis=1, keepdims=True)
-            normals = np.where(length > 1e-12, summed / np.maximum(length, 1e-300), normals)[kept]
+        kept = first == np.arange(len(points))   # the first of each group, with its normal
+        normals = None if normals is None else normals[kept]
         notes.append(f"merged {len(points) - int(kept.sum())} near-duplicate points into the {int(kept.sum())} "
                      "they repeat (within 0.1 % of the spacing: scans merged from several passes)")
         logger.info(notes[-1])
