@@ -45,6 +45,18 @@ def test_merged_scans_repeating_every_point_are_meshed_as_one(capsys, tmp_path, 
     assert f"merged {4 * len(points)} near-duplicate points into the {len(points)}" in err
 
 
+def test_a_part_dropped_on_purpose_is_not_counted_against_the_mesh(capsys, tmp_path, unit_sphere_samples):
+    """Two spheres, the second of radius 0.5 (1/8 of the volume), with --min-component 0.5: the small one is dropped
+    as asked, its samples left out of the fidelity measure with a note (it was refused: 20.7 % of the points far)."""
+    points, normals = unit_sphere_samples
+    rows = np.vstack([np.hstack([points, normals]), np.hstack([0.5 * points + [3.0, 0, 0], normals])])
+    code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "two.xyz", rows),
+                                      "--min-component", "0.5")
+    assert_follows(code, out, err, output)
+    assert f"1 part(s) smaller than min_component = 0.5 x the largest part's volume dropped; their {len(points)}" \
+        in err
+
+
 def test_far_outliers_are_dropped_and_reported(capsys, tmp_path, unit_sphere_samples):
     points, _ = unit_sphere_samples
     far = np.random.default_rng(2).uniform(-30, 30, (len(points) // 100, 3))

@@ -108,3 +108,25 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool) -
             raise MeshingError(text)
         warnings.warn(text, BitemeshWarning, stacklevel=2)
     return extra
+
+
+def on_dropped_parts(inside: np.ndarray, origin, spacing, centroids: np.ndarray, samples: np.ndarray,
+                     min_component: float):
+    """The samples (n, k) on parts of f > 0 (on the grid: ``inside``, ``origin``, ``spacing``) that the mesh, whose
+    cells' centroids are (m, k), has no cell in and whose volume is below ``min_component`` x the largest part's:
+    parts dropped on purpose.  Returns ((n,) bool, how many such parts)."""
+    parts, count = ndimage.label(inside, structure=np.ones((3,) * inside.ndim))
+    none = np.zeros(len(samples), bool)
+    if count < 2:
+        return none, 0
+    volume = np.bincount(parts.ravel())[1:]
+    small = np.flatnonzero(volume < min_component * volume.max()) + 1
+    nearest = np.clip(np.rint((centroids - origin) / spacing).astype(np.int64), 0, np.array(inside.shape) - 1)
+    dropped = np.setdiff1d(small, parts[tuple(nearest.T)])
+    if not len(dropped):
+        return none, 0
+    below = np.floor((samples - origin) / spacing).astype(np.int64)   # a sample on f = 0 lies between nodes
+    for corner in np.ndindex(*(2,) * inside.ndim):
+        node = np.clip(below + corner, 0, np.array(inside.shape) - 1)
+        none |= np.isin(parts[tuple(node.T)], dropped)
+    return none, len(dropped)

@@ -24,7 +24,7 @@ from .biting import bite
 from .delaunay import delaunay
 from .repair import carve_domain
 from .errors import BitemeshWarning, InvalidInputError, check_number
-from .betti import check_topology
+from .betti import check_topology, on_dropped_parts
 from .fidelity import Fidelity, check_fidelity, far_from, measure_fidelity
 from .grid import (BYTES_PER_NODE, EXACT_WITHIN, SampledGrid, available_memory_mb, grid_shape_unchecked,
                    inside_extents, sample_function)
@@ -327,6 +327,19 @@ def grid_for_source(source: Source, implicit: ImplicitParameters = ImplicitParam
     return grid, radius, function, notes
 
 
+def samples_kept(samples: np.ndarray, inside: np.ndarray, grid, mesh: Mesh, min_component: float):
+    """(n,) bool, the samples the fidelity measures: all but those of parts dropped on purpose (smaller than
+    ``min_component`` x the largest, :func:`~bitemesh.core.betti.on_dropped_parts`); and a note when some are not."""
+    dropped, parts = on_dropped_parts(inside, grid.origin, grid.spacing, mesh.points[mesh.cells].mean(axis=1),
+                                      samples, min_component)
+    if not parts:
+        return ~dropped, ()
+    note = (f"{parts} part(s) smaller than min_component = {min_component:g} x the largest part's volume dropped; "
+            f"their {int(dropped.sum())} samples are left out of the fidelity measure")
+    logger.info(note)
+    return ~dropped, (note,)
+
+
 def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
                 biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
                 optimize: OptimizeParameters = OptimizeParameters(), progress: ProgressCallback = None,
@@ -350,16 +363,19 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 0.97), seconds, optimize, tagging,
                             source.interfaces)
     frame = source.frame
-    measured = None
+    measured, inside = None, grid.inside()
     if source.samples is not None:
         report(progress, 0.97, "measuring the fidelity")
+        kept, note = samples_kept(source.samples, inside, grid, result.mesh, spurious.min_component)
+        notes += note
+        samples = source.samples[kept]
         with timed(seconds, "fidelity"):
-            measured = measure_fidelity(result.mesh, source.samples, radius, source.noise, source.gap,
+            measured = measure_fidelity(result.mesh, samples, radius, source.noise, source.gap,
                                         source.open_boundary).scaled(frame.scale)
         check_fidelity(measured, fidelity, where=None if source.locate is None else lambda: source.locate(
-            far_from(result.mesh, source.samples, measured.far_bound / frame.scale)))
+            np.flatnonzero(kept)[far_from(result.mesh, samples, measured.far_bound / frame.scale)]))
     with timed(seconds, "topology"):
-        check_topology(result.mesh, grid.inside(), radius * frame.scale, bool(fidelity.allow_unfaithful))
+        check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful))
     report(progress, 1.0, "done")
     return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
                          radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,
