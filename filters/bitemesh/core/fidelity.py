@@ -261,3 +261,26 @@ def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: st
             raise MeshingError(text)
         warnings.warn(text, BitemeshWarning, stacklevel=2)
     return problems
+
+
+def thinner_than_radius(inside: np.ndarray, origin, spacing, samples: np.ndarray, radius: float,
+                        scale: float = 1.0) -> str:
+    """Where far ``samples`` (m, k) lie on parts of f > 0 thinner than R: a sentence with the radius that resolves
+    them (in user units: lengths x ``scale``), from the half-thickness of f > 0 on the grid (``inside``, ``origin``,
+    ``spacing``: its largest inscribed distance within R of each sample); "" when most of them do not.  The radius
+    given is half the parts' median thickness there: two node spacings across them, which the optimizer keeps (at
+    one spacing across, its sliver removal takes the thin tips of a slender ellipsoid off)."""
+    from scipy import ndimage
+    if not len(samples):
+        return ""
+    half = ndimage.distance_transform_edt(inside, sampling=spacing)
+    reach = int(np.ceil(radius / float(np.min(spacing))))
+    nearest = np.clip(np.rint((samples - origin) / spacing).astype(np.int64), 0, np.array(inside.shape) - 1)
+    thickness = ndimage.maximum_filter(half, size=2 * reach + 1)[tuple(nearest.T)]
+    thin = (thickness > 0) & (thickness < radius)
+    if thin.mean() < 0.5:
+        return ""
+    half = float(np.median(thickness[thin]))   # two node spacings across the part
+    return (f"{int(thin.sum())} of those {len(samples)} points lie on parts thinner than R = {radius * scale:.4g} "
+            f"(about {2 * half * scale:.3g} across there): give radius <= {half * scale:.3g}, or about "
+            f"{max(2.0, (radius / half) ** inside.ndim):.0f} x the cells")

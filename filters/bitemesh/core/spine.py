@@ -25,7 +25,7 @@ from .delaunay import delaunay
 from .repair import carve_domain
 from .errors import BitemeshWarning, InvalidInputError, check_number
 from .betti import check_topology, on_dropped_parts
-from .fidelity import Fidelity, check_fidelity, far_from, measure_fidelity
+from .fidelity import Fidelity, check_fidelity, far_from, measure_fidelity, thinner_than_radius
 from .grid import (BYTES_PER_NODE, EXACT_WITHIN, SampledGrid, available_memory_mb, grid_shape_unchecked,
                    inside_extents, sample_function)
 from .mesh import Mesh
@@ -372,8 +372,10 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
         with timed(seconds, "fidelity"):
             measured = measure_fidelity(result.mesh, samples, radius, source.noise, source.gap,
                                         source.open_boundary).scaled(frame.scale)
-        check_fidelity(measured, fidelity, where=None if source.locate is None else lambda: source.locate(
-            np.flatnonzero(kept)[far_from(result.mesh, samples, measured.far_bound / frame.scale)]))
+        far = lambda: far_from(result.mesh, samples, measured.far_bound / frame.scale)   # noqa: E731
+        check_fidelity(measured, fidelity, where=(lambda: source.locate(np.flatnonzero(kept)[far()]))
+                       if source.locate is not None else lambda: thinner_than_radius(
+                           inside, grid.origin, grid.spacing, samples[far()], radius, frame.scale))
     with timed(seconds, "topology"):
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful))
     report(progress, 1.0, "done")
