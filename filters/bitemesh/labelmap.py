@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .core.betti import grid_parts
 from .core.errors import InvalidInputError, check_number
 from .core.grid import ImplicitGrid
 from .core.interfaces import LabelRegions
@@ -254,8 +255,7 @@ def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
 def without_specks(mask: np.ndarray):
     """``mask`` without its parts of fewer than 2^dim voxels (26- or 8-connected), and a note saying how many went;
     refuse a mask whose every part is such a speck."""
-    from scipy import ndimage
-    parts, count = ndimage.label(mask, structure=np.ones((3,) * mask.ndim))
+    parts, count = grid_parts(mask)
     sizes = np.bincount(parts.ravel())[1:]
     smallest = SPECK_VOXELS_PER_DIM ** mask.ndim
     specks = np.flatnonzero(sizes < smallest) + 1

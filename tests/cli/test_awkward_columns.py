@@ -47,6 +47,17 @@ def test_a_nan_normal_is_named_by_its_line(capsys, tmp_path, unit_sphere_samples
     assert "length" not in err and not output.exists()
 
 
+def gpfile_rows(shared_data) -> list:
+    """The shipped biv-me GPFile's rows (its header first), each a list of its tab-separated fields."""
+    return [line.split("\t") for line in (shared_data / "bivme_patient1" / "GPFile_000.txt").read_text().splitlines()]
+
+
+def gpfile_without_column(shared_data, path, column: int):
+    """The shipped GPFile written to ``path`` without its ``column`` (0: x, 2: z, 3: the label)."""
+    path.write_text("\n".join("\t".join(row[:column] + row[column + 1:]) for row in gpfile_rows(shared_data)) + "\n")
+    return path
+
+
 def test_binary_data_is_no_table(capsys, tmp_path):
     path = tmp_path / "scan.xyz"
     path.write_bytes(np.random.default_rng(3).bytes(4000))
@@ -56,15 +67,12 @@ def test_binary_data_is_no_table(capsys, tmp_path):
 
 
 def test_labelled_contours_without_z_and_in_metres_are_refused_with_their_cause(capsys, tmp_path, shared_data):
-    lines = (shared_data / "bivme_patient1" / "GPFile_000.txt").read_text().splitlines()
-    rows = [line.split("\t") for line in lines]
-    without_z = tmp_path / "noz.txt"
-    without_z.write_text("\n".join("\t".join(row[:2] + row[3:]) for row in rows) + "\n")
-    code, _, err, _ = mesh_cli(capsys, tmp_path, without_z)
+    code, _, err, _ = mesh_cli(capsys, tmp_path, gpfile_without_column(shared_data, tmp_path / "noz.txt", 2))
     assert_refused(code, err, "names no z column", "restore the z column")
+    rows = gpfile_rows(shared_data)
     metres = tmp_path / "metres.txt"
-    metres.write_text("\n".join([lines[0]] + ["\t".join([f"{float(value) / 1000:.8f}" for value in row[:3]] + row[3:])
-                                              for row in rows[1:]]) + "\n")
+    metres.write_text("\n".join(["\t".join(rows[0])] + ["\t".join([f"{float(value) / 1000:.8f}" for value in row[:3]]
+                                                                   + row[3:]) for row in rows[1:]]) + "\n")
     code, _, err, _ = mesh_cli(capsys, tmp_path, metres)
     assert_refused(code, err, "in metres?", "multiply them by 1000")
     assert "NaN" not in err
@@ -146,11 +154,7 @@ def test_bad_columns_are_named(capsys, tmp_path, unit_sphere_samples, columns, w
 
 
 def test_a_gpfile_without_its_label_column_is_refused(capsys, tmp_path, shared_data):
-    lines = (shared_data / "bivme_patient1" / "GPFile_000.txt").read_text().splitlines()
-    rows = [line.split("\t") for line in lines]
-    path = tmp_path / "GPFile_nolabel.txt"
-    path.write_text("\n".join("\t".join(row[:3] + row[4:]) for row in rows) + "\n")
-    code, _, err, _ = mesh_cli(capsys, tmp_path, path)
+    code, _, err, _ = mesh_cli(capsys, tmp_path, gpfile_without_column(shared_data, tmp_path / "nolabel.txt", 3))
     assert_refused(code, err, "no label column", "contour type")
 
 

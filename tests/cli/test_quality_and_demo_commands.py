@@ -23,6 +23,7 @@ def test_quality_prints_the_summary(reference, capsys):
     assert out.startswith(f"{quality_summary(mesh)}\ndefects: none")
     assert out.startswith(f"mesh            {len(mesh.cells)} tetrahedra, {len(mesh.points)} points\n")
     assert mean_q_printed(out) == pytest.approx(radius_ratio(mesh.points, mesh.cells).mean(), abs=1e-4)
+    assert "\ntopology: 1 part(s), 0 handle(s), 0 void(s)" in out   # a ball
 
 
 def test_quality_histogram_writes_a_png(reference, tmp_path, capsys):

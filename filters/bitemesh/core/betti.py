@@ -53,14 +53,17 @@ def grid_topology(inside: np.ndarray) -> Topology:
     """The :class:`Topology` of the union of the closed cells (voxels, pixels) of a 2D or 3D grid whose ``inside``
     flags (one per cell) are set."""
     inside = np.asarray(inside, dtype=bool)
-    dim = inside.ndim
-    parts = ndimage.label(inside, structure=np.ones((3,) * dim))[1]
-    outside, count = ndimage.label(np.pad(~inside, 1, constant_values=True))
-    enclosed = count - 1   # the background padded all round is one part; every other one is enclosed
-    euler = cubical_euler(inside)
-    if dim == 2:
+    parts = grid_parts(inside)[1]
+    enclosed = ndimage.label(np.pad(~inside, 1, constant_values=True))[1] - 1   # the background all round is one
+    if inside.ndim == 2:
         return Topology(parts, enclosed, 0)
-    return Topology(parts, parts + enclosed - euler, enclosed)
+    return Topology(parts, parts + enclosed - cubical_euler(inside), enclosed)
+
+
+def grid_parts(inside: np.ndarray):
+    """The parts of the union of the closed cells flagged in ``inside`` (cells meeting at a corner are one part):
+    (an array like ``inside`` of part numbers from 1, 0 outside; how many parts)."""
+    return ndimage.label(inside, structure=np.ones((3,) * inside.ndim))
 
 
 def cubical_euler(inside: np.ndarray) -> int:
@@ -110,23 +113,17 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool) -
     return extra
 
 
-def on_dropped_parts(inside: np.ndarray, origin, spacing, centroids: np.ndarray, samples: np.ndarray,
-                     min_component: float):
-    """The samples (n, k) on parts of f > 0 (on the grid: ``inside``, ``origin``, ``spacing``) that the mesh, whose
-    cells' centroids are (m, k), has no cell in and whose volume is below ``min_component`` x the largest part's:
-    parts dropped on purpose.  Returns ((n,) bool, how many such parts)."""
-    parts, count = ndimage.label(inside, structure=np.ones((3,) * inside.ndim))
-    none = np.zeros(len(samples), bool)
+def on_dropped_parts(grid, inside: np.ndarray, centroids: np.ndarray, samples: np.ndarray, min_component: float):
+    """The samples (n, k) on parts of f > 0 (``inside``, on the nodes of ``grid``) that the mesh, whose cells'
+    centroids are (m, k), has no cell in and whose volume is below ``min_component`` x the largest part's: parts
+    dropped on purpose.  Returns ((n,) bool, how many such parts)."""
+    parts, count = grid_parts(inside)
+    on_them = np.zeros(len(samples), bool)
     if count < 2:
-        return none, 0
+        return on_them, 0
     volume = np.bincount(parts.ravel())[1:]
     small = np.flatnonzero(volume < min_component * volume.max()) + 1
-    nearest = np.clip(np.rint((centroids - origin) / spacing).astype(np.int64), 0, np.array(inside.shape) - 1)
-    dropped = np.setdiff1d(small, parts[tuple(nearest.T)])
-    if not len(dropped):
-        return none, 0
-    below = np.floor((samples - origin) / spacing).astype(np.int64)   # a sample on f = 0 lies between nodes
-    for corner in np.ndindex(*(2,) * inside.ndim):
-        node = np.clip(below + corner, 0, np.array(inside.shape) - 1)
-        none |= np.isin(parts[tuple(node.T)], dropped)
-    return none, len(dropped)
+    dropped = np.setdiff1d(small, parts[grid.nearest_nodes(centroids)])
+    for corner in np.ndindex(*(2,) * inside.ndim):   # a sample on f = 0 lies between nodes: any corner of its cell
+        on_them |= np.isin(parts[grid.nearest_nodes(samples + np.array(corner) * grid.spacing, offset=0.0)], dropped)
+    return on_them, len(dropped)

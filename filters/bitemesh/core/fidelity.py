@@ -263,20 +263,18 @@ def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: st
     return problems
 
 
-def thinner_than_radius(inside: np.ndarray, origin, spacing, samples: np.ndarray, radius: float,
-                        scale: float = 1.0) -> str:
+def thinner_than_radius(grid, inside: np.ndarray, samples: np.ndarray, radius: float, scale: float = 1.0) -> str:
     """Where far ``samples`` (m, k) lie on parts of f > 0 thinner than R: a sentence with the radius that resolves
-    them (in user units: lengths x ``scale``), from the half-thickness of f > 0 on the grid (``inside``, ``origin``,
-    ``spacing``: its largest inscribed distance within R of each sample); "" when most of them do not.  The radius
+    them (in user units: lengths x ``scale``), from the half-thickness of f > 0 (``inside``, on the nodes of
+    ``grid``: its largest inscribed distance within R of each sample); "" when most of them do not.  The radius
     given is half the parts' median thickness there: two node spacings across them, which the optimizer keeps (at
     one spacing across, its sliver removal takes the thin tips of a slender ellipsoid off)."""
     from scipy import ndimage
     if not len(samples):
         return ""
-    half = ndimage.distance_transform_edt(inside, sampling=spacing)
-    reach = int(np.ceil(radius / float(np.min(spacing))))
-    nearest = np.clip(np.rint((samples - origin) / spacing).astype(np.int64), 0, np.array(inside.shape) - 1)
-    thickness = ndimage.maximum_filter(half, size=2 * reach + 1)[tuple(nearest.T)]
+    half = ndimage.distance_transform_edt(inside, sampling=grid.spacing)
+    reach = int(np.ceil(radius / float(np.min(grid.spacing))))
+    thickness = ndimage.maximum_filter(half, size=2 * reach + 1)[grid.nearest_nodes(samples)]
     thin = (thickness > 0) & (thickness < radius)
     if thin.mean() < 0.5:
         return ""

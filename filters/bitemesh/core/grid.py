@@ -49,6 +49,12 @@ class SampledGrid:
         """The sampled function as an implicit function: :meth:`evaluate`."""
         return self.evaluate(x)
 
+    def nearest_nodes(self, points: np.ndarray, offset: float = 0.5) -> tuple:
+        """The index arrays (one per axis, for ``array[index]``) of the node nearest each of (m, k) points, clipped
+        to the grid; ``offset`` 0 gives the first node of the cell holding each point instead."""
+        index = np.floor((np.asarray(points) - self.origin) / self.spacing + offset).astype(np.int64)
+        return tuple(np.clip(index, 0, np.array(self.shape) - 1).T)
+
     def node_coordinates(self, flat_indices: np.ndarray) -> np.ndarray:
         """(m, k) coordinates of the nodes with the given C-order flat indices."""
         index = np.stack(np.unravel_index(flat_indices, self.shape), axis=1)

@@ -330,8 +330,7 @@ def grid_for_source(source: Source, implicit: ImplicitParameters = ImplicitParam
 def samples_kept(samples: np.ndarray, inside: np.ndarray, grid, mesh: Mesh, min_component: float):
     """(n,) bool, the samples the fidelity measures: all but those of parts dropped on purpose (smaller than
     ``min_component`` x the largest, :func:`~bitemesh.core.betti.on_dropped_parts`); and a note when some are not."""
-    dropped, parts = on_dropped_parts(inside, grid.origin, grid.spacing, mesh.points[mesh.cells].mean(axis=1),
-                                      samples, min_component)
+    dropped, parts = on_dropped_parts(grid, inside, mesh.points[mesh.cells].mean(axis=1), samples, min_component)
     if not parts:
         return ~dropped, ()
     note = (f"{parts} part(s) smaller than min_component = {min_component:g} x the largest part's volume dropped; "
@@ -372,10 +371,13 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
         with timed(seconds, "fidelity"):
             measured = measure_fidelity(result.mesh, samples, radius, source.noise, source.gap,
                                         source.open_boundary).scaled(frame.scale)
-        far = lambda: far_from(result.mesh, samples, measured.far_bound / frame.scale)   # noqa: E731
-        check_fidelity(measured, fidelity, where=(lambda: source.locate(np.flatnonzero(kept)[far()]))
-                       if source.locate is not None else lambda: thinner_than_radius(
-                           inside, grid.origin, grid.spacing, samples[far()], radius, frame.scale))
+
+        def where() -> str:   # the far samples' place, as the source (contours: their slice) or f's grid tells it
+            far = far_from(result.mesh, samples, measured.far_bound / frame.scale)
+            if source.locate is not None:
+                return source.locate(np.flatnonzero(kept)[far])
+            return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
+        check_fidelity(measured, fidelity, where=where)
     with timed(seconds, "topology"):
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful))
     report(progress, 1.0, "done")

@@ -50,8 +50,8 @@ from ..progress import ProgressCallback, report, sub_progress
 from ..samples import slice_spacing
 from .base import choose_base
 from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
-                      check_millimetres,
-                      default_surfaces, grown, is_bivme, needs_derived_epicardium, unused_labels_note)
+                      check_millimetres, default_surfaces, grown, is_bivme, needs_derived_epicardium,
+                      unused_labels_note)
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
 from .registration import register_short_axis
