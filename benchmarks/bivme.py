@@ -41,24 +41,24 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
-from bitemesh.core import labelled
+from bitemesh.core.contours.cardiac import BIVME_DEFAULT_DOMAIN
+from bitemesh.core.contours.fit import labelled_implicit
+from bitemesh.core.parameters import KERNELS
+from bitemesh.core.contours.run import run_labelled
+from bitemesh.core.contours.surface_fit import fit_contour_rbf
 from bitemesh.core.contours.cardiac import default_surfaces
 from bitemesh.core.contours.csg import domain_names, parse_domain
 from bitemesh.core.contours.fit import SURFACE_BAND, SURFACE_LEVELS
 from bitemesh.core.contours.slices import contour_normals, slice_planes
 from bitemesh.core.errors import BitemeshWarning
 from bitemesh.core.grid import sample_function
-from bitemesh.core.implicit import fit_mpu
+from bitemesh.core.mpu import fit_mpu
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
 from bitemesh.core.source import Frame, Source
 from bitemesh.core.spine import mesh_source
-from bitemesh.core.quality import (
-    boundary_euler_characteristic,
-    check_valid_domain,
-    connected_components,
-    count_boundary_components,
-    dihedral_angles,
-)
+from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
+from bitemesh.core.topology import connected_components
+from bitemesh.core.quality import dihedral_angles
 from bitemesh.core.topology import boundary_facets
 from bitemesh.io import read_labelled_points
 from heart_measures import read_surface
@@ -169,7 +169,7 @@ def deepest_point(surface, base, lower, upper, spacing=1.5):
 def mpu_implicit(points, labels, slices, **options):
     """The library's pipeline with every surface reconstructed by MPU (fit_mpu) from the same in-plane normals and
     sampled on the same grids."""
-    function, lower, upper = labelled.labelled_implicit(points, labels, slices=slices, **options)
+    function, lower, upper = labelled_implicit(points, labels, slices=slices, **options)
     surfaces = {}
     for name, surface_points in function.points.items():
         normals = function.normals[name]
@@ -196,7 +196,7 @@ def zero_level_distance(surface, points, iterations: int = 8):
 def leave_one_slice_out(points, labels, slices, options):
     """Per contour point of the used surfaces: distance to the surface refitted without the point's slice."""
     surfaces = default_surfaces(labels)
-    tree = parse_domain(labelled.BIVME_DEFAULT_DOMAIN, surfaces)
+    tree = parse_domain(BIVME_DEFAULT_DOMAIN, surfaces)
     planes = slice_planes(points, slices)
     fit_options = {key: options[key] for key in ("kernel", "offset", "smoothing") if key in options}
     errors = []
@@ -207,7 +207,7 @@ def leave_one_slice_out(points, labels, slices, options):
         normals = contour_normals(points[index], slices[index], planes)
         for held in np.unique(slices[index]):
             keep = slices[index] != held
-            rbf = labelled.fit_contour_rbf(points[index][keep], normals[keep], **fit_options)
+            rbf = fit_contour_rbf(points[index][keep], normals[keep], **fit_options)
             errors.append(zero_level_distance(rbf, points[index][~keep]))
     errors = np.concatenate(errors)
     return float(errors.mean()), float(np.percentile(errors, 95)), float(errors.max())
@@ -230,7 +230,7 @@ def measure(folder: Path, cells, options: dict, *, method: str = "rbf", loso: bo
     else:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", BitemeshWarning)   # the handles are counted below
-            result = labelled.run_labelled(points, labels, slices=slices, biting=biting,
+            result = run_labelled(points, labels, slices=slices, biting=biting,
                                            optimize=OptimizeParameters(optimize=int(optimize)), **options)
         function, lower, upper = result.function, result.function.lower, result.function.upper
         meshing = sum(value for key, value in result.seconds.items() if not key.startswith("implicit"))
@@ -391,7 +391,7 @@ def main(argv=None) -> None:
     parser.add_argument("--variants", action="store_true", help="every variant of tests/cardiac_variants.py at the "
                         "default size, one table")
     parser.add_argument("--loso", action="store_true", help="also the leave-one-slice-out test (RBF only)")
-    parser.add_argument("--kernel", default=None, choices=labelled.KERNELS)
+    parser.add_argument("--kernel", default=None, choices=KERNELS)
     parser.add_argument("--offset", type=float, default=None)
     parser.add_argument("--smoothing", type=float, default=None)
     parser.add_argument("--base-offset", type=float, default=None)

@@ -23,7 +23,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from bitemesh.core import labelled  # noqa: E402
+from bitemesh.core.contours.fit import labelled_implicit  # noqa: E402
+from bitemesh.core.contours.run import labelled_source  # noqa: E402
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters  # noqa: E402
 from bitemesh.core.spine import grid_for_source  # noqa: E402
 from bitemesh.io import read_labelled_points  # noqa: E402
@@ -51,8 +52,8 @@ def main(argv=None) -> None:
     with tempfile.TemporaryDirectory() as folder:
         for name in ("shipped", "denser 4x", "denser 6x"):
             points, labels, slices = read_labelled_points(variant_file(SHIPPED, name, folder))
-            fit = median_seconds(args.repeats, labelled.labelled_implicit, points, labels, slices=slices)
-            source = labelled.labelled_source(points, labels, slices=slices)
+            fit = median_seconds(args.repeats, labelled_implicit, points, labels, slices=slices)
+            source = labelled_source(points, labels, slices=slices)
             sampling = median_seconds(args.repeats, grid_for_source, source, ImplicitParameters(),
                                       BitingParameters(radius=2.0))
             print(f"| {name} | {len(points):,} | {fit:.2f} | {sampling:.2f} |", flush=True)

@@ -45,7 +45,7 @@ def die_demo(cells: int = 10000, optimize: int = 1):
 def heart_demo(cells: int | None = 40000, optimize: int = 1):
     """``bitemesh demo heart --cells N``'s mesh (the shipped biv-me guide points); None: the cardiac default
     (R = 2 mm), as ``bitemesh mesh GPFile_000.txt`` meshes it; ``optimize`` 0: the plain method."""
-    from bitemesh.core.labelled import run_labelled
+    from bitemesh.core.contours.run import run_labelled
     from bitemesh.core.parameters import BitingParameters, OptimizeParameters
     from bitemesh.io import read_labelled_points
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"

@@ -20,8 +20,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
 from bitemesh.core.fidelity import distances_to_facets, facet_measures
-from bitemesh.core.quality import (boundary_euler_characteristic, check_valid_domain, connected_components,
-                                   count_boundary_components)
+from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
+from bitemesh.core.topology import connected_components
 from bitemesh.core.topology import boundary_facets
 
 #: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.

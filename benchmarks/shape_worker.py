@@ -44,7 +44,7 @@ def make_input(name: str, size: int):
     """The shape, its scattered noisy points and normals, and the sampling's parameters."""
     import numpy as np
     from bitemesh.core import shapes
-    from bitemesh.core.pipeline import radius_for_cells
+    from bitemesh.core.spine import radius_for_cells
 
     shape = getattr(shapes, SHAPES[name])()
     expected_r = radius_for_cells(shape.measure, size, shape.dim)
@@ -109,8 +109,9 @@ def distance_lower_bound(name: str, x):
 def mesh_metrics(mesh, shape, radius: float, name: str) -> dict:
     """Quality, geometry and validity figures of ``mesh`` against the analytic ``shape``."""
     import numpy as np
-    from bitemesh.core.quality import (boundary_euler_characteristic, check_valid_domain, connected_components,
-                                       quality_summary)
+    from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain
+    from bitemesh.core.topology import connected_components
+    from bitemesh.core.quality import quality_summary
     from bitemesh.core.topology import boundary_facets
 
     summary = quality_summary(mesh)

@@ -8,8 +8,9 @@ import pytest
 def assert_valid_domain(mesh, *, euler=None, components=1, measure=None, measure_tolerance=0.02,
                         mean_quality=None):
     """Fail unless ``mesh`` is a valid finite-element domain with the expected topology, measure and quality."""
-    from bitemesh.core.quality import (boundary_euler_characteristic, cell_quality, check_valid_domain,
-                                       connected_components)
+    from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain
+    from bitemesh.core.quality import cell_quality
+    from bitemesh.core.topology import connected_components
     problems = check_valid_domain(mesh)
     assert problems == [], problems
     assert connected_components(mesh.cells).max() + 1 == components

@@ -41,9 +41,8 @@ from .core.progress import ProgressCallback, report, sub_progress
 from .core.source import Frame, Source
 from .core.spine import MeshingResult, mesh_source, timed
 from .core.tags import region_labels
-# the label map files, imported from here as before (re-exported)
-from .io.labelmaps import (LABEL_MAP_EXTENSIONS, LabelMap, import_simpleitk,  # noqa: F401 (re-exported)
-                           index_to_physical_matrix, read_label_map)
+from .io.labelmaps import (LabelMap, import_simpleitk,
+                           read_label_map)
 
 logger = logging.getLogger("bitemesh")
 

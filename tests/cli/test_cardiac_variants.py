@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from bitemesh.core import labelled
+from bitemesh.core.contours.run import run_labelled
 from bitemesh.core.contours import cardiac
 from bitemesh.core.parameters import FidelityParameters
 from bitemesh.core.errors import BitemeshWarning, InvalidInputError, MeshingError
-from bitemesh.core.quality import count_boundary_components
+from bitemesh.core.validity import count_boundary_components
 from bitemesh.io import read_labelled_points
 from tests.builders import PLAIN
 from tests.cardiac_variants import VARIANTS, read_gpfile, variant_file, write_gpfile
@@ -33,7 +33,7 @@ def full_heart(tmp_path_factory):
     if not DATA.is_dir():
         pytest.skip("no real data")
     points, labels, slices = read_labelled_points(DATA / "bivme_patient1" / "GPFile_000.txt")
-    return labelled.run_labelled(points, labels, slices=slices, optimize=PLAIN)
+    return run_labelled(points, labels, slices=slices, optimize=PLAIN)
 
 
 # --- reading what exports write -------------------------------------------------------------------------------------
@@ -109,7 +109,7 @@ MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x", "sli
 def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart):
     path = variant_file(shipped(shared_data), name, tmp_path)
     points, labels, slices = read_labelled_points(path)
-    result = labelled.run_labelled(points, labels, slices=slices, optimize=PLAIN)
+    result = run_labelled(points, labels, slices=slices, optimize=PLAIN)
     mesh = result.mesh
     assert_valid_domain(mesh, euler=2, components=1)   # no handle: a myocardium with its cavities open is a ball
     assert count_boundary_components(mesh) == 1
@@ -146,8 +146,8 @@ def test_walls_so_thick_that_they_fill_the_cavities_are_refused(shared_data):
     method: the checks judge the mesh's shape, and the optimizer would take two minutes over a mesh refused.)"""
     points, labels, slices = read_labelled_points(shipped(shared_data))
     with pytest.raises(MeshingError, match=r"does not follow the data"):
-        labelled.run_labelled(points, labels, slices=slices, min_wall=25.0, optimize=PLAIN)
+        run_labelled(points, labels, slices=slices, min_wall=25.0, optimize=PLAIN)
     # walls kept 25 mm thick leave no cavity core to test: the wall thickness names the cause
     with pytest.raises(MeshingError, match=r"not plausible: .*(LV_ENDO cavity is (filled|closed)|mean wall thickn)"):
-        labelled.run_labelled(points, labels, slices=slices, min_wall=25.0, optimize=PLAIN,
+        run_labelled(points, labels, slices=slices, min_wall=25.0, optimize=PLAIN,
                               fidelity=FidelityParameters(allow_unfaithful=1))

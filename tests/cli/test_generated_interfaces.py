@@ -17,7 +17,7 @@ from bitemesh.core import parameters as core
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.fem_check import FemParameters
 from bitemesh.core.fibres import FibreParameters
-from bitemesh.core.parameters import AUTOMATIC, is_optional, zero_was_automatic
+from bitemesh.core.parameters import AUTOMATIC, is_optional
 
 #: command -> the dataclasses whose every field is a flag of it
 MESH_OPTIONS = (core.TableParameters, core.ImplicitParameters, core.BitingParameters, core.SpuriousParameters,
@@ -107,11 +107,6 @@ def test_the_automatic_value_means_none_in_every_vtk_setter_and_nothing_else():
         owner = next(cls for cls in DATACLASSES if item in fields(cls))
         with pytest.raises(InvalidInputError, match=item.name):   # it can never stand for a real value
             owner(**{item.name: AUTOMATIC})
-        if zero_was_automatic(item):   # the old automatic value still works, and says it is deprecated
-            setter(4)
-            with pytest.warns(DeprecationWarning, match=rf"Set{camel(item.name)}\(0\) for automatic"):
-                setter(0)
-            assert getter() is None
     # every optional field of every dataclass, also those no filter has (the CLI's, Slicer's): -1 is outside
     for cls in DATACLASSES:
         for item in fields(cls):

@@ -13,7 +13,7 @@ import pytest
 
 from bitemesh.cohorts.meshing import mesh_input
 from bitemesh.core.fidelity import distances_to_facets
-from bitemesh.core.quality import count_boundary_components
+from bitemesh.core.validity import count_boundary_components
 from bitemesh.core.topology import boundary_facets
 from bitemesh.io import read_labelled_points
 from tests.cardiac_variants import class_file

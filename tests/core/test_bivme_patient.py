@@ -9,12 +9,15 @@ from pathlib import Path
 import bitemesh
 import numpy as np
 import pytest
-from bitemesh.core import labelled
+from bitemesh.core.contours.cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES
+from bitemesh.core.contours.fit import labelled_implicit
+from bitemesh.core.contours.function import boundary_surfaces
+from bitemesh.core.contours.run import run_labelled
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.fidelity import distances_to_facets
 from bitemesh.core.parameters import BitingParameters, SpuriousParameters, OptimizeParameters
-from bitemesh.core.pipeline import mesh_from_grid
-from bitemesh.core.quality import count_boundary_components
+from bitemesh.core.spine import mesh_from_grid
+from bitemesh.core.validity import count_boundary_components
 from bitemesh.io import read_labelled_points
 
 from tests.builders import PLAIN, located
@@ -33,14 +36,14 @@ def distance_to_surface(points, vertices, facets):
 @cache
 def heart(path: str, cells: int, optimize: int = 1):
     points, labels, slices = read_labelled_points(path)
-    return labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells),
+    return run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells),
                                  optimize=OptimizeParameters(optimize=optimize))
 
 
 def guide_point_distances(result):
     """Per surface, each of its contour points below the base plane to the boundary triangles of that surface."""
     function = result.function
-    facets, surface = labelled.boundary_surfaces(result.mesh, function)
+    facets, surface = boundary_surfaces(result.mesh, function)
     distances = {}
     for number, (name, points) in enumerate(function.points.items()):
         below = function.base.below(points) > 0
@@ -50,7 +53,7 @@ def guide_point_distances(result):
 
 def check_heart(result, source, *, mean_bound, max_bound):
     function = result.function
-    assert function.expression == labelled.BIVME_DEFAULT_DOMAIN
+    assert function.expression == BIVME_DEFAULT_DOMAIN
     assert function.names == ("EPI", "LV_ENDO", "RV_ENDO", "BASE")
     assert_valid_domain(result.mesh, euler=2, components=1, mean_quality=0.75)   # one closed boundary surface
     assert count_boundary_components(result.mesh) == 1
@@ -65,7 +68,7 @@ def check_heart(result, source, *, mean_bound, max_bound):
     assert 140e3 < volume < 210e3   # mm^3
     points, labels, slices = read_labelled_points(source)
     for name in ("LV_ENDO", "RV_ENDO"):
-        centre = points[np.isin(labels, labelled.BIVME_SURFACES[name]) & (slices == 4)].mean(axis=0)
+        centre = points[np.isin(labels, BIVME_SURFACES[name]) & (slices == 4)].mean(axis=0)
         assert function.surfaces[name](centre[None])[0] > 4 and function(centre[None])[0] < 0
         assert not located(result.mesh, centre).any()   # of the 64 tetrahedra with the nearest centroids
 
@@ -82,7 +85,7 @@ def test_the_myocardium_is_one_closed_surface_whatever_the_seed():
     A heart's handles are removed (handles 'auto'): at this size (R about 3 mm) the top of the septum, where the
     base cuts it between the tricuspid and the aortic annuli, is a bridge about a cell thick for most seeds."""
     points, labels, slices = read_labelled_points(PACKAGED / "GPFile_000.txt")
-    first = labelled.run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=30000, seed=7),
+    first = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=30000, seed=7),
                                   optimize=PLAIN)
     for seed in (7, 8, 13):
         biting = BitingParameters(radius=first.radius, seed=seed)
@@ -118,14 +121,14 @@ def test_a_gpfile_without_rv_labels_names_the_missing_surface(gpfile):
     with pytest.raises(InvalidInputError, match=r"surface RV_ENDO needs points labelled SAX_RV_FREEWALL or "
                                                 r"LAX_RV_FREEWALL or SAX_RV_SEPTUM or LAX_RV_SEPTUM or .*, and the "
                                                 r"input has none; labels present: AORTA_VALVE \(2\)"):
-        labelled.labelled_implicit(points[keep], labels[keep], labelled.BIVME_DEFAULT_DOMAIN, slices=slices[keep])
+        labelled_implicit(points[keep], labels[keep], BIVME_DEFAULT_DOMAIN, slices=slices[keep])
     # by default, without RV contours, the domain is the LV's
-    function, _, _ = labelled.labelled_implicit(points[keep], labels[keep], slices=slices[keep])
+    function, _, _ = labelled_implicit(points[keep], labels[keep], slices=slices[keep])
     assert function.expression == "LV_EPI - LV_ENDO"
     assert any("meshed as the left ventricle" in note for note in function.notes)
     # an LV-only domain needs none of them
     lv_only = ~np.isin(labels, ["SAX_RV_FREEWALL", "LAX_RV_FREEWALL"])
-    function, _, _ = labelled.labelled_implicit(points[lv_only], labels[lv_only], "LV_EPI - LV_ENDO",
+    function, _, _ = labelled_implicit(points[lv_only], labels[lv_only], "LV_EPI - LV_ENDO",
                                                 slices=slices[lv_only])
     assert function.names == ("LV_EPI", "LV_ENDO", "BASE")
 
@@ -134,7 +137,7 @@ def test_a_domain_naming_an_unknown_surface_lists_the_biv_me_surfaces(gpfile):
     points, labels, _ = read_labelled_points(gpfile)
     with pytest.raises(InvalidInputError, match=r"names the unknown surface 'RV'; known surfaces: EPI, LV_ENDO, "
                                                 r"RV_ENDO, LV_EPI"):
-        labelled.labelled_implicit(points, labels, "EPI - LV_ENDO - RV")
+        labelled_implicit(points, labels, "EPI - LV_ENDO - RV")
 
 
 def test_a_contour_that_encloses_nothing_is_a_sample_not_a_refusal(gpfile):
@@ -144,7 +147,7 @@ def test_a_contour_that_encloses_nothing_is_a_sample_not_a_refusal(gpfile):
     contour = np.flatnonzero((labels == "SAX_LV_ENDOCARDIAL") & (slices == 4))
     start, end = points[contour[0]], points[contour[len(contour) // 2]]
     points[contour] = start + np.linspace(0, 1, len(contour))[:, None] * (end - start)
-    function, _, _ = labelled.labelled_implicit(points, labels, slices=slices)
+    function, _, _ = labelled_implicit(points, labels, slices=slices)
     row = function.slices["LV_ENDO"] == 4
     assert row.sum() >= len(contour) - 1   # distinct points
     # on its zero level, but for the sampled surface's interpolation (half its 1 mm spacing)

@@ -15,8 +15,9 @@ from bitemesh.core.errors import BitemeshWarning
 from bitemesh.core.mesh import Mesh, signed_measures
 from bitemesh.core.optimize import topology
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
-from bitemesh.core.pipeline import mesh_from_grid, radius_for_cells
-from bitemesh.core.quality import check_valid_domain, dihedral_angles, radius_ratio, signed_radius_ratio
+from bitemesh.core.spine import mesh_from_grid, radius_for_cells
+from bitemesh.core.validity import check_valid_domain
+from bitemesh.core.quality import dihedral_angles, radius_ratio, signed_radius_ratio
 from bitemesh.core.shapes import annulus, die, torus, two_cavity_heart, two_cavity_shell
 from bitemesh.core.slivers import poor_cells
 

@@ -12,7 +12,7 @@ from bitemesh.core.delaunay import delaunay
 from bitemesh.core.adjacency import cell_neighbours
 from bitemesh.core.delaunay_flips import DELAUNAY_GAIN, flip_to_delaunay
 from bitemesh.core.mesh import Mesh, circumspheres, facets_of, signed_measures
-from bitemesh.core.quality import check_valid_domain
+from bitemesh.core.validity import check_valid_domain
 from bitemesh.core.relax import positive_moves
 from bitemesh.core.topology import boundary_facets, unique_rows
 

@@ -10,8 +10,11 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from bitemesh.core.errors import Cancelled, InvalidInputError
-from bitemesh.core.implicit import (MAX_RBF_POINTS, MPUImplicit, RBFImplicit, check_normals, estimate_normals,
-                                    fit_implicit, fit_mpu, fit_rbf)
+from bitemesh.core.rbf import MAX_RBF_POINTS, RBFImplicit, fit_rbf
+from bitemesh.core.mpu_function import MPUImplicit
+from bitemesh.core.normals import check_normals, estimate_normals
+from bitemesh.core.implicit import fit_implicit
+from bitemesh.core.mpu import fit_mpu
 from bitemesh.core.pipeline import points_to_implicit
 
 

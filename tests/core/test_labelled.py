@@ -4,18 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bitemesh.core import labelled
+from bitemesh.core.contours.function import boundary_surfaces
+from bitemesh.core.parameters import KERNELS
 from bitemesh.core.contours.csg import evaluate_domain, parse_domain
 from bitemesh.core.contours.slices import SlicePlane, contour_normals, infer_slices, slice_planes
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.labelled import (
-    BIVME_DEFAULT_DOMAIN,
-    fit_base_plane,
-    fit_contour_rbf,
-    labelled_implicit,
-    mesh_from_labelled_points,
-    run_labelled,
-)
+from bitemesh.core.contours.cardiac import BIVME_DEFAULT_DOMAIN
+from bitemesh.core.contours.base import fit_base_plane
+from bitemesh.core.contours.surface_fit import fit_contour_rbf
+from bitemesh.core.contours.fit import labelled_implicit
+from bitemesh.core.contours.run import mesh_from_labelled_points, run_labelled
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.shapes import two_cavity_shell
 
@@ -46,7 +44,7 @@ def test_sparse_contours_of_a_two_cavity_shell_mesh_to_its_volume(shell, given_s
     assert not located(result.mesh, np.array([[15.0, 0, -5], [-27.5, 0, -5]]), candidates=None).any()
     assert located(result.mesh, np.array([[-5.0, 0, -20]]), candidates=None).all()
     # the boundary lies on the three ellipsoids and the base
-    _, surface = labelled.boundary_surfaces(result.mesh, result.function)
+    _, surface = boundary_surfaces(result.mesh, result.function)
     assert set(np.unique(surface)) == {0, 1, 2, 3}
     assert result.function.names == ("EPI", "LV_ENDO", "RV_ENDO", "BASE")
 
@@ -171,7 +169,7 @@ def test_a_line_of_points_is_no_slice():
 
 # --- the RBF --------------------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("kernel", labelled.KERNELS)
+@pytest.mark.parametrize("kernel", KERNELS)
 def test_the_rbf_interpolates_the_contours_and_is_signed(kernel):
     points = np.vstack([circle(40, 10.0, z) for z in (-8.0, 0.0, 8.0)]
                        + [circle(40, 6.0, 13.0), circle(40, 6.0, -13.0)])

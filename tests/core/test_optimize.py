@@ -20,10 +20,12 @@ from bitemesh.core.errors import BitemeshWarning, Cancelled, InvalidInputError, 
 from bitemesh.core.mesh import Mesh, signed_measures
 from bitemesh.core.cell_measures import inverse_mean_ratio
 from bitemesh.core.flips import flip
-from bitemesh.core.optimize import optimize_mesh, relax, smooth
+from bitemesh.core.optimize import optimize_mesh
+from bitemesh.core.relax import relax, smooth
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
-from bitemesh.core.pipeline import mesh_from_grid, radius_for_cells
-from bitemesh.core.quality import check_valid_domain, dihedral_angles, edge_lengths, radius_ratio
+from bitemesh.core.spine import mesh_from_grid, radius_for_cells
+from bitemesh.core.validity import check_valid_domain
+from bitemesh.core.quality import dihedral_angles, edge_lengths, radius_ratio
 from bitemesh.core.shapes import annulus, die, sphere, torus, two_cavity_heart, two_cavity_shell
 from bitemesh.core.topology import boundary_facets, unique_rows
 

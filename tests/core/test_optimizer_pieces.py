@@ -8,13 +8,14 @@ from math import comb
 import numpy as np
 import pytest
 
-from bitemesh.core.cell_measures import (_lane_sum, inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms,
-                                         signed_radius_ratio)
+from bitemesh.core.cell_measures import _lane_sum, inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms
+from bitemesh.core.quality import signed_radius_ratio
 from bitemesh.core.delaunay import delaunay
 from bitemesh.core.flips import flip, polygon_triangulations
 from bitemesh.core.mesh import Mesh, signed_measures
-from bitemesh.core.optimize import peel
-from bitemesh.core.quality import check_valid_domain, radius_ratio
+from bitemesh.core.slivers import peel
+from bitemesh.core.validity import check_valid_domain
+from bitemesh.core.quality import radius_ratio
 
 TRIANGLE = np.array([[1.0, 0.0, 0.0], [-0.5, np.sqrt(3) / 2, 0.0], [-0.5, -np.sqrt(3) / 2, 0.0]])
 

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.pipeline import mesh_from_points, radius_for_cells, run
+from bitemesh.core.pipeline import mesh_from_points, run
+from bitemesh.core.spine import radius_for_cells
 from bitemesh.core.shapes import annulus, die, sample_surface, sphere, torus, two_cavity_shell
 from tests.meshcheck import assert_valid_domain
 
@@ -44,7 +45,7 @@ def test_a_2d_shape_with_a_hole_gives_valid_triangles():
     mesh = mesh_from_points(points, normals, method="rbf", cells=3000)
     assert mesh.cells.shape[1] == 3
     assert_valid_domain(mesh, measure=shape.measure, measure_tolerance=0.02, mean_quality=0.85)
-    from bitemesh.core.quality import count_boundary_components
+    from bitemesh.core.validity import count_boundary_components
     assert count_boundary_components(mesh) == 2
 
 
@@ -116,11 +117,10 @@ def test_normals_of_the_wrong_shape_are_refused(samples):
         mesh_from_points(points, normals[:-1])
 
 
-def test_the_optimizer_switch_is_a_field_and_its_old_forms_still_mean_what_they_meant(samples):
+def test_the_optimizer_switch_is_a_field_and_off_with_bounds_says_so(samples):
     """``optimize`` is OptimizeParameters' first field, on by default (issue 12: FEM-grade by default), and
-    mesh_from_points takes it by name; ``optimize=None`` (the form from before) still skips the optimizer with a
-    DeprecationWarning; bounds given with the switch off do nothing and say so; a misspelt keyword is refused with
-    the closest name."""
+    mesh_from_points takes it by name; bounds given with the switch off do nothing and say so; a misspelt keyword
+    is refused with the closest name."""
     from dataclasses import fields
 
     from bitemesh.core.errors import BitemeshWarning
@@ -130,12 +130,9 @@ def test_the_optimizer_switch_is_a_field_and_its_old_forms_still_mean_what_they_
     default = run(points, normals).mesh
     plain = mesh_from_points(points, normals, optimize=0)
     assert default.cell_data["MinDihedralAngle"].min() >= 20 > plain.cell_data["MinDihedralAngle"].min() + 5
-    with pytest.warns(DeprecationWarning, match=r"OptimizeParameters\(optimize=0\)"):
-        old = run(points, normals, optimize=None).mesh
     with pytest.warns(BitemeshWarning, match="optimize=0: the MeshOptimizer does not run"):
         bounds = run(points, normals, optimize=OptimizeParameters(optimize=0, min_dihedral=25.0)).mesh
-    for mesh in (old, bounds):
-        assert np.array_equal(mesh.points, plain.points) and np.array_equal(mesh.cells, plain.cells)
+    assert np.array_equal(bounds.points, plain.points) and np.array_equal(bounds.cells, plain.cells)
     with pytest.raises(InvalidInputError, match="optimise is not a parameter of this function; did you mean "
                                                 "optimize"):
         mesh_from_points(points, normals, optimise=1)

@@ -8,10 +8,10 @@ from hypothesis import given, settings, strategies as st
 
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.mesh import Mesh, signed_measures
-from bitemesh.core.quality import (
-    boundary_euler_characteristic, boundary_facets, cell_quality, check_valid_domain, connected_components,
-    count_boundary_components, dihedral_angles, edge_lengths, format_summary, quality_histogram, quality_summary,
-    radius_ratio)
+from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
+from bitemesh.core.topology import boundary_facets, connected_components
+from bitemesh.core.quality import (cell_quality, dihedral_angles, edge_lengths, format_summary, quality_histogram,
+                                   quality_summary, radius_ratio)
 
 from tests.builders import positively_oriented
 

@@ -10,7 +10,7 @@ from bitemesh.core.repair import carve_domain
 from bitemesh.core.grid import sample_function
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters
-from bitemesh.core.pipeline import mesh_from_grid
+from bitemesh.core.spine import mesh_from_grid
 from bitemesh.core.shapes import annulus, die, sphere, torus, two_cavity_shell
 from bitemesh.core.spurious import outside_cells
 
@@ -111,8 +111,3 @@ def test_a_pinch_is_mended_by_the_smaller_change_and_filling_can_be_turned_off()
     change_with_fill = volume[filled != keep].sum()
     assert 0 < change_with_fill <= volume[removed != keep].sum() + 1e-12
 
-
-def test_the_former_module_name_still_imports():
-    """``bitemesh.core.domain`` was the repair's module: scripts that import carve_domain from it keep working."""
-    from bitemesh.core import domain, repair
-    assert domain.carve_domain is repair.carve_domain and domain.repaired is repair.repaired

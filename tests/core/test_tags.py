@@ -13,10 +13,11 @@ from bitemesh.core import shapes
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.grid import sample_function
 from bitemesh.core.interfaces import LabelRegions, label_regions
-from bitemesh.core.labelled import run_labelled
+from bitemesh.core.contours.run import run_labelled
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
-from bitemesh.core.pipeline import mesh_from_grid, run
+from bitemesh.core.spine import mesh_from_grid
+from bitemesh.core.pipeline import run
 from bitemesh.core.quality import radius_ratio
 from bitemesh.core.tags import component_tags, facet_measures, region_tags
 from bitemesh.io import read_labelled_points

@@ -11,7 +11,8 @@ from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.quality import dihedral_angles
 from bitemesh.io import read_mesh
-from bitemesh.labelmap import LabelMap, label_map_mesh, label_map_to_grid, mesh_label_grid, read_label_map
+from bitemesh.io.labelmaps import LabelMap, read_label_map
+from bitemesh.labelmap import label_map_mesh, label_map_to_grid, mesh_label_grid
 
 from tests.builders import rotation
 from tests.meshcheck import assert_valid_domain, centroid

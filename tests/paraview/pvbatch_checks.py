@@ -16,7 +16,8 @@ import bitemesh
 import numpy as np
 from bitemesh import algorithms
 from bitemesh.core.mesh import signed_measures
-from bitemesh.core.quality import boundary_euler_characteristic, check_valid_domain, connected_components
+from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain
+from bitemesh.core.topology import connected_components
 from paraview import servermanager
 
 SPHERE_VOLUME = 4.0 / 3.0 * math.pi

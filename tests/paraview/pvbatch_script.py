@@ -37,7 +37,7 @@ from bitemesh.convert import nodes_to_polydata, tag_names_of, unstructured_to_me
 from bitemesh.core.fidelity import distances_to_facets
 from bitemesh.core.mesh import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
-from bitemesh.core.quality import boundary_euler_characteristic, count_boundary_components
+from bitemesh.core.validity import boundary_euler_characteristic, count_boundary_components
 from bitemesh.core.topology import boundary_facets
 from paraview import servermanager, simple
 from paraview.simple import CSVReader, LoadPlugin, ProgrammableFilter, SaveData, TableToPoints, TrivialProducer

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bitemesh.core.labelled import run_labelled
+from bitemesh.core.contours.run import run_labelled
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
 from bitemesh.core.pipeline import run
 

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from bitemesh.algorithms import MeshFromPoints
 from bitemesh.convert import cell_types, point_coordinates, unstructured_to_mesh
-from bitemesh.core.quality import cell_quality, count_boundary_components
+from bitemesh.core.quality import cell_quality
+from bitemesh.core.validity import count_boundary_components
 from bitemesh.core.shapes import annulus, sample_surface
 from vtkmodules.vtkCommonDataModel import VTK_TETRA, VTK_TRIANGLE
 

@@ -12,9 +12,9 @@ import pytest
 from bitemesh.algorithms import MeshFromPoints, PointsToImplicit
 from bitemesh.convert import image_to_grid, unstructured_to_mesh, vtk_points
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.labelled import run_labelled
+from bitemesh.core.contours.run import run_labelled
 from bitemesh.core.parameters import BitingParameters
-from bitemesh.core.pipeline import GRID_PER_RADIUS
+from bitemesh.core.spine import GRID_PER_RADIUS
 from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 

@@ -17,7 +17,7 @@ from vtkmodules.vtkCommonDataModel import vtkDataObject
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
 from ..core.errors import BitemeshError, BitemeshWarning, Cancelled
-from ..core.parameters import AUTOMATIC, is_optional, zero_was_automatic
+from ..core.parameters import AUTOMATIC, is_optional
 
 
 def camel(name: str) -> str:
@@ -38,21 +38,15 @@ def with_parameters(*specs):
                                                                               else spec)
                                      if not isinstance(spec, tuple) or item.name in spec[1])
         for item in cls.parameter_fields:
-            setattr(cls, f"Set{camel(item.name)}", _setter(item.name, AUTOMATIC if is_optional(item) else None,
-                                                           zero_was_automatic(item)))
+            setattr(cls, f"Set{camel(item.name)}", _setter(item.name, AUTOMATIC if is_optional(item) else None))
             setattr(cls, f"Get{camel(item.name)}", _getter(item.name))
         return cls
     return decorate
 
 
-def _setter(name, automatic, zero_was_automatic=False):
-    """``Set<Name>(value)``; None or ``automatic`` (the number a GUI property gives for None) is automatic, and so
-    is 0 where it used to be (``zero_was_automatic``), with a DeprecationWarning."""
+def _setter(name, automatic):
+    """``Set<Name>(value)``; None or ``automatic`` (the number a GUI property gives for None) is automatic."""
     def set_value(self, value):
-        if zero_was_automatic and value is not None and value == 0:
-            warnings.warn(f"Set{camel(name)}(0) for automatic is deprecated: give {automatic} (or None)",
-                          DeprecationWarning, stacklevel=2)
-            value = automatic
         if automatic is not None and value is not None and value == automatic:
             value = None
         if self._values[name] != value:

@@ -7,7 +7,8 @@ from ..core.betti import mesh_topology
 from ..core.errors import InvalidInputError, MeshingError
 from ..core.fem_check import FemParameters
 from ..core.parameters import QualityParameters
-from ..core.quality import check_valid_domain, quality_histogram, quality_summary, radius_ratio
+from ..core.validity import check_valid_domain
+from ..core.quality import quality_histogram, quality_summary, radius_ratio
 from ..io import atomic_output, read_mesh
 from .fem import check
 from .options import add_parameter_options, parameters_from_args

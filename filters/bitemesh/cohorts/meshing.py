@@ -138,7 +138,8 @@ def mesh_input(path, options, progress=None, mesh_points=run_pipeline) -> Meshin
 
 
 def mesh_label_map(path: str, options: dict, steps: dict, progress) -> MeshingResult:
-    from ..labelmap import mesh_label_grid, read_label_map
+    from ..labelmap import mesh_label_grid
+    from ..io.labelmaps import read_label_map
     label_map = read_label_map(path)
     labels = options["label"]
     return mesh_label_grid(label_map.labels, label_map.index_to_physical(ras=bool(options["ras"])),

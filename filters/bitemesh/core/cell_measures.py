@@ -7,7 +7,7 @@ import numpy as np
 
 from .grid import ImplicitGrid
 from .kernels import kernel
-from .quality import cross, dihedral_angles, dot, edge_lengths, signed_radius_ratio  # noqa: F401 (re-exported)
+from .quality import dihedral_angles, dot, edge_lengths
 from .topology import boundary_facets
 
 #: sum of squared edge lengths / V^(2/k) of the regular triangle and tetrahedron.

@@ -10,7 +10,7 @@ from itertools import combinations
 import numpy as np
 
 from .adjacency import cell_neighbours, edge_rings, facet_pairs, replaced
-from .cell_measures import signed_radius_ratio
+from .quality import signed_radius_ratio
 from .progress import ProgressCallback, report
 
 #: a flip must raise the worst radius ratio of the cells it replaces by at least FLIP_GAIN; only groups of cells

@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InvalidInputError, check_choice, check_points
-from .mpu import MIN_POINTS, MPUImplicit, fit_mpu  # noqa: F401 (MPUImplicit: imported from here as before)
+from .mpu import MIN_POINTS, fit_mpu
 from .normals import check_normals, check_spans_space, estimate_normals
 from .progress import ProgressCallback, report, sub_progress
-from .rbf import MAX_RBF_POINTS, RBFImplicit, fit_rbf  # noqa: F401 (imported from here as before)
+from .rbf import fit_rbf
 
 
 # --- the step ------------------------------------------------------------------------------------------------------
@@ -69,16 +69,3 @@ def fit_implicit(points, normals=None, *, method: str = "mpu", error_bound=None,
     points, normals = _prepared(points, normals, method)
     return _fit(points, normals, method, error_bound, progress)
 
-
-def __getattr__(name):
-    """Deprecated: ``points_to_implicit`` lives in :mod:`bitemesh.core.pipeline` (it drops outliers and centres the
-    points first).  Imported from here it still works, with a DeprecationWarning; the import is lazy because
-    pipeline imports this module."""
-    if name == "points_to_implicit":
-        import warnings
-
-        warnings.warn("bitemesh.core.implicit.points_to_implicit is deprecated; import it from "
-                      "bitemesh.core.pipeline", DeprecationWarning, stacklevel=2)
-        from .pipeline import points_to_implicit
-        return points_to_implicit
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

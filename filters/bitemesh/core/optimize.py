@@ -40,17 +40,15 @@ import warnings
 
 import numpy as np
 
-from .cell_measures import (boundary_nodes, mean_edge_length, off_surface_nodes, signed_radius_ratio,
-                            smallest_angles)
+from .cell_measures import boundary_nodes, mean_edge_length, off_surface_nodes, smallest_angles
+from .quality import signed_radius_ratio
 from .errors import BitemeshWarning, InvalidInputError, MeshingError
 from .grid import ImplicitGrid
 from .mesh import Mesh
 from .parameters import OptimizeParameters
 from .progress import ProgressCallback, report, sub_progress
-# the relaxation and the sliver removal, imported from here as before (re-exported)
-from .relax import (INTERIOR_MARGIN, MAX_MOVE, MEAN_GAIN, PATIENCE, REVERT_ROUNDS,  # noqa: F401 (re-exported)
-                    SMOOTH_POWER, STEP_FRACTIONS, SURFACE_TOLERANCE, odt_targets, relax, smooth)
-from .slivers import SLIVER_ROUNDS, SMOOTH_ITERATIONS, peel, poor_cells, remove_slivers  # noqa: F401 (re-exported)
+from .relax import (SURFACE_TOLERANCE, relax)
+from .slivers import poor_cells, remove_slivers
 from .validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 
 

@@ -37,15 +37,6 @@ def is_optional(item) -> bool:
 AUTOMATIC = -1
 
 
-def zero_was_automatic(item) -> bool:
-    """True for an optional field whose range excludes 0, for which 0 stood for "automatic" before
-    :data:`AUTOMATIC` was one number for all (the VTK setters still take it, with a DeprecationWarning)."""
-    if not is_optional(item):
-        return False
-    low, _, low_open, _ = item.metadata["range"]
-    return low is not None and (low > 0 or (low == 0 and low_open))
-
-
 #: the radial basis functions of the RBF fits: phi(r) = r, r^3, r^2 log r.
 KERNELS = ("linear", "cubic", "thin_plate")
 

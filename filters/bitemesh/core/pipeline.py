@@ -11,18 +11,17 @@ import numpy as np
 
 from .errors import InvalidInputError, check_points
 from .grid import ImplicitGrid
-from .implicit import MIN_POINTS, fit_implicit
+from .mpu import MIN_POINTS
+from .implicit import fit_implicit
 from .mesh import Mesh
 from .parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                          STEP_PARAMETERS, SpuriousParameters, parameters_from_keywords)
 from .samples import (PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, near_duplicates, noise_level,
                       sample_spacing)
 from .progress import ProgressCallback, sub_progress
-from .spine import (CELLS_PER_VOLUME, COARSE_GRID_NODES, GRID_PER_RADIUS, MIN_GRID_NODES,  # noqa: F401 (re-exported)
-                    MeshingResult, check_grid, check_memory, check_spacing, grid_for_source, mesh_from_grid,
-                    mesh_source,
-                    radius_for_cells, timed)
-from .source import Frame, Source  # noqa: F401 (re-exported)
+from .spine import (MeshingResult, check_grid, check_memory, check_spacing, grid_for_source, mesh_source,
+                    timed)
+from .source import Frame, Source
 
 logger = logging.getLogger("bitemesh")
 

@@ -19,11 +19,8 @@ import numpy as np
 from .kernels import kernel
 from .errors import InvalidInputError, check_number
 from .mesh import Mesh, facets_of, signed_measures
-from .topology import (boundary_facets, connected_components, distinct_faces, euler_characteristic,  # noqa: F401
-                       facet_table, neighbour_pairs, unique_rows)
+from .topology import (distinct_faces)
 from .validity import _check_cells, _check_mesh
-# the validity checks, imported from here as before (re-exported)
-from .validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components  # noqa: F401
 
 
 def _ridge_facets(n_vertices: int) -> np.ndarray:

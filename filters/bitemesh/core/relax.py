@@ -18,9 +18,9 @@ import itertools
 
 import numpy as np
 
-from .cell_measures import (boundary_nodes, cross, dot, inverse_mean_ratio, mean_edge_length, mean_ratio_cost,
-                            mean_ratio_terms, node_cost_descent, node_trial_costs, scatter_to_points,
-                            signed_radius_ratio, tangential)
+from .cell_measures import (boundary_nodes, inverse_mean_ratio, mean_edge_length, mean_ratio_cost, mean_ratio_terms,
+                            node_cost_descent, node_trial_costs, scatter_to_points, tangential)
+from .quality import cross, dot, signed_radius_ratio
 from .delaunay_flips import FLAT_QUALITY, flip_to_delaunay
 from .grid import ImplicitGrid
 from .mesh import circumspheres, signed_measures

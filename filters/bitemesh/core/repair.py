@@ -18,7 +18,8 @@ from .grid import ImplicitGrid
 from .handles import break_handles, handle_count
 from .mesh import Mesh, signed_measures
 from .parameters import SpuriousParameters
-from .quality import check_valid_domain, radius_ratio
+from .validity import check_valid_domain
+from .quality import radius_ratio
 from .progress import ProgressCallback, report, sub_progress
 from .spurious import outside_cells
 from .topology import CellComplex, euler_change, vertex_incidence

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cell_measures import signed_radius_ratio, smallest_angles
+from .quality import signed_radius_ratio
+from .cell_measures import smallest_angles
 from .collapse import collapse_flat_cells
 from .flips import flip
 from .grid import ImplicitGrid

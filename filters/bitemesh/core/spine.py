@@ -138,13 +138,8 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
 
 
 def switched_optimizer(optimize: OptimizeParameters) -> OptimizeParameters | None:
-    """The MeshOptimizer's parameters when its switch is on, else None.  ``optimize=None``, the form from before
-    the switch was a field, still skips it, with a DeprecationWarning; bounds given with the switch off are
+    """The MeshOptimizer's parameters when its switch is on, else None; bounds given with the switch off are
     pointed out, since they do nothing."""
-    if optimize is None:
-        warnings.warn("optimize=None is deprecated: give OptimizeParameters(optimize=0) to skip the MeshOptimizer, "
-                      "OptimizeParameters(optimize=1, ...) to run it", DeprecationWarning, stacklevel=3)
-        return None
     if not isinstance(optimize, OptimizeParameters):
         raise InvalidInputError(f"optimize must be OptimizeParameters, got {optimize!r}; e.g. "
                                 "OptimizeParameters(optimize=1)")

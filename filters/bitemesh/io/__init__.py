@@ -17,27 +17,3 @@ from .meshes import (FACET_ARRAY, MESH_EXTENSIONS, MESHIO_FORMATS, NO_CELL_ARRAY
                      mesh_files, read_mesh, write_mesh)
 from .pointsets import POINT_EXTENSIONS, TEXT_POINT_EXTENSIONS, VTK_POINT_EXTENSIONS, read_points  # noqa: F401
 
-
-#: names that bitemesh.io gave (one module, before io/ became a package) and that it no longer exports.
-_MOVED_TO_CONTOURS = ("LABEL_COLUMNS", "LABELLED_TEXT_EXTENSIONS", "LABELLED_VTK_EXTENSIONS")
-
-
-def __getattr__(name):
-    """Deprecated names, still importable with a DeprecationWarning that says where they live now:
-    ``LABEL_COLUMNS``, ``LABELLED_TEXT_EXTENSIONS`` and ``LABELLED_VTK_EXTENSIONS`` are in
-    :mod:`bitemesh.io.contours`; ``SLICE_COLUMNS`` is gone, the names of a slice column being those of role "slice"
-    in :data:`bitemesh.core.columns.NAMES` (normalised: lower case, without spaces, underscores or dashes)."""
-    import warnings
-
-    if name in _MOVED_TO_CONTOURS:
-        warnings.warn(f"bitemesh.io.{name} is deprecated; import it from bitemesh.io.contours", DeprecationWarning,
-                      stacklevel=2)
-        from . import contours
-        return getattr(contours, name)
-    if name == "SLICE_COLUMNS":
-        warnings.warn("bitemesh.io.SLICE_COLUMNS is deprecated; a slice column's names are those of role 'slice' "
-                      "in bitemesh.core.columns.NAMES (bitemesh.core.columns.role gives a name's role)",
-                      DeprecationWarning, stacklevel=2)
-        from ..core.columns import NAMES
-        return tuple(column for column, role in NAMES.items() if role == "slice")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

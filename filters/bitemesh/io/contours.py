@@ -2,7 +2,6 @@
 small config file that says which domain to mesh from them."""
 from __future__ import annotations
 
-import warnings
 
 from dataclasses import fields
 from pathlib import Path
@@ -25,7 +24,7 @@ LABELLED_EXTENSIONS = LABELLED_TEXT_EXTENSIONS + LABELLED_VTK_EXTENSIONS
 LABEL_COLUMNS = tuple(name for name, given in NAMES.items() if given == "label")
 
 
-def read_labelled_points(path, *, columns: str | None = None, frame: float | None = None, slices=None):
+def read_labelled_points(path, *, columns: str | None = None, frame: float | None = None):
     """Read contour points with a label per point: a biv-me GPFile, a CSV table, or a VTK file with a Label array.
 
     Parameters
@@ -39,7 +38,6 @@ def read_labelled_points(path, *, columns: str | None = None, frame: float | Non
         a header: ``x y z label [slice]``.  Labels are strings or integers; ``#`` starts a comment line.
         ``.vtp``, ``.vtk``, ``.vtu``: the points of the dataset and its point-data array ``Label`` (integer or
         string), and optionally ``Slice`` or ``FrameID``.
-    slices : deprecated and ignored (the slice ids are always returned)
     columns : comma-separated role of each column of a table (x, y, z, label, slice, frame, skip), e.g.
         "x,y,z,label,skip"; default: from the header's names (see :mod:`bitemesh.io.tables`)
     frame : the time frame to read (a value of the time-frame column); default: every point, which a file whose
@@ -59,9 +57,6 @@ def read_labelled_points(path, *, columns: str | None = None, frame: float | Non
         message names the file and the line), an empty label, no points, several time frames and no ``frame``, or a
         ``frame`` the file does not hold.
     """
-    if slices is not None:
-        warnings.warn("read_labelled_points(slices=...) is deprecated: it always returns (points, labels, slice_ids)",
-                      DeprecationWarning, stacklevel=2)
     path = existing_file(path, "labelled points", LABELLED_EXTENSIONS)
     frames = None
     if path.suffix.lower() in LABELLED_TEXT_EXTENSIONS:

@@ -147,24 +147,15 @@ def _refuseUnknown(names, known, what: str) -> None:
         raise InvalidInputError(f"unknown {what}(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
 
 
-def _zeroWasAutomatic(name: str) -> bool:
-    """A scene saved before "automatic" was -1 for all holds 0 for it where 0 is outside the range
-    (bitemesh.core.parameters.zero_was_automatic of the panel parameter's field)."""
-    core = _core()
-    dataclassName, fieldName = PARAMETERS[name]
-    return core.zero_was_automatic({f.name: f for f in fields(coreDataclass(dataclassName))}[fieldName])
-
-
 def coreParameters(values: dict) -> dict:
     """Parameter-node values (by name) -> keywords of :meth:`BiteMeshLogic.process` ("automatic", -1, becomes
-    None; so does 0 where it was "automatic" in scenes saved before); unknown names are refused."""
+    None); unknown names are refused."""
     specs = {spec.name: spec for spec in parameterSpecs()}
     _refuseUnknown(values, specs, "panel parameter")
     keywords = {}
     for name, value in values.items():
         spec = specs[name]
-        keywords[spec.core] = None if spec.automatic is not None and (value == spec.automatic or (
-            value == 0 and _zeroWasAutomatic(name))) else value
+        keywords[spec.core] = None if spec.automatic is not None and value == spec.automatic else value
     return keywords
 
 

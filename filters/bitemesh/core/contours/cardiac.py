@@ -228,7 +228,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     list of the problems (empty when plausible)
     """
     from ..fidelity import facet_measures
-    from ..quality import count_boundary_components
+    from ..validity import count_boundary_components
     from ..topology import boundary_facets, euler_characteristic
 
     points, cells = np.asarray(mesh.points), np.asarray(mesh.cells)

@@ -15,7 +15,8 @@ from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError, check_choice, check_number, check_points
 from ..parameters import LabelledParameters
-from ..rbf import KERNELS, RBFImplicit, fit_partition
+from ..parameters import KERNELS
+from ..rbf import RBFImplicit, fit_partition
 
 #: the points are fitted thinned to this x the off-surface offset apart (contours traced on 1.4 mm pixels are about
 #: 3 mm apart; a denser resampling adds time, not shape).
