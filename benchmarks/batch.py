@@ -87,7 +87,7 @@ def warm_up() -> None:
     start rather than charged to the cases (the plain loop's process is warm from its first round on)."""
     from bitemesh.cohorts import run
     from bitemesh.core.parameters import BitingParameters
-    from bitemesh.core.pipeline import run as mesh
+    from bitemesh.core.sources.points import run as mesh
 
     points, normals = sample_surface(sphere(), 0.1, seed=0)
     run.render_cut(mesh(points, normals, biting=BitingParameters(cells=500)).mesh)

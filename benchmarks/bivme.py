@@ -41,25 +41,25 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
-from bitemesh.core.contours.cardiac import BIVME_DEFAULT_DOMAIN
-from bitemesh.core.contours.fit import labelled_implicit
+from bitemesh.core.sources.contours.cardiac import BIVME_DEFAULT_DOMAIN
+from bitemesh.core.sources.contours.fit import labelled_implicit
 from bitemesh.core.parameters import KERNELS
-from bitemesh.core.contours.run import run_labelled
-from bitemesh.core.contours.surface_fit import fit_contour_rbf
-from bitemesh.core.contours.cardiac import default_surfaces
-from bitemesh.core.contours.csg import domain_names, parse_domain
-from bitemesh.core.contours.fit import SURFACE_BAND, SURFACE_LEVELS
-from bitemesh.core.contours.slices import contour_normals, slice_planes
+from bitemesh.core.sources.contours.run import run_labelled
+from bitemesh.core.sources.contours.surface_fit import fit_contour_rbf
+from bitemesh.core.sources.contours.cardiac import default_surfaces
+from bitemesh.core.sources.contours.csg import domain_names, parse_domain
+from bitemesh.core.sources.contours.fit import SURFACE_BAND, SURFACE_LEVELS
+from bitemesh.core.sources.contours.slices import contour_normals, slice_planes
 from bitemesh.core.errors import BitemeshWarning
-from bitemesh.core.grid import sample_function
-from bitemesh.core.mpu import fit_mpu
+from bitemesh.core.grid.sampled import sample_function
+from bitemesh.core.implicit.mpu import fit_mpu
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
-from bitemesh.core.source import Frame, Source
-from bitemesh.core.spine import mesh_source
-from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
-from bitemesh.core.topology import connected_components
-from bitemesh.core.quality import dihedral_angles
-from bitemesh.core.topology import boundary_facets
+from bitemesh.core.sources.source import Frame, Source
+from bitemesh.core.steps.spine import mesh_source
+from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
+from bitemesh.core.mesh.topology import connected_components
+from bitemesh.core.mesh.quality import dihedral_angles
+from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.io import read_labelled_points
 from heart_measures import read_surface
 from scipy.spatial import cKDTree

@@ -23,10 +23,10 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from bitemesh.core.contours.fit import labelled_implicit  # noqa: E402
-from bitemesh.core.contours.run import labelled_source  # noqa: E402
+from bitemesh.core.sources.contours.fit import labelled_implicit  # noqa: E402
+from bitemesh.core.sources.contours.run import labelled_source  # noqa: E402
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters  # noqa: E402
-from bitemesh.core.spine import grid_for_source  # noqa: E402
+from bitemesh.core.steps.spine import grid_for_source  # noqa: E402
 from bitemesh.io import read_labelled_points  # noqa: E402
 
 from tests.cardiac_variants import variant_file  # noqa: E402

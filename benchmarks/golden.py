@@ -35,7 +35,7 @@ def fingerprint(mesh) -> str:
 def die_demo(cells: int = 10000, optimize: int = 1):
     """``bitemesh demo`` (die): its points, its parameters (optimize 1, the default; 0: the plain method)."""
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     from bitemesh.core.shapes import die, sample_surface
     points, normals = sample_surface(die(), spacing=0.04, noise=0.002, seed=1)
     return run(points, normals, ImplicitParameters(), BitingParameters(cells=cells),
@@ -45,7 +45,7 @@ def die_demo(cells: int = 10000, optimize: int = 1):
 def heart_demo(cells: int | None = 40000, optimize: int = 1):
     """``bitemesh demo heart --cells N``'s mesh (the shipped biv-me guide points); None: the cardiac default
     (R = 2 mm), as ``bitemesh mesh GPFile_000.txt`` meshes it; ``optimize`` 0: the plain method."""
-    from bitemesh.core.contours.run import run_labelled
+    from bitemesh.core.sources.contours.run import run_labelled
     from bitemesh.core.parameters import BitingParameters, OptimizeParameters
     from bitemesh.io import read_labelled_points
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
@@ -63,7 +63,7 @@ def benchmark_shape(name: str, cells: int, optimize: int = 1):
     from shape_worker import SEED, make_input
 
     from bitemesh.core.parameters import BitingParameters, OptimizeParameters
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     _, points, normals, _ = make_input(name, cells)
     return run(points, normals, biting=BitingParameters(cells=cells, seed=SEED),
                optimize=OptimizeParameters(optimize=optimize)).mesh

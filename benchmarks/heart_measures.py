@@ -19,10 +19,10 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
-from bitemesh.core.fidelity import distances_to_facets, facet_measures
-from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
-from bitemesh.core.topology import connected_components
-from bitemesh.core.topology import boundary_facets
+from bitemesh.core.steps.fidelity import distances_to_facets, facet_measures
+from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
+from bitemesh.core.mesh.topology import connected_components
+from bitemesh.core.mesh.topology import boundary_facets
 
 #: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.
 REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL": ("LV_ENDO",),

@@ -21,7 +21,7 @@ from shape_worker import SEED, SHAPES, make_input, mesh_metrics  # noqa: E402
 
 from bitemesh.core.parameters import (BitingParameters, ImplicitParameters, OptimizeParameters,  # noqa: E402
                                       SpuriousParameters)
-from bitemesh.core.pipeline import run  # noqa: E402
+from bitemesh.core.sources.points import run  # noqa: E402
 
 COLUMNS = ("cells", "q_mean", "q_min", "min_dihedral", "percent_q_below_0_3", "volume_error_percent", "edge_cv")
 

@@ -22,10 +22,11 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-from bitemesh.core import optimize, spine  # noqa: E402
+from bitemesh.core.optimize import optimizer as optimize  # noqa: E402
+from bitemesh.core.steps import spine  # noqa: E402
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters  # noqa: E402
-from bitemesh.core.pipeline import run  # noqa: E402
-from bitemesh.core.quality import quality_summary  # noqa: E402
+from bitemesh.core.sources.points import run  # noqa: E402
+from bitemesh.core.mesh.quality import quality_summary  # noqa: E402
 
 
 def capture(shape: str, size: int, path: str) -> None:

@@ -41,9 +41,9 @@ for p in (str(HERE.parent / "filters"), str(HERE)):
         sys.path.insert(0, p)
 
 from bitemesh.core import shapes  # noqa: E402
-from bitemesh.core.mesh import Mesh  # noqa: E402
-from bitemesh.core.validity import check_valid_domain  # noqa: E402
-from bitemesh.core.quality import quality_summary  # noqa: E402
+from bitemesh.core.mesh.simplicial import Mesh  # noqa: E402
+from bitemesh.core.mesh.validity import check_valid_domain  # noqa: E402
+from bitemesh.core.mesh.quality import quality_summary  # noqa: E402
 from golden import processor  # noqa: E402
 from peers_meshers import MESHERS, ONE_RUN_CELLS, SINGLE_RUN_LIMIT  # noqa: E402
 from shape_worker import SHAPES  # noqa: E402

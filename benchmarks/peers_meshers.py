@@ -102,7 +102,7 @@ def run_bitemesh(name: str, target: int, repeat: int, optimize: bool | None):
     from shape_worker import SEED, make_input
 
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     parameters = OptimizeParameters() if optimize is None else OptimizeParameters(optimize=int(optimize))
     shape, points, normals, _ = make_input(name, target)
     steps, said = [], []

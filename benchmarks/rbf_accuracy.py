@@ -25,12 +25,12 @@ SOURCE_ROOT = Path(__file__).resolve().parents[1] / "filters"
 if str(SOURCE_ROOT) not in sys.path:
     sys.path.insert(0, str(SOURCE_ROOT))
 
-from bitemesh.core.implicit import fit_implicit  # noqa: E402
+from bitemesh.core.implicit.fit import fit_implicit  # noqa: E402
 from bitemesh.core.shapes import annulus, sample_surface, sphere  # noqa: E402
 
 
 def annulus_contours():
-    """The annulus of tests/core/test_implicit.py: 80 points on r = 1, 40 on r = 0.5, outward normals."""
+    """The annulus of tests/core/implicit/test_implicit.py: 80 points on r = 1, 40 on r = 0.5, outward normals."""
     angle = np.linspace(0, 2 * np.pi, 80, endpoint=False)
     circle = np.c_[np.cos(angle), np.sin(angle)]
     shape = annulus(1.0, 0.5)
@@ -38,7 +38,7 @@ def annulus_contours():
 
 
 def annulus_sampled(spacing: float):
-    """shapes.annulus (r = 1 and 0.4) sampled about ``spacing`` apart (tests/core/test_pipeline.py: 0.02)."""
+    """shapes.annulus (r = 1 and 0.4) sampled about ``spacing`` apart (tests/core/sources/test_points.py: 0.02)."""
     shape = annulus()
     points, normals = sample_surface(shape, spacing, seed=2)
     return shape, points, normals
@@ -107,7 +107,7 @@ def measure(name: str, step: float, kernel=None) -> dict:
     if kernel is None:
         function = fit_implicit(points, normals, method="rbf")
     else:   # the same fit with another kernel
-        from bitemesh.core.rbf import fit_rbf
+        from bitemesh.core.implicit.rbf import fit_rbf
         function = fit_rbf(points, normals, kernel=kernel)
     fitted = time.perf_counter()
     lower, upper = np.array(shape.lower) - 0.3, np.array(shape.upper) + 0.3

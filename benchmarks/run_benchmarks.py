@@ -2,7 +2,7 @@
 """Reproducible timing and quality benchmark of bitemesh on analytic shapes, beside the paper's plain method.
 
 For each shape and target cell count the shape is sampled as noisy scattered points with outward normals (fixed
-seed), and the whole pipeline (``bitemesh.core.pipeline.run``: MPU fit, sampling on the grid I, biting, Delaunay,
+seed), and the whole pipeline (``bitemesh.core.sources.points.run``: MPU fit, sampling on the grid I, biting, Delaunay,
 spurious cells with validity repair, quality) meshes it.  Every case runs in a fresh Python process, so that its
 peak memory is its own; a second fresh process then meshes the *same* grid I with the paper's plain method
 (biting + Delaunay + circumcentre test, no repair), the baseline.

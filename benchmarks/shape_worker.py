@@ -44,7 +44,7 @@ def make_input(name: str, size: int):
     """The shape, its scattered noisy points and normals, and the sampling's parameters."""
     import numpy as np
     from bitemesh.core import shapes
-    from bitemesh.core.spine import radius_for_cells
+    from bitemesh.core.steps.spine import radius_for_cells
 
     shape = getattr(shapes, SHAPES[name])()
     expected_r = radius_for_cells(shape.measure, size, shape.dim)
@@ -109,10 +109,10 @@ def distance_lower_bound(name: str, x):
 def mesh_metrics(mesh, shape, radius: float, name: str) -> dict:
     """Quality, geometry and validity figures of ``mesh`` against the analytic ``shape``."""
     import numpy as np
-    from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain
-    from bitemesh.core.topology import connected_components
-    from bitemesh.core.quality import quality_summary
-    from bitemesh.core.topology import boundary_facets
+    from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain
+    from bitemesh.core.mesh.topology import connected_components
+    from bitemesh.core.mesh.quality import quality_summary
+    from bitemesh.core.mesh.topology import boundary_facets
 
     summary = quality_summary(mesh)
     problems = check_valid_domain(mesh)
@@ -150,7 +150,7 @@ def worker_pipeline(name: str, size: int, grid_path: str | None) -> dict:
     """The whole bitemesh pipeline from scattered points with normals (default method mpu)."""
     import numpy as np
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters, SpuriousParameters
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
 
     rss_imported = _maxrss_mb()
     clock = time.perf_counter()
@@ -175,7 +175,7 @@ def worker_pipeline(name: str, size: int, grid_path: str | None) -> dict:
 
 #: the baselines: name -> description (the outside test; none of them repairs the domain)
 BASELINES = {"paper": "circumcentre test only (the paper)",
-             "outside_cells": "bitemesh.core.spurious.outside_cells, no repair"}
+             "outside_cells": "bitemesh.core.steps.spurious.outside_cells, no repair"}
 
 
 def worker_baseline(name: str, size: int, grid_path: str) -> dict:
@@ -187,14 +187,14 @@ def worker_baseline(name: str, size: int, grid_path: str) -> dict:
     """
     import numpy as np
     from bitemesh.core import shapes
-    from bitemesh.core.biting import bite
-    from bitemesh.core.delaunay import delaunay
-    from bitemesh.core.grid import ImplicitGrid
-    from bitemesh.core.mesh import Mesh
+    from bitemesh.core.steps.biting import bite
+    from bitemesh.core.steps.delaunay import delaunay
+    from bitemesh.core.grid.sampled import ImplicitGrid
+    from bitemesh.core.mesh.simplicial import Mesh
     from bitemesh.core.parameters import BitingParameters, SpuriousParameters
-    from bitemesh.core.quality import cell_quality
-    from bitemesh.core.source import Frame
-    from bitemesh.core.spurious import circumcentre_outside, outside_cells
+    from bitemesh.core.mesh.quality import cell_quality
+    from bitemesh.core.sources.source import Frame
+    from bitemesh.core.steps.spurious import circumcentre_outside, outside_cells
 
     rss_imported = _maxrss_mb()
     shape = getattr(shapes, SHAPES[name])()

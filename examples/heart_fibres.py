@@ -47,8 +47,8 @@ def fibred_heart(path: str | None, cells: int):
         return read_mesh(path)
     from importlib import resources
 
-    from bitemesh.core.contours.run import run_labelled
-    from bitemesh.core.fibres import with_fibres
+    from bitemesh.core.sources.contours.run import run_labelled
+    from bitemesh.core.fem.fibres import with_fibres
     from bitemesh.core.parameters import BitingParameters
     from bitemesh.io import read_labelled_points
 

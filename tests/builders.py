@@ -15,14 +15,14 @@ from types import SimpleNamespace
 
 import numpy as np
 from bitemesh.core import shapes
-from bitemesh.core.grid import sample_function
-from bitemesh.core.mesh import Mesh, signed_measures
+from bitemesh.core.grid.sampled import sample_function
+from bitemesh.core.mesh.simplicial import Mesh, signed_measures
 from bitemesh.core.parameters import OptimizeParameters
 from scipy.spatial import cKDTree
 
 #: the paper's plain method, without the MeshOptimizer (on by default): for the tests of another step (reading, the
 #: fit, the repair, the interfaces), where the optimizer would only add time; its output is tested on every shape in
-#: tests/core/test_optimize.py, and the default's in the tests that say "default"
+#: tests/core/optimize/test_optimize.py, and the default's in the tests that say "default"
 PLAIN = OptimizeParameters(optimize=0)
 
 # --- analytic shapes ---------------------------------------------------------------------------------------------

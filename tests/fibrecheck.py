@@ -6,9 +6,9 @@ from __future__ import annotations
 from functools import cache
 
 import numpy as np
-from bitemesh.core import fem, fibres
-from bitemesh.core.contours.run import run_labelled
-from bitemesh.core.mesh import Mesh
+from bitemesh.core.fem import assembly as fem, fibres
+from bitemesh.core.sources.contours.run import run_labelled
+from bitemesh.core.mesh.simplicial import Mesh
 from bitemesh.core.parameters import BitingParameters
 from scipy.spatial import cKDTree
 

@@ -8,9 +8,9 @@ import pytest
 def assert_valid_domain(mesh, *, euler=None, components=1, measure=None, measure_tolerance=0.02,
                         mean_quality=None):
     """Fail unless ``mesh`` is a valid finite-element domain with the expected topology, measure and quality."""
-    from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain
-    from bitemesh.core.quality import cell_quality
-    from bitemesh.core.topology import connected_components
+    from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain
+    from bitemesh.core.mesh.quality import cell_quality
+    from bitemesh.core.mesh.topology import connected_components
     problems = check_valid_domain(mesh)
     assert problems == [], problems
     assert connected_components(mesh.cells).max() + 1 == components
@@ -25,7 +25,7 @@ def assert_valid_domain(mesh, *, euler=None, components=1, measure=None, measure
 
 def centroid(mesh) -> np.ndarray:
     """The centre of mass of the meshed solid (each cell weighed by its signed measure)."""
-    from bitemesh.core.mesh import signed_measures
+    from bitemesh.core.mesh.simplicial import signed_measures
     corners = mesh.points[mesh.cells]
     volumes = signed_measures(mesh.points, mesh.cells)
     return (corners.mean(axis=1) * volumes[:, None]).sum(axis=0) / volumes.sum()
@@ -42,12 +42,12 @@ def oriented_rows(facets) -> set:
 
 
 def assert_tagged(mesh):
-    """Fail unless ``mesh`` carries tags as :class:`bitemesh.core.mesh.Mesh` says: every boundary facet once,
+    """Fail unless ``mesh`` carries tags as :class:`bitemesh.core.mesh.simplicial.Mesh` says: every boundary facet once,
     oriented out of the domain, and every interface facet (cells of two regions on its sides) once, oriented out of
     the region with the lower tag; tags > 0, each named (dimension k - 1); every cell in a named region (dimension k).
 
     Returns the interface facets' rows (a set of oriented tuples)."""
-    from bitemesh.core.topology import boundary_facets, facet_table
+    from bitemesh.core.mesh.topology import boundary_facets, facet_table
     assert mesh.facets is not None and mesh.facet_tags is not None
     assert mesh.facet_tags.dtype == np.int32 and mesh.facets.shape == (len(mesh.facet_tags), mesh.dim)
     assert (mesh.facet_tags > 0).all()

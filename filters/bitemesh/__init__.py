@@ -9,8 +9,9 @@ FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFi
            "QualityFilter", "MeshFromPoints", "FibreField")
 #: name -> the module that defines it.
 _CORE = {"BitemeshError": "core.errors", "BitemeshWarning": "core.errors", "Cancelled": "core.errors",
-         "InvalidInputError": "core.errors", "MeshingError": "core.errors", "Mesh": "core.mesh",
-         "mesh_from_points": "core.pipeline", "run": "core.pipeline", "quality_summary": "core.quality",
+         "InvalidInputError": "core.errors", "MeshingError": "core.errors", "Mesh": "core.mesh.simplicial",
+         "mesh_from_points": "core.sources.points", "run": "core.sources.points",
+         "quality_summary": "core.mesh.quality",
          "batch": "cohorts",
          **{name: "algorithms" for name in FILTERS}}
 __all__ = sorted(_CORE)

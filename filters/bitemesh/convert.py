@@ -10,11 +10,11 @@ from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIntArray, vtkPoints, vtk
 from vtkmodules.vtkCommonDataModel import (VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkImageData, vtkPolyData,
                                            vtkUnstructuredGrid)
 
-from .core.contours.cardiac import time_frame
+from .core.sources.contours.cardiac import time_frame
 from .core.columns import role
 from .core.errors import InvalidInputError
-from .core.grid import ImplicitGrid
-from .core.mesh import Mesh
+from .core.grid.sampled import ImplicitGrid
+from .core.mesh.simplicial import Mesh
 
 #: the point array of the implicit image: f > 0 inside.
 IMPLICIT_ARRAY = "Implicit"

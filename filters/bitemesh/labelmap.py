@@ -31,16 +31,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .core.betti import grid_parts
+from .core.mesh.betti import grid_parts
 from .core.errors import InvalidInputError, check_number
-from .core.grid import ImplicitGrid
-from .core.interfaces import LabelRegions
+from .core.grid.sampled import ImplicitGrid
+from .core.mesh.interfaces import LabelRegions
 from .core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                               STEP_PARAMETERS, SpuriousParameters, parameters_from_keywords)
 from .core.progress import ProgressCallback, report, sub_progress
-from .core.source import Frame, Source
-from .core.spine import MeshingResult, mesh_source, timed
-from .core.tags import region_labels
+from .core.sources.source import Frame, Source
+from .core.steps.spine import MeshingResult, mesh_source, timed
+from .core.mesh.tags import region_labels
 from .io.labelmaps import (LabelMap, import_simpleitk,
                            read_label_map)
 
@@ -199,13 +199,13 @@ LabelMapMeshingResult = MeshingResult
 def label_grid_source(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                       implicit: ImplicitParameters = ImplicitParameters(), smoothing: float = SMOOTHING_VOXELS,
                       progress: ProgressCallback = None) -> Source:
-    """The chosen labels of a voxel array as a :class:`~bitemesh.core.source.Source`: their signed distance on the
-    voxel grid (cropped to the labels' box, smoothed, :func:`label_map_to_grid`) in the local frame (index x
+    """The chosen labels of a voxel array as a :class:`~bitemesh.core.sources.source.Source`: their signed distance on
+    the voxel grid (cropped to the labels' box, smoothed, :func:`label_map_to_grid`) in the local frame (index x
     spacing), the voxel faces as samples, and the frame to physical space that ``ijk_to_physical`` gives.
 
     See :func:`mesh_label_grid` for the parameters; ``implicit.max_memory_mb`` bounds the distance's memory.  With
     several labels each label's own distance is made too (the same filter), for the regions
-    (:class:`~bitemesh.core.interfaces.LabelRegions`: the source's tagging and interfaces).
+    (:class:`~bitemesh.core.mesh.interfaces.LabelRegions`: the source's tagging and interfaces).
     """
     labels_ijk = np.asarray(labels_ijk)
     dim = labels_ijk.ndim
@@ -292,7 +292,7 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
         when their largest size is between R / 8 and R / 4) and max_memory_mb are used; method, error_bound and
         margin do not apply to label maps
     biting, spurious, optimize : BitingParameters, SpuriousParameters and OptimizeParameters, as for
-        :func:`~bitemesh.core.pipeline.mesh_from_grid`; None: the defaults
+        :func:`~bitemesh.core.sources.points.mesh_from_grid`; None: the defaults
     fidelity : FidelityParameters, the bounds of the fidelity check against the voxel faces (default: its defaults)
     smoothing : see :func:`label_map_to_grid`
 
@@ -301,9 +301,9 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
     LabelMapMeshingResult: mesh (positively oriented cells, quality arrays) and nodes in physical space; implicit
     in the local frame (index x spacing), which ``to_physical`` maps to physical space.  The mesh's cells carry
     ``Region`` = their label (``REGION_<label>``: the label whose smoothed distance is largest at the centroid);
-    its facets the tags of :func:`~bitemesh.core.tags.region_tags` (``BOUNDARY_<label>``, ``INTERFACE_<a>_<b>``).
+    its facets the tags of :func:`~bitemesh.core.mesh.tags.region_tags` (``BOUNDARY_<label>``, ``INTERFACE_<a>_<b>``).
     With several labels the regions share the nodes of their interfaces, which the biting samples and
-    :func:`~bitemesh.core.interfaces.snap_interfaces` moves onto f_a = f_b.
+    :func:`~bitemesh.core.mesh.interfaces.snap_interfaces` moves onto f_a = f_b.
 
     The grid I is axis-aligned in the local frame; the mesh is made there and then mapped to physical space, so
     the image's direction costs nothing.  A reflection (direction with negative determinant) would turn every

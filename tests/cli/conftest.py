@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 from bitemesh.cli import mesh as mesh_command
-from bitemesh.core import pipeline
+from bitemesh.core.sources import points as pipeline
 from bitemesh.core.shapes import annulus, sample_surface
 
 from tests import builders

@@ -132,11 +132,11 @@ def test_scanner_coordinates_give_the_same_mesh_moved(tmp_path, unit_sphere_samp
     points, normals = unit_sphere_samples
     turned = rotation([1, 2, 3], turn)
     moved = points @ turned.T * scale + offset
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     result = run(moved, normals @ turned.T, biting=BitingParameters(cells=3000))
     mesh = result.mesh
     assert_valid_domain(mesh, measure=SPHERE_VOLUME * scale**3, measure_tolerance=0.03)
-    from bitemesh.core.topology import boundary_facets
+    from bitemesh.core.mesh.topology import boundary_facets
     back = (mesh.points[np.unique(boundary_facets(mesh.cells))] - offset) / scale @ turned
     assert np.abs(np.linalg.norm(back, axis=1) - 1).max() < 0.1 * result.radius / scale
     assert result.fidelity.far_samples == 0
@@ -182,7 +182,7 @@ def test_touching_spheres_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, 
 
 
 def test_a_volume_mesh_as_input_is_meshed_from_its_boundary(capsys, tmp_path, unit_sphere_samples):
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     volume = run(*unit_sphere_samples, biting=BitingParameters(cells=8000)).mesh
     path = tmp_path / "volume.vtu"
     write_mesh(volume, path)

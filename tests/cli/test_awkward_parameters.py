@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from bitemesh import cli
-from bitemesh.core.mesh import Mesh
+from bitemesh.core.mesh.simplicial import Mesh
 from bitemesh.core.parameters import BitingParameters
 from bitemesh.io import write_mesh
 
@@ -50,7 +50,7 @@ def test_the_memory_hint_fits(capsys, tmp_path, unit_sphere_samples):
     code, _, err, _ = mesh_cli(capsys, tmp_path, path, "--radius", "0.001", "--max-memory-mb", "64")
     assert code == 1
     suggested = float(err.split("radius >= ")[1].split()[0])
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
     result = run(unit_sphere_samples[0], None, ImplicitParameters(max_memory_mb=64), BitingParameters(radius=suggested),
                  optimize=OptimizeParameters(optimize=0))   # the hint is the grid's: the optimizer only adds time
@@ -61,8 +61,8 @@ def test_a_grid_over_the_free_memory_is_refused_in_a_moment(monkeypatch, capsys,
     """--max-memory-mb above what the machine has: the machine's free memory bounds the grid, before the fit."""
     import time
 
-    import bitemesh.core.grid as grid
-    import bitemesh.core.spine as spine
+    import bitemesh.core.grid.sampled as grid
+    import bitemesh.core.steps.spine as spine
     for module in (grid, spine):
         monkeypatch.setattr(module, "available_memory_mb", lambda: 500.0)
     path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
@@ -109,7 +109,7 @@ def test_the_api_names_the_bad_argument(unit_sphere_samples, points, normals, wo
 # --- bitemesh quality reports defects ------------------------------------------------------------------------
 
 def small_mesh(unit_sphere_samples):
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     return run(*unit_sphere_samples, biting=BitingParameters(cells=1500)).mesh
 
 

@@ -11,7 +11,7 @@ from bitemesh.cli import demo as demo_command
 from bitemesh.cli import mesh as mesh_command
 from bitemesh.cli import options as cli_options
 from bitemesh.cli.options import ProgressBar
-from bitemesh.core import pipeline
+from bitemesh.core.sources import points as pipeline
 from bitemesh.core.errors import Cancelled
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
 

@@ -1,7 +1,7 @@
 """Real cardiac data as it comes (issue 10): the shipped biv-me case turned into the variants other exports are
 (tests/cardiac_variants.py), each read and meshed with the defaults but the optimizer (the reading and the fit
-are tested here; the shipped heart's default mesh in tests/core/test_bivme_patient.py), and judged as a cardiac user
-would: one valid closed component, both cavities open, the guide points near the boundary, a derived RV epicardium
+are tested here; the shipped heart's default mesh in tests/core/sources/test_bivme_patient.py), and judged as a cardiac
+user would: one valid closed component, both cavities open, the guide points near the boundary, a derived RV epicardium
 against the full data's myocardial volume."""
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from bitemesh.core.contours.run import run_labelled
-from bitemesh.core.contours import cardiac
+from bitemesh.core.sources.contours.run import run_labelled
+from bitemesh.core.sources.contours import cardiac
 from bitemesh.core.parameters import FidelityParameters
 from bitemesh.core.errors import BitemeshWarning, InvalidInputError, MeshingError
-from bitemesh.core.validity import count_boundary_components
+from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.io import read_labelled_points
 from tests.builders import PLAIN
 from tests.cardiac_variants import VARIANTS, read_gpfile, variant_file, write_gpfile

@@ -6,7 +6,7 @@ import re
 
 import pytest
 from bitemesh import cli
-from bitemesh.core.fem_check import fem_check
+from bitemesh.core.fem.check import fem_check
 from bitemesh.io import read_mesh, write_mesh
 
 from tests.builders import square_mesh

@@ -8,8 +8,8 @@ import pytest
 from bitemesh import cli
 from bitemesh.cli import demo as demo_command
 from bitemesh.cli import mesh as mesh_command
-from bitemesh.core.fibres import FIBRE_ARRAYS, fibre_field
-from bitemesh.core.spine import MeshingResult
+from bitemesh.core.fem.fibres import FIBRE_ARRAYS, fibre_field
+from bitemesh.core.steps.spine import MeshingResult
 from bitemesh.io import read_mesh
 
 from tests.cli.commands import assert_no_traceback, assert_one_line_error

@@ -15,8 +15,8 @@ from bitemesh import algorithms
 from bitemesh.cli import build_parser
 from bitemesh.core import parameters as core
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.fem_check import FemParameters
-from bitemesh.core.fibres import FibreParameters
+from bitemesh.core.fem.check import FemParameters
+from bitemesh.core.fem.fibres import FibreParameters
 from bitemesh.core.parameters import AUTOMATIC, is_optional
 
 #: command -> the dataclasses whose every field is a flag of it

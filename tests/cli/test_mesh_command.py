@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pytest
 from bitemesh import cli
-from bitemesh.core.quality import quality_summary, radius_ratio
+from bitemesh.core.mesh.quality import quality_summary, radius_ratio
 from bitemesh.core.shapes import annulus
 from bitemesh.io import MESH_EXTENSIONS, read_mesh
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from bitemesh import cli
 from bitemesh.cli import demo as demo_command
-from bitemesh.core.quality import quality_summary, radius_ratio
+from bitemesh.core.mesh.quality import quality_summary, radius_ratio
 from bitemesh.core.shapes import die
 from bitemesh.io import read_mesh
 

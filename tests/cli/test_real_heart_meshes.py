@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from bitemesh.cohorts.meshing import mesh_input
-from bitemesh.core.fidelity import distances_to_facets
-from bitemesh.core.validity import count_boundary_components
-from bitemesh.core.topology import boundary_facets
+from bitemesh.core.steps.fidelity import distances_to_facets
+from bitemesh.core.mesh.validity import count_boundary_components
+from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.io import read_labelled_points
 from tests.cardiac_variants import class_file
 from tests.conftest import DATA
@@ -71,8 +71,8 @@ def test_every_class_meshes_as_one_closed_myocardium_that_follows_the_guide_poin
 
 
 def test_shifted_slices_mesh_as_the_unshifted_frame():
-    """Slices shifted by up to 5 mm: the shifts found undo them (within 1 mm, tests/core/test_real_hearts.py), so
-    the mesh has the unshifted frame's figures: its volume within 1 %, its guide points as near."""
+    """Slices shifted by up to 5 mm: the shifts found undo them (within 1 mm, tests/core/sources/test_real_hearts.py),
+    so the mesh has the unshifted frame's figures: its volume within 1 %, its guide points as near."""
     plain, points, labels = meshed(0)
     shifted, shifted_points, shifted_labels = meshed(0, "slices shifted 5 mm")
     volume, shifted_volume = (result.mesh.cell_data["Volume"].sum() for result in (plain, shifted))

@@ -37,7 +37,7 @@ def test_fingerprint_sees_one_node_move():
     """The fingerprint tells meshes apart that differ by one coordinate's last bit."""
     import numpy as np
 
-    from bitemesh.core.mesh import Mesh
+    from bitemesh.core.mesh.simplicial import Mesh
     points = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
     cells = np.array([[0, 1, 2, 3]])
     moved = points.copy()

@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from bitemesh.core.parameters import BitingParameters
-from bitemesh.core.pipeline import run
+from bitemesh.core.sources.points import run
 from bitemesh.core.shapes import Shape, ellipsoid_distance, sample_surface
-from bitemesh.core.topology import boundary_facets
+from bitemesh.core.mesh.topology import boundary_facets
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 

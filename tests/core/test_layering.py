@@ -172,7 +172,7 @@ def test_no_arrow_points_up(graph, rule):
 def test_the_graph_holds_every_room_and_the_slicer_module(graph):
     assert {room(name) for name in graph} >= {"bitemesh", "core", "convert", "io", "labelmap", "algorithms", "cli",
                                                "paraview_plugin"}
-    assert "bitemesh.core.pipeline" in graph and "BiteMeshLib.logic" in graph and "BiteMesh" in graph
+    assert "bitemesh.core.sources.points" in graph and "BiteMeshLib.logic" in graph and "BiteMesh" in graph
     # the Slicer module does use bitemesh (else the rule above would hold trivially)
     slicer_imports = {imported for name, (_, imports) in graph.items() if is_slicer_module(name)
                       for imported, _ in imports}
@@ -216,7 +216,7 @@ def test_the_reader_finds_relative_imports_and_those_inside_functions(tmp_path):
 
 def test_every_core_module_imports_without_vtk():
     modules = [m.name for m in pkgutil.walk_packages(bitemesh.core.__path__, "bitemesh.core.")]
-    assert {"bitemesh.core.pipeline", "bitemesh.core.contours.run"} <= set(modules)
+    assert {"bitemesh.core.sources.points", "bitemesh.core.sources.contours.run"} <= set(modules)
     code = ("import sys; sys.modules['vtkmodules'] = None; sys.modules['vtk'] = None\n"
             f"for name in {modules!r}: __import__(name)\n"
             "loaded = [m for m, module in sys.modules.items() if module is not None]\n"

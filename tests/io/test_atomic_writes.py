@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bitemesh.core.mesh import Mesh
+from bitemesh.core.mesh.simplicial import Mesh
 from bitemesh.io import read_mesh, write_mesh
 
 from tests.builders import leftovers

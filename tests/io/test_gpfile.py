@@ -1,6 +1,6 @@
 """Labelled points: the biv-me GPFile and generic CSV / VTP readers, the labelled-domain config file, and labelled
 files told from plain points (bitemesh.io on the data of ../shared/data/bivme_patient1).  The patient meshed:
-tests/core/test_bivme_patient.py."""
+tests/core/sources/test_bivme_patient.py."""
 from __future__ import annotations
 
 from pathlib import Path

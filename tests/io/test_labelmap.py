@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from bitemesh import cli
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.mesh import signed_measures
-from bitemesh.core.quality import dihedral_angles
+from bitemesh.core.mesh.simplicial import signed_measures
+from bitemesh.core.mesh.quality import dihedral_angles
 from bitemesh.io import read_mesh
 from bitemesh.io.labelmaps import LabelMap, read_label_map
 from bitemesh.labelmap import label_map_mesh, label_map_to_grid, mesh_label_grid

@@ -7,7 +7,7 @@ import meshio
 import numpy as np
 import pytest
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.mesh import Mesh, signed_measures
+from bitemesh.core.mesh.simplicial import Mesh, signed_measures
 from bitemesh.io import MESH_EXTENSIONS, POINT_EXTENSIONS, read_mesh, read_points, write_mesh
 
 from tests.builders import cube_mesh, square_mesh

@@ -13,7 +13,7 @@ import meshio
 import numpy as np
 import pytest
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.mesh import Mesh, facets_of
+from bitemesh.core.mesh.simplicial import Mesh, facets_of
 from bitemesh.io import mesh_files, read_mesh, write_mesh
 
 from tests.builders import cube_mesh, leftovers, positively_oriented

@@ -15,9 +15,9 @@ from pathlib import Path
 import bitemesh
 import numpy as np
 from bitemesh import algorithms
-from bitemesh.core.mesh import signed_measures
-from bitemesh.core.validity import boundary_euler_characteristic, check_valid_domain
-from bitemesh.core.topology import connected_components
+from bitemesh.core.mesh.simplicial import signed_measures
+from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain
+from bitemesh.core.mesh.topology import connected_components
 from paraview import servermanager
 
 SPHERE_VOLUME = 4.0 / 3.0 * math.pi

@@ -34,11 +34,11 @@ import bitemesh
 import numpy as np
 from bitemesh import algorithms
 from bitemesh.convert import nodes_to_polydata, tag_names_of, unstructured_to_mesh, with_polydata_tags
-from bitemesh.core.fidelity import distances_to_facets
-from bitemesh.core.mesh import signed_measures
+from bitemesh.core.steps.fidelity import distances_to_facets
+from bitemesh.core.mesh.simplicial import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
-from bitemesh.core.validity import boundary_euler_characteristic, count_boundary_components
-from bitemesh.core.topology import boundary_facets
+from bitemesh.core.mesh.validity import boundary_euler_characteristic, count_boundary_components
+from bitemesh.core.mesh.topology import boundary_facets
 from paraview import servermanager, simple
 from paraview.simple import CSVReader, LoadPlugin, ProgrammableFilter, SaveData, TableToPoints, TrivialProducer
 from pvbatch_checks import (check, checks, environment, facts, guarded, properties, same_mesh, timed, updated,
@@ -100,7 +100,7 @@ def one_shot(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
 def boundary_hausdorff(first, second) -> float:
     """The symmetric Hausdorff distance between two meshes' boundary surfaces, taken at their boundary nodes: the
     largest distance from a boundary node of either mesh to the other's boundary triangles (exact:
-    :func:`bitemesh.core.fidelity.distances_to_facets`)."""
+    :func:`bitemesh.core.steps.fidelity.distances_to_facets`)."""
     return max(float(distances_to_facets(mesh.points[np.unique(boundary_facets(mesh.cells))],
                                          other.points[boundary_facets(other.cells)]).max())
                for mesh, other in ((first, second), (second, first)))

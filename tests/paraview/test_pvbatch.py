@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bitemesh.core.contours.run import run_labelled
+from bitemesh.core.sources.contours.run import run_labelled
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
-from bitemesh.core.pipeline import run
+from bitemesh.core.sources.points import run
 
 from tests.builders import SHELL_DOMAIN, SHELL_VOLUME, closed_shell_contours, labelled_polydata, sphere_samples
 from tests.meshcheck import assert_valid_domain
@@ -208,9 +208,9 @@ def test_a_gpfile_read_as_a_table_gives_the_myocardium_of_run_labelled(pvbatch_r
 
 def test_fibre_field_in_paraview_gives_the_fibres_of_the_core_on_the_same_mesh(pvbatch_run):
     """Fibre Field on Volume Mesh From Points' two outputs (the GPFile's mesh and its tagged surfaces) gives the
-    fibres that bitemesh.core.fibres computes here on run_labelled's mesh of the same file (the same cells, points
+    fibres that bitemesh.core.fem.fibres computes here on run_labelled's mesh of the same file (the same cells, points
     equal to rounding: a cell at the method's free-wall jump may take the other branch, so 0.1 % may differ)."""
-    from bitemesh.core.fibres import FIBRE_ARRAYS, with_fibres
+    from bitemesh.core.fem.fibres import FIBRE_ARRAYS, with_fibres
     from bitemesh.io import read_labelled_points
     assert_checks(pvbatch_run, "gpfile: Fibre Field")
     points, labels, slices = read_labelled_points(GPFILE)

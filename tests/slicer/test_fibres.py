@@ -1,5 +1,5 @@
 """BiteMeshLogic's fibres (the panel's "Add fibres" and its four angles): on the demo heart the model's cells carry
-bitemesh.core.fibres' unit, orthonormal Fibre, Sheet and SheetNormal and its HelixAngle, which colours the model;
+bitemesh.core.fem.fibres' unit, orthonormal Fibre, Sheet and SheetNormal and its HelixAngle, which colours the model;
 the angles reach the core; off, the model has no fibre arrays (and a rerun drops those of an earlier run); a mesh
 without the heart's tagged surfaces is refused with the core's message and the output is left as it was, as it is
 on a cancel while the fibres are added; bad angles are refused before meshing; the parameter node keeps the
@@ -14,12 +14,12 @@ Skipped where slicer-core is absent (the main environment).
 """
 from __future__ import annotations
 
-import bitemesh.core.contours.run
-import bitemesh.core.fibres
+import bitemesh.core.sources.contours.run
+import bitemesh.core.fem.fibres
 import numpy as np
 import pytest
 from bitemesh import Cancelled, InvalidInputError
-from bitemesh.core.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
+from bitemesh.core.fem.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkFiltersCore import vtkAssignAttribute
 
@@ -31,7 +31,7 @@ from BiteMeshLib.outputs import FIBRE_ATTRIBUTE, SURFACE_ROLE  # on sys.path fro
 HEART = {"cells": 20000, "optimize": 0}
 ANGLES = ("alpha_endo", "alpha_epi", "beta_endo", "beta_epi")
 _MESHED = []   # (input, keywords, result) of each run of the real run_labelled (the progress callback aside)
-_REAL_RUN_LABELLED = bitemesh.core.contours.run.run_labelled
+_REAL_RUN_LABELLED = bitemesh.core.sources.contours.run.run_labelled
 
 
 def memoised_run_labelled(points, labels, slices=None, progress=None, **keywords):
@@ -53,7 +53,7 @@ def last_heart():
 @pytest.fixture
 def heart(scene, logic, monkeypatch):
     """The demo heart's labelled points in the scene, and the core's entry point memoised (see the docstring)."""
-    monkeypatch.setattr(bitemesh.core.contours.run, "run_labelled", memoised_run_labelled)
+    monkeypatch.setattr(bitemesh.core.sources.contours.run, "run_labelled", memoised_run_labelled)
     return logic.loadLabelledPoints(GPFILE, scene=scene)
 
 
@@ -141,7 +141,7 @@ def test_fibres_off_give_no_fibre_arrays_and_a_rerun_drops_them(scene, logic, he
     def never(*arguments, **keywords):
         raise AssertionError("with_fibres called with fibres off")
 
-    monkeypatch.setattr(bitemesh.core.fibres, "with_fibres", never)
+    monkeypatch.setattr(bitemesh.core.fem.fibres, "with_fibres", never)
     result = logic.process(heart, model, **HEART)   # fibres off: the default
     assert result.mesh.cells.shape[0] == model.GetMesh().GetNumberOfCells() and "fibres" not in result.seconds
     assert [name for name in FIBRE_ARRAYS if cell_array(model, name) is not None] == []
@@ -212,7 +212,7 @@ def test_bad_angles_are_refused_before_meshing(scene, logic, monkeypatch):
     def stand_in(*arguments, **keywords):
         raise AssertionError("meshing started")
 
-    monkeypatch.setattr(bitemesh.core.contours.run, "run_labelled", stand_in)
+    monkeypatch.setattr(bitemesh.core.sources.contours.run, "run_labelled", stand_in)
     node, model = logic.loadLabelledPoints(GPFILE, scene=scene), output_model(scene)
     with pytest.raises(InvalidInputError, match=r"alpha_epi must be in \[-90, 90\], got -91"):
         logic.process(node, model, fibres=1, alpha_epi=-91.0)

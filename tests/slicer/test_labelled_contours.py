@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from bitemesh import InvalidInputError
 from bitemesh.convert import nodes_to_polydata, point_coordinates
-from bitemesh.core.contours.run import run_labelled
+from bitemesh.core.sources.contours.run import run_labelled
 from bitemesh.core.parameters import BitingParameters
 from bitemesh.io import read_labelled_points
 from vtkmodules.util import numpy_support

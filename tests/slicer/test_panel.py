@@ -17,7 +17,7 @@ from xml.etree import ElementTree
 import pytest
 from bitemesh import InvalidInputError
 from bitemesh.core import parameters as core
-from bitemesh.core.fibres import FibreParameters
+from bitemesh.core.fem.fibres import FibreParameters
 
 from tests.slicer.module import MODULE
 from BiteMeshLib import parameters as lib_parameters  # on sys.path from tests.slicer.module

@@ -9,7 +9,7 @@ Skipped where slicer-core is absent (the main environment).
 from __future__ import annotations
 
 import bitemesh
-import bitemesh.core.contours.run
+import bitemesh.core.sources.contours.run
 import bitemesh.labelmap
 import numpy as np
 import pytest
@@ -42,7 +42,7 @@ def points_input(scene, monkeypatch, logic):
 
 
 def labelled_input(scene, monkeypatch, logic):
-    monkeypatch.setattr(bitemesh.core.contours.run, "run_labelled", stand_in)
+    monkeypatch.setattr(bitemesh.core.sources.contours.run, "run_labelled", stand_in)
     return logic.loadLabelledPoints(GPFILE, scene=scene)
 
 

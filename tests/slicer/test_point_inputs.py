@@ -83,7 +83,7 @@ def test_optimize_runs_the_mesh_optimizer_like_bitemesh_run(scene, logic):
     """optimize=1 on a point list (RAS in, RAS out: no transform): the optimised mesh of bitemesh.run with the same
     parameters, point for point and cell for cell, with its quality arrays."""
     from bitemesh.core.parameters import OptimizeParameters
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     points = sphere_points()
     model = output_model(scene)
     result = logic.process(point_list(scene, points), model, cells=2000, optimize=1)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 from bitemesh.convert import point_coordinates, tag_names_of
-from bitemesh.core.topology import boundary_facets
+from bitemesh.core.mesh.topology import boundary_facets
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonMath import vtkMatrix4x4
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from bitemesh.algorithms import MeshFromPoints
 from bitemesh.convert import cell_types, point_coordinates, unstructured_to_mesh
-from bitemesh.core.quality import cell_quality
-from bitemesh.core.validity import count_boundary_components
+from bitemesh.core.mesh.quality import cell_quality
+from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.core.shapes import annulus, sample_surface
 from vtkmodules.vtkCommonDataModel import VTK_TETRA, VTK_TRIANGLE
 
@@ -94,8 +94,8 @@ def test_the_default_chain_and_mesh_from_points_give_the_same_shape(sphere_sampl
     its triangles; R is the node spacing, so two node sets on the same surface differ by a fraction of it)."""
     from scipy.spatial import cKDTree
 
-    from bitemesh.core.topology import boundary_facets
-    from bitemesh.core.validity import boundary_euler_characteristic
+    from bitemesh.core.mesh.topology import boundary_facets
+    from bitemesh.core.mesh.validity import boundary_euler_characteristic
     points, normals = sphere_samples
     pipeline = chain(polydata(points, normals), cells=3000)
     pipeline.quality.update()

@@ -75,7 +75,7 @@ def test_the_example_explains_itself():
 
 
 def test_the_heart_fibres_example_renders_the_helix_from_endocardium_to_epicardium(tmp_path):
-    from bitemesh.core.fibres import with_fibres
+    from bitemesh.core.fem.fibres import with_fibres
     from bitemesh.io import write_mesh
 
     from tests.fibrecheck import tagged_shell

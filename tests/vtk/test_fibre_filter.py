@@ -10,7 +10,7 @@ import pytest
 from bitemesh import FibreField
 from bitemesh.convert import mesh_to_unstructured, tags_to_polydata, vtk_points
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.fibres import FIBRE_ARRAYS, LAPLACE_ARRAYS, FibreParameters, fibre_field
+from bitemesh.core.fem.fibres import FIBRE_ARRAYS, LAPLACE_ARRAYS, FibreParameters, fibre_field
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 

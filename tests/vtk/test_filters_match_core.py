@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 from bitemesh.algorithms import SpuriousCellFilter
 from bitemesh.convert import cell_types, image_to_grid, point_coordinates, unstructured_to_mesh
-from bitemesh.core.biting import bite
-from bitemesh.core.delaunay import delaunay
-from bitemesh.core.repair import carve_domain
-from bitemesh.core.mesh import Mesh
+from bitemesh.core.steps.biting import bite
+from bitemesh.core.steps.delaunay import delaunay
+from bitemesh.core.steps.repair import carve_domain
+from bitemesh.core.mesh.simplicial import Mesh
 from bitemesh.core.parameters import SpuriousParameters
-from bitemesh.core.pipeline import points_to_implicit
-from bitemesh.core.quality import cell_quality, quality_histogram, quality_summary
+from bitemesh.core.sources.points import points_to_implicit
+from bitemesh.core.mesh.quality import cell_quality, quality_histogram, quality_summary
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import VTK_TETRA
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
@@ -81,7 +81,7 @@ def test_spurious_cell_filter_removes_thin_handles_when_asked_or_for_a_myocardiu
     """A ball with a tunnel thinner than two cells: Handles "auto" fills it when the image says it is a myocardium
     (PointsToImplicit marks a biv-me heart's image so), "remove" always, "keep" never."""
     from bitemesh.convert import field_array, grid_to_image, mesh_to_unstructured
-    from bitemesh.core.grid import sample_function
+    from bitemesh.core.grid.sampled import sample_function
     from tests.meshcheck import assert_valid_domain
     grid = sample_function(lambda x: np.minimum(1.5 - np.linalg.norm(x, axis=1), np.hypot(x[:, 0], x[:, 1]) - 0.2),
                            [-1.7] * 3, [1.7] * 3, 0.25 / 4, margin=0.25)
@@ -118,7 +118,7 @@ def test_quality_filter_gives_the_core_quality_histogram_and_summary(sphere_chai
 
 def test_the_mesh_optimizer_filter_equals_the_core_and_one_shot_optimize_equals_run(small_chain, sphere_samples):
     from bitemesh import MeshFromPoints, MeshOptimizer
-    from bitemesh.core.optimize import optimize_mesh
+    from bitemesh.core.optimize.optimizer import optimize_mesh
     from bitemesh.core.parameters import OptimizeParameters
     pipeline = small_chain
     optimizer = MeshOptimizer()
@@ -136,7 +136,7 @@ def test_the_mesh_optimizer_filter_equals_the_core_and_one_shot_optimize_equals_
     one_shot.SetCells(1000)
     one_shot.SetOptimize(1)
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters
-    from bitemesh.core.pipeline import run
+    from bitemesh.core.sources.points import run
     result = run(points, normals, ImplicitParameters(), BitingParameters(cells=1000), SpuriousParameters(),
                  optimize=OptimizeParameters(optimize=1))
     assert np.array_equal(unstructured_to_mesh(one_shot.update()).cells, result.mesh.cells)

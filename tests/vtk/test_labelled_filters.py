@@ -12,9 +12,9 @@ import pytest
 from bitemesh.algorithms import MeshFromPoints, PointsToImplicit
 from bitemesh.convert import image_to_grid, unstructured_to_mesh, vtk_points
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.contours.run import run_labelled
+from bitemesh.core.sources.contours.run import run_labelled
 from bitemesh.core.parameters import BitingParameters
-from bitemesh.core.spine import GRID_PER_RADIUS
+from bitemesh.core.steps.spine import GRID_PER_RADIUS
 from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
@@ -137,7 +137,8 @@ def test_mesh_from_points_takes_cardiac_data_as_it_comes(shared_data, tmp_path, 
     points, labels, slices = read_labelled_points(path)
     one_step = MeshFromPoints()
     one_step.SetInputData(labelled_polydata(points, labels, slices))
-    one_step.SetOptimize(0)   # the reading is tested here; the optimizer on a heart in tests/core/test_bivme_patient
+    # the reading is tested here; the optimizer on a heart in tests/core/sources/test_bivme_patient
+    one_step.SetOptimize(0)
     mesh = unstructured_to_mesh(one_step.update())
     core = run_labelled(points, labels, slices=slices, optimize=PLAIN)
     np.testing.assert_array_equal(mesh.cells, core.mesh.cells)

@@ -1,4 +1,4 @@
-"""bitemesh.core.quality against VTK's vtkMeshQuality (verdict) on random tetrahedra and triangles."""
+"""bitemesh.core.mesh.quality against VTK's vtkMeshQuality (verdict) on random tetrahedra and triangles."""
 import numpy as np
 import pytest
 from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy
@@ -6,8 +6,8 @@ from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import VTK_TETRA, VTK_TRIANGLE, vtkCellArray, vtkUnstructuredGrid
 from vtkmodules.vtkFiltersVerdict import vtkMeshQuality
 
-from bitemesh.core.mesh import signed_measures
-from bitemesh.core.quality import dihedral_angles, radius_ratio
+from bitemesh.core.mesh.simplicial import signed_measures
+from bitemesh.core.mesh.quality import dihedral_angles, radius_ratio
 
 N_CELLS = 300
 

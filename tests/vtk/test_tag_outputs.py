@@ -9,8 +9,8 @@ from bitemesh.convert import (REGION_ARRAY, SURFACE_TAG_ARRAY, TAG_NAME_ARRAYS, 
                               tags_to_polydata, unstructured_to_mesh, with_polydata_tags)
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
-from bitemesh.core.pipeline import run
-from bitemesh.core.tags import component_tags, region_tags
+from bitemesh.core.sources.points import run
+from bitemesh.core.mesh.tags import component_tags, region_tags
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import VTK_LINE, VTK_TRIANGLE
 

@@ -8,7 +8,7 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
 from ..convert import unstructured_to_mesh, with_polydata_tags
 from ..core.errors import InvalidInputError
-from ..core.fibres import FIBRE_ARRAYS, LAPLACE_ARRAYS, FibreParameters, fibre_field
+from ..core.fem.fibres import FIBRE_ARRAYS, LAPLACE_ARRAYS, FibreParameters, fibre_field
 from .base import BitemeshAlgorithm, with_parameters
 
 
@@ -23,7 +23,8 @@ def vtk_array(name: str, values: np.ndarray):
 class FibreField(BitemeshAlgorithm):
     """A biventricular tetrahedral mesh (port 0, vtkUnstructuredGrid) and its tagged boundary (port 1, vtkPolyData:
     the meshing filters' second output, :func:`bitemesh.convert.tags_to_polydata`, with EPI, LV_ENDO, RV_ENDO and
-    BASE among its names) -> the mesh with the rule-based fibres of Bayer et al. (2012, :mod:`bitemesh.core.fibres`).
+    BASE among its names) -> the mesh with the rule-based fibres of Bayer et al. (2012,
+    :mod:`bitemesh.core.fem.fibres`).
 
     The output is the input mesh, every array kept, plus the cell vectors ``Fibre``, ``Sheet`` and ``SheetNormal``
     (unit, orthogonal), the cell scalar ``HelixAngle`` (degrees, for colouring) and the point scalars of the four

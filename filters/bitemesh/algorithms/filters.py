@@ -12,22 +12,22 @@ from vtkmodules.vtkCommonDataModel import (vtkDataObject, vtkDataSet, vtkImageDa
                                            vtkTable, vtkUnstructuredGrid)
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
 
-from ..core.biting import bite
-from ..core.delaunay import delaunay
-from ..core.repair import carve_domain
+from ..core.steps.biting import bite
+from ..core.steps.delaunay import delaunay
+from ..core.steps.repair import carve_domain
 from ..core.errors import InvalidInputError
-from ..core.betti import check_topology
-from ..core.fidelity import check_fidelity, measure_fidelity
-from ..core.mesh import Mesh
-from ..core.cell_measures import mean_edge_length
-from ..core.optimize import optimize_mesh
+from ..core.mesh.betti import check_topology
+from ..core.steps.fidelity import check_fidelity, measure_fidelity
+from ..core.mesh.simplicial import Mesh
+from ..core.optimize.measures import mean_edge_length
+from ..core.optimize.optimizer import optimize_mesh
 from ..core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, LabelledParameters,
                                LabelMapParameters, OptimizeParameters, QualityParameters,
                                SpuriousParameters)
-from ..core.pipeline import points_source, run
-from ..core.spine import radius_on_grid
+from ..core.sources.points import points_source, run
+from ..core.steps.spine import radius_on_grid
 from ..core.progress import sub_progress
-from ..core.quality import cell_quality, quality_histogram, quality_summary
+from ..core.mesh.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
 from ..convert import (add_field_values, attach_samples, attached_samples, field_array, grid_to_image, image_to_grid,
                        mesh_to_unstructured, nodes_to_polydata, point_array, point_coordinates, point_labels,
@@ -59,9 +59,9 @@ def labelled_contours(dataset):
 
 
 def fit_options(parameters: LabelledParameters) -> dict:
-    """The keywords of :func:`~bitemesh.core.contours.run.labelled_source` that change the fit (all but the
+    """The keywords of :func:`~bitemesh.core.sources.contours.run.labelled_source` that change the fit (all but the
     thinnest wall, applied after it, and the plausibility switch, which PointsToImplicit has not)."""
-    from ..core.contours.run import labelled_keywords
+    from ..core.sources.contours.run import labelled_keywords
     keywords = labelled_keywords(parameters)
     del keywords["min_wall"], keywords["allow_implausible"]
     return keywords
@@ -85,8 +85,8 @@ class PointsToImplicit(BitemeshAlgorithm):
     point array (and optionally ``Slice``) are contours of several surfaces: one implicit per surface, combined by
     ``Domain`` (a CSG expression) and cut by the base plane.  A vtkImageData input is a label map, turned into a
     signed distance by SimpleITK (``Label`` chooses the domain's label).  The grid I is laid out as MeshFromPoints
-    lays it out (:func:`bitemesh.core.spine.grid_for_source`): for R (``Radius``, or chosen for ``Cells``), spacing
-    ``GridSpacing`` or R / 4; the field data ``Radius`` holds R, which BitingSampler takes.
+    lays it out (:func:`bitemesh.core.steps.spine.grid_for_source`): for R (``Radius``, or chosen for ``Cells``),
+    spacing ``GridSpacing`` or R / 4; the field data ``Radius`` holds R, which BitingSampler takes.
     """
 
     def __init__(self):
@@ -95,7 +95,7 @@ class PointsToImplicit(BitemeshAlgorithm):
         self._grid = None    # ((source key, grid options), (grid I in user coordinates, R)) of the last sampling
 
     def source_of(self, data):
-        """The :class:`~bitemesh.core.source.Source` of the input, fitted once per input and fit options."""
+        """The :class:`~bitemesh.core.sources.source.Source` of the input, fitted once per input and fit options."""
         contours = None if isinstance(data, vtkImageData) else labelled_contours(data)
         if isinstance(data, vtkImageData):
             options = (("label", self.parameters(LabelMapParameters).label),)
@@ -109,7 +109,7 @@ class PointsToImplicit(BitemeshAlgorithm):
             if isinstance(data, vtkImageData):
                 source = self.label_source(data)
             elif contours is not None:
-                from ..core.contours.run import labelled_source
+                from ..core.sources.contours.run import labelled_source
                 points, labels, slices = contours
                 source = labelled_source(points, labels, slices=slices, progress=sub_progress(self.progress, 0, 0.4),
                                          **fit_options(self.parameters(LabelledParameters)))
@@ -142,7 +142,7 @@ class PointsToImplicit(BitemeshAlgorithm):
     def grid_of(self, data):
         """(f on the grid I in user coordinates, R in user units, the Source), sampled once per source and grid
         options."""
-        from ..core.spine import grid_for_source
+        from ..core.steps.spine import grid_for_source
         source = self.source_of(data)
         implicit, biting = self.parameters(ImplicitParameters), self.parameters(BitingParameters)
         key = (id(self._source[1]), self.parameters(LabelledParameters).min_wall, implicit, biting.radius,
@@ -355,7 +355,7 @@ class MeshFromPoints(BitemeshAlgorithm):
         if contours is None:
             result = run(*scattered_points(source), **steps)
         else:
-            from ..core.contours.run import labelled_keywords, run_labelled
+            from ..core.sources.contours.run import labelled_keywords, run_labelled
             points, labels, slices = contours
             result = run_labelled(points, labels, slices=slices,
                                   **labelled_keywords(self.parameters(LabelledParameters)), **steps)

@@ -13,7 +13,7 @@ from importlib import resources
 from ..core.errors import InvalidInputError
 from ..core.parameters import (DEFAULT_CELLS, BitingParameters, ImplicitParameters, OptimizeParameters,
                                SpuriousParameters)
-from ..core.pipeline import run as run_pipeline
+from ..core.sources.points import run as run_pipeline
 from ..core.shapes import die, sample_surface
 from ..io import read_labelled_points
 from .options import (ProgressBar, add_fibre_options, add_fibres, add_parameter_options, check_output, describe,
@@ -65,7 +65,7 @@ def mesh_die(args, progress):
 
 
 def mesh_heart(args, progress):
-    from ..core.contours.run import run_labelled
+    from ..core.sources.contours.run import run_labelled
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
     with resources.as_file(source) as path:
         points, labels, slices = read_labelled_points(path)

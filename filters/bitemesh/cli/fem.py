@@ -3,7 +3,7 @@ elasticity, the cells that dominate it, a reference solve)."""
 from __future__ import annotations
 
 from ..core.errors import InvalidInputError
-from ..core.fem_check import FemParameters, fem_check
+from ..core.fem.check import FemParameters, fem_check
 from ..io import read_mesh
 from .options import add_parameter_options, parameters_from_args
 
@@ -26,7 +26,7 @@ def run(args) -> None:
 
 
 def check(path, parameters: FemParameters, mesh):
-    """The :class:`~bitemesh.core.fem_check.FemReport` of ``mesh`` read from ``path``; a refusal names the file."""
+    """The :class:`~bitemesh.core.fem.check.FemReport` of ``mesh`` read from ``path``; a refusal names the file."""
     if mesh.dim != 3:
         raise InvalidInputError(f"{path}: the solver check needs tetrahedra, and this file holds triangles (a 2D "
                                 "mesh); give it a volume mesh (bitemesh mesh ... -o mesh.vtu)")

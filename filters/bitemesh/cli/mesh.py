@@ -5,7 +5,7 @@ from dataclasses import fields
 
 from ..cohorts.meshing import OPTION_NAMES, mesh_input
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
-from ..core.pipeline import run as run_pipeline
+from ..core.sources.points import run as run_pipeline
 from .options import (ProgressBar, add_fibre_options, add_fibres, add_parameter_options, check_output, describe,
                       fibre_parameters, write_and_report)
 

@@ -8,9 +8,9 @@ from pathlib import Path
 
 from ..cohorts.meshing import fibres_asked
 from ..core.errors import InvalidInputError
-from ..core.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
+from ..core.fem.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
 from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
-from ..core.quality import quality_summary
+from ..core.mesh.quality import quality_summary
 from ..io import MESH_EXTENSIONS, write_mesh
 
 
@@ -63,7 +63,7 @@ def fibre_parameters(args):
 
 
 def add_fibres(result, parameters):
-    """``result`` with its mesh carrying the rule-based fibres (:func:`bitemesh.core.fibres.with_fibres`) and their
+    """``result`` with its mesh carrying the rule-based fibres (:func:`bitemesh.core.fem.fibres.with_fibres`) and their
     time among the steps'; ``result`` itself when ``parameters`` is None (no ``--fibres``)."""
     if parameters is None:
         return result

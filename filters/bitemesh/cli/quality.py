@@ -3,12 +3,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..core.betti import mesh_topology
+from ..core.mesh.betti import mesh_topology
 from ..core.errors import InvalidInputError, MeshingError
-from ..core.fem_check import FemParameters
+from ..core.fem.check import FemParameters
 from ..core.parameters import QualityParameters
-from ..core.validity import check_valid_domain
-from ..core.quality import quality_histogram, quality_summary, radius_ratio
+from ..core.mesh.validity import check_valid_domain
+from ..core.mesh.quality import quality_histogram, quality_summary, radius_ratio
 from ..io import atomic_output, read_mesh
 from .fem import check
 from .options import add_parameter_options, parameters_from_args

@@ -10,11 +10,11 @@ from dataclasses import fields
 from pathlib import Path
 
 from ..core.errors import InvalidInputError
-from ..core.fibres import FIBRE_ARRAYS, FibreParameters
+from ..core.fem.fibres import FIBRE_ARRAYS, FibreParameters
 from ..core.parameters import (AUTOMATIC, STEP_PARAMETERS, LabelledParameters, LabelMapParameters,
                                TableParameters, is_optional)
-from ..core.pipeline import run as run_pipeline
-from ..core.spine import MeshingResult
+from ..core.sources.points import run as run_pipeline
+from ..core.steps.spine import MeshingResult
 from ..io import (LABEL_MAP_EXTENSIONS, NO_CELL_ARRAYS, looks_labelled, read_labelled_config, read_labelled_points,
                   read_points)
 
@@ -111,7 +111,7 @@ def mesh_input(path, options, progress=None, mesh_points=run_pipeline) -> Meshin
     path : a point table, a VTK-readable surface, labelled contours (GPFile, labelled table or VTP) or a label map
     options : mapping of ``bitemesh mesh`` option names (``cells``, ``grid_spacing``, ``label``, ...) to values
     progress : callable(fraction, message), optional
-    mesh_points : the function that meshes scattered points (``bitemesh.core.pipeline.run``)
+    mesh_points : the function that meshes scattered points (``bitemesh.core.sources.points.run``)
     """
     path = str(path)
     options = {**default_options(), **options}
@@ -149,7 +149,7 @@ def mesh_label_map(path: str, options: dict, steps: dict, progress) -> MeshingRe
 
 def labelled_flags(options: dict) -> dict:
     """The labelled-contour options not at their defaults, as keywords of run_labelled."""
-    from ..core.contours.run import labelled_keywords
+    from ..core.sources.contours.run import labelled_keywords
     parameters = LabelledParameters(**{item.name: options[item.name] for item in fields(LabelledParameters)})
     return labelled_keywords(parameters, given_only=True)
 
@@ -158,7 +158,7 @@ def mesh_labelled_points(path: str, options: dict, steps: dict, progress, column
                          frame=None) -> MeshingResult:
     """Labelled contour points (time frame ``frame``) to the mesh of the domain of ``domain``; an option given wins
     over the config file."""
-    from ..core.contours.run import run_labelled
+    from ..core.sources.contours.run import run_labelled
     points, labels, slices = read_labelled_points(path, columns=columns, frame=frame)
     keywords = read_labelled_config(options["config"]) if options["config"] else {}
     keywords.update(labelled_flags(options))

@@ -17,9 +17,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..core.errors import BitemeshError, InvalidInputError
-from ..core.fibres import with_fibres
+from ..core.fem.fibres import with_fibres
 from ..core.progress import ProgressCallback
-from ..core.quality import quality_summary
+from ..core.mesh.quality import quality_summary
 from ..io import remove_stale_partials, write_mesh
 from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
 from .meshing import fibres_asked, mesh_input, resolved

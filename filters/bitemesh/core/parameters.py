@@ -211,7 +211,7 @@ class TableParameters(Parameters):
 
 @dataclass(frozen=True)
 class FidelityParameters(Parameters):
-    """Fidelity: how closely the mesh boundary must follow the input points (see bitemesh.core.fidelity)."""
+    """Fidelity: how closely the mesh boundary must follow the input points (see bitemesh.core.steps.fidelity)."""
 
     far_samples: float = parameter(0.5, "the largest share of input points that may lie farther than R + 3 x noise "
                                    "from the mesh boundary", unit="%", low=0, high=100)

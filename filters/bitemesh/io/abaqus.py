@@ -23,7 +23,7 @@ from itertools import combinations
 import numpy as np
 
 from ..core.errors import InvalidInputError
-from ..core.mesh import facet_of, facets_of, signed_measures
+from ..core.mesh.simplicial import facet_of, facets_of, signed_measures
 
 #: Abaqus face identifier of the facet opposite each vertex (0-based) of a tetrahedron (k = 3) or a triangle (k = 2).
 FACE_OPPOSITE = {3: ("S3", "S4", "S2", "S1"), 2: ("S2", "S3", "S1")}

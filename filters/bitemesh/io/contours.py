@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.contours.cardiac import time_frame
-from ..core.contours.run import labelled_keywords
+from ..core.sources.contours.cardiac import time_frame
+from ..core.sources.contours.run import labelled_keywords
 from ..core.errors import InvalidInputError, check_points
 from ..core.parameters import LabelledParameters
 from .files import existing_file, vtk_silenced

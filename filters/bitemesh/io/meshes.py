@@ -1,6 +1,7 @@
 """Tetrahedral (and 2D triangle) meshes with their tags, to and from the files solvers read; every write is atomic.
 
-What each format holds of a :class:`~bitemesh.core.mesh.Mesh` ``m`` (regions: ``cell_data["Region"]``; the tagged
+What each format holds of a :class:`~bitemesh.core.mesh.simplicial.Mesh` ``m`` (regions: ``cell_data["Region"]``; the
+tagged
 facets; the tag names; in 2D the cells are triangles and the facets edges):
 
 - ``.msh``, gmsh 2.2 ASCII: the cells with physical and elementary tag = region (1 without regions), the facets
@@ -25,7 +26,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from ..core.errors import InvalidInputError, check_points
-from ..core.mesh import Mesh, signed_measures
+from ..core.mesh.simplicial import Mesh, signed_measures
 from .abaqus import abaqus_sets, read_abaqus_tags
 from .files import atomic_outputs, existing_file, meshio_warnings, native, supported
 from .xdmf import write_grid

@@ -101,7 +101,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         wall, mm) and allow_implausible (1: keep a heart that fails the plausibility checks) do not apply to
         other inputs.
 
-        Fibres: ``fibres`` 1 adds bitemesh's rule-based myocardial fibres (bitemesh.core.fibres.with_fibres, Bayer
+        Fibres: ``fibres`` 1 adds bitemesh's rule-based myocardial fibres (bitemesh.core.fem.fibres.with_fibres, Bayer
         et al. 2012, with ``alpha_endo``, ``alpha_epi``, ``beta_endo`` and ``beta_epi`` in degrees) to the mesh:
         the cell vectors Fibre (the active vectors), Sheet and SheetNormal and the cell scalar HelixAngle, by which
         the model is then coloured.  They need a mesh whose boundary is tagged EPI, LV_ENDO, RV_ENDO and BASE, as
@@ -120,7 +120,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         """
         bitemesh = requireBitemesh()
         from bitemesh.core.errors import Cancelled, InvalidInputError
-        from bitemesh.core.contours.run import labelled_keywords, run_labelled
+        from bitemesh.core.sources.contours.run import labelled_keywords, run_labelled
         from bitemesh.core.progress import report, sub_progress
 
         clock = time.perf_counter()
@@ -162,7 +162,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             mesh = result.mesh
         radius, seconds = result.radius, dict(result.seconds)
         if fibres is not None:   # before anything is written: a refusal leaves the output as it was
-            from bitemesh.core.fibres import with_fibres
+            from bitemesh.core.fem.fibres import with_fibres
             report(progress, meshed, "adding the fibres")
             try:
                 mesh, seconds["fibres"] = with_fibres(mesh, fibres, sub_progress(progress, meshed, 0.95))

@@ -18,10 +18,10 @@ class BiteMeshResult:
     ----------
     mesh : bitemesh.Mesh in world (RAS) coordinates, with the quality arrays as cell data
     radius : R used (mm)
-    summary : bitemesh.core.quality.QualitySummary
+    summary : bitemesh.core.mesh.quality.QualitySummary
     tableNode, seriesNode, chartNode : the radius-ratio histogram and its bar plot
     seconds : step -> wall-clock seconds ("fibres" when the fibres were added)
-    fidelity : bitemesh.core.fidelity.Fidelity, how closely the boundary follows the input (mm), or None
+    fidelity : bitemesh.core.steps.fidelity.Fidelity, how closely the boundary follows the input (mm), or None
     notes : what was done to the input on the way (points dropped as outliers, ...)
     surfaceNodes : the model nodes of the surface tags (:func:`writeSurfaces`), by tag
     """
@@ -59,7 +59,7 @@ def writeOutputs(mesh, radius, summary, fidelity, outputModelNode, bins):
     """The mesh into the model node (coloured by radius ratio; the quality summary and the fidelity as field
     data and attributes), the histogram into table and plot nodes."""
     from bitemesh.convert import add_field_values, field_array, mesh_to_unstructured
-    from bitemesh.core.quality import quality_histogram
+    from bitemesh.core.mesh.quality import quality_histogram
 
     grid = mesh_to_unstructured(mesh)
     for name, value in list(asdict(summary).items()) + [("Radius", radius)]:
@@ -121,7 +121,7 @@ def writeFibres(outputModelNode, parameters) -> None:
     table, Fibre the active cell vectors (for glyphs), and the rule's angles as the attributes
     ``BiteMesh.Fibres.alpha_endo`` etc. (degrees).  ``parameters`` None (no fibres) removes those attributes of a
     previous run."""
-    from bitemesh.core.fibres import FibreParameters
+    from bitemesh.core.fem.fibres import FibreParameters
     angles = [item.name for item in fields(FibreParameters) if item.name != "fibres"]
     if parameters is None:
         for name in angles:

@@ -1,5 +1,5 @@
 """The panel's parameters, read from the core's dataclasses (bitemesh.core.parameters, and FibreParameters of
-bitemesh.core.fibres: the single source of names, defaults, ranges and help), and the keywords of
+bitemesh.core.fem.fibres: the single source of names, defaults, ranges and help), and the keywords of
 BiteMeshLogic.process turned into the core's parameter objects.
 
 Nothing here imports slicer (only bitemesh), so that the panel can be checked against the dataclasses anywhere.
@@ -66,7 +66,7 @@ PARAMETERS = {name: where for section in SECTIONS.values() for name, where in se
 KEYWORDS = {fieldName: dataclassName for dataclassName, fieldName in PARAMETERS.values()}
 assert len(KEYWORDS) == len(PARAMETERS), "two panel parameters share a core keyword"
 #: the module of bitemesh.core holding each panel dataclass that is not in bitemesh.core.parameters.
-DATACLASS_MODULES = {"FibreParameters": "bitemesh.core.fibres"}
+DATACLASS_MODULES = {"FibreParameters": "bitemesh.core.fem.fibres"}
 
 
 @dataclass(frozen=True)

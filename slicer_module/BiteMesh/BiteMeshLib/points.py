@@ -22,7 +22,7 @@ def scatteredPoints(nodes, method: str):
     Normals are kept only when every input gives them (closed curves and models with polygons do); slices (the
     curve of each point) only when every input is a closed curve.
     """
-    from bitemesh.core.rbf import MAX_RBF_POINTS
+    from bitemesh.core.implicit.rbf import MAX_RBF_POINTS
     parts = []
     for node in nodes:
         if node.IsA("vtkMRMLMarkupsFiducialNode"):

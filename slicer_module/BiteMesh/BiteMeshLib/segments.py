@@ -58,8 +58,8 @@ def meshSegment(node, segmentId, implicit, biting, spurious, optimize, fidelity,
     """Mesh one segment: its binary labelmap through bitemesh.labelmap.mesh_label_grid (the path the bitemesh
     command takes for label map files), which meshes in the voxel frame and places the mesh with the labelmap's
     IJK-to-RAS matrix; then the segmentation's parent transforms carry it to world."""
-    from bitemesh.core.mesh import signed_measures
-    from bitemesh.core.quality import cell_quality
+    from bitemesh.core.mesh.simplicial import signed_measures
+    from bitemesh.core.mesh.quality import cell_quality
     from bitemesh.labelmap import mesh_label_grid
 
     labels, _, ijk0, ijkToWorld = segmentLabelmap(node, segmentId)

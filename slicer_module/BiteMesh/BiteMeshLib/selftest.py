@@ -97,7 +97,7 @@ def _check(condition: bool, message: str) -> None:
 
 
 def _checkMesh(mesh, centre, volume, *, centreTolerance: float, volumeTolerance: float) -> None:
-    from bitemesh.core.validity import check_valid_domain
+    from bitemesh.core.mesh.validity import check_valid_domain
     problems = check_valid_domain(mesh)
     _check(problems == [], f"invalid mesh: {problems}")
     _check(mesh.cells.shape[1] == 4, "the mesh is not tetrahedral")

@@ -1,0 +1,1 @@
+"""Finite elements on the mesh: P1 assembly, the solver check, the myocardial fibres."""

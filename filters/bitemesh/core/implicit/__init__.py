@@ -1,0 +1,1 @@
+"""Implicit surfaces from samples: normals, outliers and spacing, MPU and partition-of-unity RBF fits."""

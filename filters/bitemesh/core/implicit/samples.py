@@ -1,0 +1,166 @@
+"""What the scattered samples themselves say: outliers, spacing and noise, measured before any fit.
+
+Outliers are found by two rules over neighbourhoods (:func:`find_outliers`), calibrated on surfaces sampled
+cleanly and noisily (a sphere, a torus, the die with rounded and with sharp edges, the two-cavity shell, the
+Stanford bunny scan, the nut, the biv-me guide points), none of whose points either rule flags:
+
+- **far**: the distance to the 8th nearest neighbour is more than :data:`FAR_RATIO` times its median over the
+  point's :data:`LOCAL_NEIGHBOURS` nearest (at most 2.6 times on those surfaces; 100 times or more for points
+  scattered around a scene): a region sampled more sparsely than the rest is measured against itself, not
+  against the dense part;
+- **off the surface**: the distance to the plane of the 12 nearest neighbours is more than :data:`OFF_RATIO`
+  times their spread along the plane (at most 0.92 on those surfaces without noise; with Gaussian noise of half
+  the sample spacing, 1.37, so the bound also grows with the median of that ratio, :data:`NOISE_RATIO`).
+
+Both run three times, so that outliers that neighbour each other are found once the others are gone.  Before
+them, near-duplicates (:func:`near_duplicates`: points within :data:`DUPLICATE_SHARE` of the spacing, as scans merged
+from several passes repeat them) count as one sample, so that a tight cluster of identical points (a scanner's "no
+return" at the origin) is one far point, not a dense patch.  Near outliers
+within about one sample spacing of the surface are not distinguishable from noise and stay; the fidelity check
+(:mod:`bitemesh.core.steps.fidelity`) measures what they do to the mesh.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+#: a point is far when its 8th-neighbour distance exceeds this x the median 8th-neighbour distance.
+FAR_RATIO = 4.0
+#: a point is off the surface when its distance to its neighbours' plane exceeds this x their in-plane spread, and
+#: NOISE_RATIO x the median of that ratio over the points (Gaussian noise: its largest value among 10,000 points is
+#: about 5.7 x its median).
+OFF_RATIO, NOISE_RATIO = 1.0, 7.0
+#: neighbours of the far rule and of the plane rule, and those whose far-rule distances are a point's reference.
+FAR_NEIGHBOURS, PLANE_NEIGHBOURS, LOCAL_NEIGHBOURS = 8, 12, 32
+#: points nearer each other than this x the median distance to the 8th neighbour are one sample.
+DUPLICATE_SHARE = 0.001
+#: passes of the two rules.
+PASSES = 3
+#: at most this many points estimate the noise (a deterministic subsample).
+NOISE_SAMPLE = 20000
+
+
+def _neighbourhoods(points: np.ndarray, k: int):
+    """Distances (n, k + 1) and indices of each point's k nearest neighbours (itself first)."""
+    k = min(k, len(points) - 1)
+    return cKDTree(points).query(points, k=k + 1)
+
+
+def _planes(around: np.ndarray):
+    """Least-squares planes (lines in 2D) of neighbourhoods ``around`` (n, k, d): their centres (n, d), unit
+    normals (n, d), the RMS distance of the points to the plane (n,) and their RMS spread along it (n,)."""
+    centre = around.mean(axis=1)
+    local = around - centre[:, None]
+    spread, axes = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local) / around.shape[1])
+    return centre, axes[:, :, 0], np.sqrt(np.maximum(spread[:, 0], 0.0)), np.sqrt(spread[:, 1:].sum(axis=1))
+
+
+def find_outliers(points: np.ndarray) -> np.ndarray:
+    """(n,) bool, True for the points that the far or the off-surface rule flags (see the module docstring).
+
+    Parameters
+    ----------
+    points : (n, k) float64, samples of a surface (contour in 2D), n > 13
+    """
+    outlier = np.zeros(len(points), bool)
+    for _ in range(PASSES):
+        index = np.flatnonzero(~outlier)
+        if len(index) <= PLANE_NEIGHBOURS + 1:
+            break
+        kept = points[index]
+        distances, neighbours = _neighbourhoods(kept, LOCAL_NEIGHBOURS)   # FAR < PLANE < LOCAL neighbours
+        reach = distances[:, min(FAR_NEIGHBOURS, distances.shape[1] - 1)]
+        far = reach > FAR_RATIO * np.median(reach[neighbours[:, 1:]], axis=1)
+        centre, normal, _, spread = _planes(kept[neighbours[:, 1:PLANE_NEIGHBOURS + 1]])
+        ratio = np.abs(np.einsum("ni,ni->n", kept - centre, normal)) / np.maximum(spread, 1e-300)
+        off = ratio > max(OFF_RATIO, NOISE_RATIO * float(np.median(ratio)))
+        flagged = index[far | off]
+        if not len(flagged):
+            break
+        outlier[flagged] = True
+    return outlier
+
+
+def near_duplicates(points: np.ndarray) -> np.ndarray:
+    """(n,) int64: for each of (n, k) points the index of the first point of its group of near-duplicates (points
+    within :data:`DUPLICATE_SHARE` x the median distance to the 8th neighbour, chained); itself when alone."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    distances, _ = _neighbourhoods(points, FAR_NEIGHBOURS)
+    tolerance = DUPLICATE_SHARE * float(np.median(distances[:, -1]))
+    pairs = cKDTree(points).query_pairs(tolerance, output_type="ndarray")
+    if not len(pairs):
+        return np.arange(len(points))
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points),) * 2)
+    group = connected_components(graph, directed=False)[1]
+    first = np.full(group.max() + 1, len(points))
+    np.minimum.at(first, group, np.arange(len(points)))
+    return first[group]
+
+
+def sample_spacing(points: np.ndarray) -> float:
+    """The typical distance between neighbouring samples: the median distance to the k-th nearest neighbour,
+    k = the dimension (input units)."""
+    distances, _ = _neighbourhoods(points, points.shape[1])
+    return float(np.median(distances[:, -1]))
+
+
+def noise_level(points: np.ndarray) -> float:
+    """The samples' noise: the median, over the points, of the RMS distance of their 12 nearest neighbours to
+    those neighbours' plane (input units).  On a smooth surface sampled without noise it is the curvature's small
+    sagitta; with Gaussian noise of standard deviation s it is about s."""
+    step = max(1, len(points) // NOISE_SAMPLE)
+    chosen = points[::step]
+    _, neighbours = cKDTree(points).query(chosen, k=min(PLANE_NEIGHBOURS, len(points)))
+    return float(np.median(_planes(points[neighbours])[2]))
+
+
+def _to_other_slices(points: np.ndarray, slices: np.ndarray) -> np.ndarray:
+    """Over every point, the distance to the nearest point on another slice; empty for fewer than two slices."""
+    slices = np.asarray(slices)
+    numbers = np.unique(slices)
+    if len(numbers) < 2:
+        return np.zeros(0)
+    return np.concatenate([cKDTree(points[slices != number]).query(points[slices == number])[0]
+                           for number in numbers])
+
+
+def contour_gap(points: np.ndarray, slices: np.ndarray) -> float:
+    """The gap contours leave between their slices: over every point, the distance to the nearest point on another
+    slice; its 99th percentile (input units).  0 for fewer than two slices.
+
+    Parameters
+    ----------
+    points : (n, k) float64; slices : (n,) int, the slice (contour) of each point
+    """
+    distances = _to_other_slices(points, slices)
+    return float(np.percentile(distances, 99)) if len(distances) else 0.0
+
+
+def slice_spacing(points: np.ndarray, slices: np.ndarray) -> float:
+    """The typical distance between slices: the median of the distances of :func:`contour_gap` (input units)."""
+    distances = _to_other_slices(points, slices)
+    return float(np.median(distances)) if len(distances) else 0.0
+
+
+def beyond_slices(points: np.ndarray, slices: np.ndarray):
+    """For contours on parallel slices: a callable (m, k) -> (m,) bool, True beyond the first and the last slice
+    (outside the slab they span), where the mesh closes the shape with caps that no contour samples; None when the
+    slices are not parallel (within 10 degrees) or fewer than two."""
+    normals = []
+    for number in np.unique(slices):
+        members = points[slices == number]
+        if len(members) < 3:
+            continue
+        _, spread, axes = np.linalg.svd(members - members.mean(axis=0), full_matrices=False)
+        if spread[-1] > 1e-3 * spread[0]:
+            return None   # not planar
+        normals.append(axes[-1])
+    if len(normals) < 2:
+        return None
+    normal = normals[0]
+    if np.min(np.abs(np.array(normals) @ normal)) < np.cos(np.radians(10)):
+        return None
+    height = points @ normal
+    low, high = height.min(), height.max()
+    return lambda x: (x @ normal < low) | (x @ normal > high)

@@ -1,0 +1,129 @@
+"""The shape of a domain as topology counts it: parts, holes through it (handles), and voids inside it.
+
+For a mesh (2D triangles or 3D tetrahedra) they come from its cells and its boundary; for the region {f > 0} on a
+grid, from the union of the closed voxels (pixels) whose nodes are inside: its Euler characteristic counted on the
+cubical complex, its parts labelled with 26- (8-) connectivity and its enclosed background with 6- (4-).  A mesh of
+f holds no handle or void that f's region on the grid I lacks: the grid resolves f four times finer than R, so a
+hole that the mesh has and the grid has not is a tear of a part thinner than R (:func:`torn`).
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import BitemeshWarning, MeshingError
+from .simplicial import Mesh
+from .topology import boundary_facets, connected_components, euler_characteristic
+
+
+@dataclass(frozen=True)
+class Topology:
+    """Betti numbers of a domain: ``parts`` (b0), ``handles`` (b1: tunnels through it, in 2D its holes) and
+    ``voids`` (b2: closed cavities inside it; 0 in 2D)."""
+
+    parts: int
+    handles: int
+    voids: int
+
+    def describe(self) -> str:
+        return f"{self.parts} part(s), {self.handles} handle(s), {self.voids} void(s)"
+
+
+def mesh_topology(mesh: Mesh) -> Topology:
+    """The :class:`Topology` of a valid mesh: parts from its cells, and from its boundary (closed surfaces in 3D,
+    loops in 2D) the voids (surfaces beyond one per part) and the handles (the surfaces' genus; in 2D the loops
+    beyond one per part, the holes)."""
+    cells = np.asarray(mesh.cells)
+    if not len(cells):
+        return Topology(0, 0, 0)
+    parts = int(connected_components(cells).max() + 1)
+    facets = boundary_facets(cells)
+    surfaces = int(connected_components(facets).max() + 1) if len(facets) else 0
+    if cells.shape[1] == 3:
+        return Topology(parts, surfaces - parts, 0)
+    genus = (2 * surfaces - euler_characteristic(facets)) // 2
+    return Topology(parts, int(genus), surfaces - parts)
+
+
+def grid_topology(inside: np.ndarray) -> Topology:
+    """The :class:`Topology` of the union of the closed cells (voxels, pixels) of a 2D or 3D grid whose ``inside``
+    flags (one per cell) are set."""
+    inside = np.asarray(inside, dtype=bool)
+    parts = grid_parts(inside)[1]
+    enclosed = ndimage.label(np.pad(~inside, 1, constant_values=True))[1] - 1   # the background all round is one
+    if inside.ndim == 2:
+        return Topology(parts, enclosed, 0)
+    return Topology(parts, parts + enclosed - cubical_euler(inside), enclosed)
+
+
+def grid_parts(inside: np.ndarray):
+    """The parts of the union of the closed cells flagged in ``inside`` (cells meeting at a corner are one part):
+    (an array like ``inside`` of part numbers from 1, 0 outside; how many parts)."""
+    return ndimage.label(inside, structure=np.ones((3,) * inside.ndim))
+
+
+def cubical_euler(inside: np.ndarray) -> int:
+    """The Euler characteristic of the union of the closed unit cells flagged in ``inside`` (k-D): the alternating
+    sum over the cells of every dimension (vertices, edges, squares, cubes) of how many touch a flagged one."""
+    padded = np.pad(np.asarray(inside, dtype=bool), 1)
+    total = 0
+    for size in range(padded.ndim + 1):
+        for along in combinations(range(padded.ndim), size):   # the axes a cell of this dimension spans
+            touched = padded
+            for axis in set(range(padded.ndim)) - set(along):   # at the lattice planes between cells elsewhere
+                touched = _either(touched, axis)
+            total += (-1) ** size * int(np.count_nonzero(touched))
+    return total
+
+
+def _either(flags: np.ndarray, axis: int) -> np.ndarray:
+    """(..., n - 1, ...) the planes between neighbouring cells along ``axis``: flagged where either cell is."""
+    first = [slice(None)] * flags.ndim
+    second = [slice(None)] * flags.ndim
+    first[axis], second[axis] = slice(None, -1), slice(1, None)
+    return flags[tuple(first)] | flags[tuple(second)]
+
+
+def torn(mesh: Topology, grid: Topology) -> str:
+    """What the mesh has that f's region has not (more parts, handles or voids), as words; "" when nothing."""
+    extra = [f"{count} {what}" for count, what in ((mesh.parts - grid.parts, "part(s) more"),
+                                                  (mesh.handles - grid.handles, "hole(s) or tunnel(s)"),
+                                                  (mesh.voids - grid.voids, "void(s)")) if count > 0]
+    return ", ".join(extra)
+
+
+def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool) -> str:
+    """Refuse (:class:`MeshingError`; a :class:`BitemeshWarning` when ``allow``) a mesh with parts, handles or voids
+    that the region ``inside`` (f > 0 on the grid I) lacks; what it has more ("" when nothing).  ``radius``: R in
+    user units, for the message."""
+    mine, data = mesh_topology(mesh), grid_topology(inside)
+    extra = torn(mine, data)
+    if extra:
+        text = (f"the mesh has {extra} that the fitted surface does not have (the mesh: {mine.describe()}; f > 0 on "
+                f"the grid: {data.describe()}): parts thinner than R = {radius:.4g} tear between its nodes; lower "
+                "radius (or raise cells) until R is below the thinnest part, or set allow_unfaithful "
+                "(--allow-unfaithful) to keep the mesh anyway")
+        if not allow:
+            raise MeshingError(text)
+        warnings.warn(text, BitemeshWarning, stacklevel=2)
+    return extra
+
+
+def on_dropped_parts(grid, inside: np.ndarray, centroids: np.ndarray, samples: np.ndarray, min_component: float):
+    """The samples (n, k) on parts of f > 0 (``inside``, on the nodes of ``grid``) that the mesh, whose cells'
+    centroids are (m, k), has no cell in and whose volume is below ``min_component`` x the largest part's: parts
+    dropped on purpose.  Returns ((n,) bool, how many such parts)."""
+    parts, count = grid_parts(inside)
+    on_them = np.zeros(len(samples), bool)
+    if count < 2:
+        return on_them, 0
+    volume = np.bincount(parts.ravel())[1:]
+    small = np.flatnonzero(volume < min_component * volume.max()) + 1
+    dropped = np.setdiff1d(small, parts[grid.nearest_nodes(centroids)])
+    for corner in np.ndindex(*(2,) * inside.ndim):   # a sample on f = 0 lies between nodes: any corner of its cell
+        on_them |= np.isin(parts[grid.nearest_nodes(samples + np.array(corner) * grid.spacing, offset=0.0)], dropped)
+    return on_them, len(dropped)

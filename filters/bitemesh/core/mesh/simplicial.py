@@ -1,0 +1,134 @@
+"""The simplicial mesh every step hands on: triangles in 2D, tetrahedra in 3D."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from math import factorial
+
+import numpy as np
+
+from ..compiled import kernel
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A simplicial mesh.
+
+    Attributes
+    ----------
+    points : (n, k) float64, node coordinates (input units), k = 2 or 3
+    cells : (m, k + 1) int64, node indices of each triangle or tetrahedron, positively oriented
+    cell_data : name -> (m, ...) arrays, one row per cell; ``Region`` (m,) int32 > 0 tags the cells by region
+    facets : (b, k) int64 or None, the tagged facets (triangles in 3D, edges in 2D): every boundary facet, oriented
+        out of the domain, and every interface between two regions, oriented out of the region with the lower tag
+    facet_tags : (b,) int32 > 0 or None, the tag of each facet
+    tag_names : name -> (tag, dimension), as meshio's field_data and gmsh's physical names: dimension k for a region
+        (a value of ``cell_data["Region"]``), k - 1 for a facet tag
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    cell_data: dict = field(default_factory=dict)
+    facets: np.ndarray | None = None
+    facet_tags: np.ndarray | None = None
+    tag_names: dict = field(default_factory=dict)
+
+    @property
+    def dim(self) -> int:
+        return self.points.shape[1]
+
+    def with_cell_data(self, **arrays) -> "Mesh":
+        """A copy that also holds ``arrays`` (each with one row per cell); the tags stay."""
+        return replace(self, cell_data={**self.cell_data, **arrays})
+
+    def with_tags(self, facets, facet_tags, tag_names, regions=None) -> "Mesh":
+        """A copy with these tagged facets (b, k), their tags (b,), the names and, if given, the cells' regions (m,)."""
+        cell_data = self.cell_data if regions is None else {**self.cell_data, "Region": np.asarray(regions, np.int32)}
+        return replace(self, cell_data=cell_data, facets=np.asarray(facets, np.int64),
+                       facet_tags=np.asarray(facet_tags, np.int32), tag_names=dict(tag_names))
+
+
+def simplex_vertices(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1, k) coordinates of the vertices of each cell."""
+    return points[cells]
+
+
+def signed_measures(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) signed area (2D) or volume (3D) of each cell; > 0 when positively oriented."""
+    corners = simplex_vertices(points, cells)
+    edges = corners[:, 1:] - corners[:, :1]
+    return np.linalg.det(edges) / factorial(points.shape[1])
+
+
+def circumspheres(points: np.ndarray, cells: np.ndarray):
+    """Circumcentres (m, k) and circumradii (m,) of the cells; inf for a flat cell (|det| of its edges <= 1e-300).
+
+    Closed forms from vertex 0 with edges a, b (, c): 3D centre offset (|a|^2 b x c + |b|^2 c x a + |c|^2 a x b) /
+    (2 a . (b x c)), 2D ((|a|^2 b_y - |b|^2 a_y), (|b|^2 a_x - |a|^2 b_x)) / (2 (a_x b_y - a_y b_x)).
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    spheres = _circumspheres(points, np.ascontiguousarray(cells, dtype=np.int64).reshape(-1, points.shape[1] + 1))
+    return spheres[:, :-1], spheres[:, -1]
+
+
+@kernel
+def _circumsphere(points: np.ndarray, cell: np.ndarray, out: np.ndarray) -> None:
+    """``out`` (k + 1,) := the circumcentre and the circumradius of one cell (k + 1,) (see :func:`circumspheres`)."""
+    p, q, r = cell[0], cell[1], cell[2]
+    if len(cell) == 4:
+        s = cell[3]
+        a0, a1, a2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
+        b0, b1, b2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
+        c0, c1, c2 = points[s, 0] - points[p, 0], points[s, 1] - points[p, 1], points[s, 2] - points[p, 2]
+        bc0, bc1, bc2 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+        ca0, ca1, ca2 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+        ab0, ab1, ab2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        det = a0 * bc0 + a1 * bc1 + a2 * bc2
+        aa, bb, cc = a0 * a0 + a1 * a1 + a2 * a2, b0 * b0 + b1 * b1 + b2 * b2, c0 * c0 + c1 * c1 + c2 * c2
+        offset = ((aa * bc0 + bb * ca0 + cc * ab0), (aa * bc1 + bb * ca1 + cc * ab1), (aa * bc2 + bb * ca2 + cc * ab2))
+    else:
+        a0, a1 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1]
+        b0, b1 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1]
+        det = a0 * b1 - a1 * b0
+        aa, bb = a0 * a0 + a1 * a1, b0 * b0 + b1 * b1
+        offset = (aa * b1 - bb * a1, bb * a0 - aa * b0, 0.0)
+    k = len(cell) - 1
+    squared = 0.0
+    for i in range(k):
+        if abs(det) > 1e-300:
+            out[i] = offset[i] / (2.0 * det)
+            squared += out[i] * out[i]
+            out[i] += points[p, i]
+        else:
+            out[i] = np.inf
+    out[k] = np.sqrt(squared) if abs(det) > 1e-300 else np.inf
+
+
+@kernel
+def _circumspheres(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1) :func:`_circumsphere` of every cell."""
+    out = np.empty((len(cells), cells.shape[1]))
+    for m in range(len(cells)):
+        _circumsphere(points, cells[m], out[m])
+    return out
+
+
+def facet_corners(corners: int) -> np.ndarray:
+    """(corners, corners - 1) int64: facet i of a simplex (opposite vertex i) as positions in its row, ordered so
+    that a positively oriented cell's facets face out of it."""
+    table = np.array([[j for j in range(corners) if j != i] for i in range(corners)], dtype=np.int64)
+    table[1::2, -2:] = table[1::2, :-3:-1]
+    return table
+
+
+def facets_of(cells: np.ndarray) -> np.ndarray:
+    """(m, k + 1, k) the facets (triangles in 3D, edges in 2D) of each cell, facet i opposite vertex i.
+
+    For a positively oriented cell each facet is ordered so that its normal points out of the cell.
+    """
+    return cells[:, facet_corners(cells.shape[1])]
+
+
+def facet_of(cells: np.ndarray, cell: np.ndarray, opposite: np.ndarray) -> np.ndarray:
+    """(p, k) the facet opposite vertex ``opposite[i]`` of cell ``cell[i]`` (both (p,)), as :func:`facets_of`
+    orders it."""
+    return cells[np.asarray(cell)[:, None], facet_corners(cells.shape[1])[opposite]]

@@ -1,0 +1,1 @@
+"""The MeshOptimizer: relaxation, Delaunay and quality flips, smoothing, sliver removal, collapses."""

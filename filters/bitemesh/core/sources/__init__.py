@@ -1,0 +1,1 @@
+"""What hands f to the spine: scattered points, labelled contours (the heart); voxels are bitemesh.labelmap."""

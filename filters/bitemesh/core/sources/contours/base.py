@@ -1,0 +1,256 @@
+"""The surface that closes a heart's domain at the base: through the valve annuli where the data puts them, or a
+plane (a user's, the least-squares plane of the valve points, or the basal short-axis slice).
+
+On real hearts the annuli are not coplanar: the mitral annulus is tilted against the short-axis stack, the aortic
+and pulmonary valves sit higher than the mitral and tricuspid, and the long-axis contours run up to each.  A plane
+through the valves' centres cuts the basal myocardium off (guide points 10 to 18 mm above the mesh).  So the base of
+biv-me contours is a height field over the short-axis plane, h(u, v), through the valve points and the upper ends of
+the long-axis wall contours (:func:`annulus_points`), 1 mm above them, and over every wall guide point: the
+myocardium reaches each annulus.  Between them h is linear on the Delaunay triangles of those anchors
+(:class:`PiecewiseLinear`): a smooth interpolant (a thin-plate spline) through annulus points a few millimetres
+apart at heights 10 mm apart swings 20-30 mm beyond them, and does so differently for the same contours sampled
+more densely; a linear one stays between them.  Its value, (h(u, v) - height) / sqrt(1 + |grad h|^2), is about the
+distance below it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import cached_property
+from typing import Optional
+
+import numpy as np
+
+from scipy.spatial import Delaunay, cKDTree
+
+from ...errors import InvalidInputError, check_choice, check_points
+from .cardiac import BIVME_APEX, BIVME_SURFACES, BIVME_VALVES, is_bivme, short_axis_stack
+from .slices import GAP_FACTOR, is_closed, polylines
+
+#: the anchors' triangulation reaches this many times their extent from their centre, by a ring of anchors at the
+#: heights of the nearest ones (h is flat beyond the annuli).
+RING_REACH, RING_ANCHORS = 3.0, 36
+#: the base passes this far (mm) above its annulus points, half the default R (2 mm): a valve point then lies on its
+#: cavity's wall just below the base, where the mesh follows it, not on the rim the mesh rounds off.
+ABOVE_ANNULUS = 1.0
+#: the base is raised over the wall and valve points it leaves less than this (mm) below it, at most this many
+#: rounds; of the points it passes over, the highest in each square of this side (mm) of the base's plane.
+ENVELOPE_TOLERANCE, ENVELOPE_ROUNDS, ANCHOR_CELL = 0.5, 4, 5.0
+
+
+@dataclass(frozen=True, eq=False)
+class BaseSurface:
+    """The base: the points x with height (x - point) . normal = h(u, v), (u, v) = (x - point) . axes.
+
+    Attributes
+    ----------
+    point : (3,) float64, a point of the base plane the heights are measured from (input units)
+    normal : (3,) float64 unit, out of the domain (away from the apex)
+    axes : (2, 3) float64, orthonormal in-plane axes (u, v)
+    heights : the height field h(u, v) (:class:`PiecewiseLinear`, input units), or None for the plane itself
+    """
+
+    point: np.ndarray
+    normal: np.ndarray
+    axes: np.ndarray
+    heights: Optional["PiecewiseLinear"] = None
+
+    @classmethod
+    def plane(cls, point, normal) -> "BaseSurface":
+        """The plane through ``point`` (3,) with unit ``normal`` (3,) out of the domain."""
+        point, normal = np.asarray(point, dtype=np.float64), np.asarray(normal, dtype=np.float64)
+        normal = normal / np.linalg.norm(normal)
+        first = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+        first /= np.linalg.norm(first)
+        return cls(point, normal, np.array([first, np.cross(normal, first)]))
+
+    @property
+    def is_plane(self) -> bool:
+        return self.heights is None
+
+    def below(self, x) -> np.ndarray:
+        """(m,) about the distance of (m, 3) points below the base (> 0 on the domain's side), input units."""
+        offset = np.asarray(x, dtype=np.float64) - self.point
+        height = offset @ self.normal
+        if self.heights is None:
+            return -height
+        in_plane = offset @ self.axes.T
+        slope = self.heights.gradient(in_plane)
+        return (self.heights(in_plane) - height) / np.sqrt(1.0 + np.einsum("ij,ij->i", slope, slope))
+
+    def outward(self, x) -> np.ndarray:
+        """(m, 3) unit normals of the base at (m, 3) points' (u, v), pointing out of the domain."""
+        offset = np.asarray(x, dtype=np.float64) - self.point
+        if self.heights is None:
+            return np.broadcast_to(self.normal, offset.shape).copy()
+        direction = self.normal - self.heights.gradient(offset @ self.axes.T) @ self.axes
+        return direction / np.linalg.norm(direction, axis=1, keepdims=True)
+
+    def moved(self, shift) -> "BaseSurface":
+        """The same surface translated by ``shift`` (3,)."""
+        return replace(self, point=self.point + np.asarray(shift, dtype=np.float64))
+
+    def raised(self, distance: float) -> "BaseSurface":
+        """The same surface moved ``distance`` along its normal (> 0: away from the apex)."""
+        return self.moved(float(distance) * self.normal)
+
+
+@dataclass(frozen=True, eq=False)
+class PiecewiseLinear:
+    """h(u, v), linear on the Delaunay triangles of anchors (k, 2) with heights (k,), extended by a ring of anchors
+    far beyond them at the heights of the nearest (:data:`RING_REACH`), flat beyond the ring."""
+
+    anchors: np.ndarray
+    heights: np.ndarray
+
+    @classmethod
+    def through(cls, anchors, heights) -> "PiecewiseLinear":
+        centre = anchors.mean(axis=0)
+        reach = RING_REACH * float(np.linalg.norm(anchors - centre, axis=1).max())
+        angle = np.linspace(0.0, 2 * np.pi, RING_ANCHORS, endpoint=False)
+        ring = centre + reach * np.column_stack([np.cos(angle), np.sin(angle)])
+        nearest = cKDTree(anchors).query(ring)[1]
+        return cls(np.vstack([anchors, ring]), np.r_[heights, heights[nearest]])
+
+    @cached_property
+    def _triangles(self) -> Delaunay:
+        return Delaunay(self.anchors)
+
+    @cached_property
+    def _tree(self) -> cKDTree:
+        return cKDTree(self.anchors)
+
+    def _weights(self, uv):
+        """The triangle of each of (m, 2) points (-1 beyond the ring) and its barycentric weights (m, 3)."""
+        mesh = self._triangles
+        uv = np.asarray(uv, dtype=np.float64)
+        simplex = mesh.find_simplex(uv)
+        transform = mesh.transform[np.maximum(simplex, 0)]
+        first = np.einsum("mij,mj->mi", transform[:, :2], uv - transform[:, 2])
+        return mesh, simplex, np.column_stack([first, 1.0 - first.sum(axis=1)])
+
+    def __call__(self, uv) -> np.ndarray:
+        """(m,) h at (m, 2) points."""
+        mesh, simplex, weights = self._weights(uv)
+        inside = np.einsum("mi,mi->m", weights, self.heights[mesh.simplices[np.maximum(simplex, 0)]])
+        outside = self.heights[self._tree.query(np.asarray(uv)[simplex < 0])[1]]
+        inside[simplex < 0] = outside
+        return inside
+
+    def gradient(self, uv) -> np.ndarray:
+        """(m, 2) grad h at (m, 2) points (each triangle's; 0 beyond the ring)."""
+        mesh, simplex, _ = self._weights(uv)
+        transform = mesh.transform[np.maximum(simplex, 0), :2]          # rows: d(weight_i)/d(uv), i = 0, 1
+        corner = self.heights[mesh.simplices[np.maximum(simplex, 0)]]   # (m, 3)
+        slope = np.einsum("mij,mi->mj", transform, corner[:, :2] - corner[:, 2:])
+        slope[simplex < 0] = 0.0
+        return slope
+
+
+def fit_base_plane(valve_points, inside_point) -> BaseSurface:
+    """The least-squares plane of the valve points, its normal pointing away from ``inside_point`` (the apex)."""
+    valve_points = check_points(valve_points, "valve points", dims=(3,))
+    if len(valve_points) < 3:
+        raise InvalidInputError(f"a base plane needs at least 3 valve points, got {len(valve_points)}")
+    centre = valve_points.mean(axis=0)
+    _, spread, axes = np.linalg.svd(valve_points - centre, full_matrices=False)
+    if spread[1] <= 1e-6 * spread[0]:
+        raise InvalidInputError(f"the {len(valve_points)} valve points lie on one line, so they give no base plane; "
+                                "give base_plane=(point, normal)")
+    normal = axes[2]
+    if (np.asarray(inside_point, float) - centre) @ normal > 0:
+        normal = -normal
+    return BaseSurface.plane(centre, normal)
+
+
+def annulus_points(points, labels, slices, planes, axis, stack, floor: float) -> np.ndarray:
+    """(k, 3) the points the base passes through: every valve point, and each end of a wall contour on a slice out
+    of the short-axis ``stack`` (a long-axis slice, whatever its labels' prefix) that lies higher than ``floor``
+    along ``axis`` (its other end is at the apex; a closed contour has no end).  A contour's ends are those of the
+    longest paths of its points in its slice (:func:`~bitemesh.core.sources.contours.slices.polylines`); ``floor`` is
+    the basal short-axis slice's height, the other end of such a contour being at the apex."""
+    chosen = [points[np.isin(labels, BIVME_VALVES)]]
+    wall = np.isin(labels, [label for members in BIVME_SURFACES.values() for label in members])
+    for label in np.unique(labels[wall]).tolist():
+        for number in np.unique(slices[(labels == label) & (slices >= 0)]).tolist():
+            members = np.flatnonzero((labels == label) & (slices == number))
+            if number in stack or number not in planes or len(members) < 3:
+                continue
+            q = planes[number].project(points[members])
+            paths, _, spacing = polylines(q, GAP_FACTOR)
+            for path in paths:
+                if len(path) > 3 and not is_closed(q, path, spacing, GAP_FACTOR):
+                    ends = points[members[[path[0], path[-1]]]]
+                    chosen.append(ends[ends @ axis > floor])
+    return np.vstack(chosen)
+
+
+def annulus_surface(points, labels, slices, planes):
+    """The base of biv-me contours (see the module docstring), and a note; None (and a note) without valve points
+    and long-axis contour ends, or without a short-axis stack to measure heights along."""
+    axis, numbers, heights = short_axis_stack(points, labels, slices, planes)
+    if axis is None:
+        return None, ()
+    basal = int(np.argmax(heights))
+    anchors = annulus_points(points, labels, slices, planes, axis, numbers, heights[basal])
+    if len(anchors) < 3:
+        return BaseSurface.plane(planes[numbers[basal]].centre, axis), (
+            f"no valve points or long-axis contours above the basal short-axis slice: the base is that slice's "
+            f"plane (slice {numbers[basal]})",)
+    base = BaseSurface.plane(anchors.mean(axis=0), axis)
+    covered = [label for members in BIVME_SURFACES.values() for label in members] + list(BIVME_VALVES)
+    wall = points[np.isin(labels, covered)]
+    anchors = _highest_per_cell(anchors + ABOVE_ANNULUS * axis, base)
+    for _ in range(ENVELOPE_ROUNDS):
+        in_plane = (anchors - base.point) @ base.axes.T
+        spread = np.linalg.svd(in_plane - in_plane.mean(axis=0), compute_uv=False)
+        if spread[1] <= 0.05 * spread[0]:   # on one line: only the plane through them, perpendicular to the stack
+            return base, ()
+        surface = replace(base, heights=PiecewiseLinear.through(in_plane, (anchors - base.point) @ axis))
+        above = wall[surface.below(wall) < ENVELOPE_TOLERANCE]
+        if not len(above):
+            break
+        anchors = _highest_per_cell(np.vstack([anchors, above + ABOVE_ANNULUS * axis]), base)
+    return surface, ()
+
+
+def _highest_per_cell(anchors: np.ndarray, base: BaseSurface) -> np.ndarray:
+    """The highest of (k, 3) anchors (along the base's normal) in each :data:`ANCHOR_CELL` square of the base's
+    plane: the base must pass over all of them, and anchors nearer than that at other heights would only make it
+    swing between them."""
+    offset = anchors - base.point
+    cells = np.floor(offset @ base.axes.T / ANCHOR_CELL).astype(np.int64)
+    order = np.lexsort((-(offset @ base.normal), cells[:, 1], cells[:, 0]))
+    first = np.r_[True, (np.diff(cells[order], axis=0) != 0).any(axis=1)]
+    return anchors[order[first]]
+
+
+def choose_base(base_plane, points, labels, surface_points, slices, planes):
+    """The :class:`BaseSurface` that ``base_plane`` asks for, or None; and a note."""
+    if base_plane is None or (isinstance(base_plane, str) and base_plane == "none"):
+        return None, ()
+    if isinstance(base_plane, str):
+        check_choice(base_plane, "base_plane", ("auto", "valves", "none"))
+        valves = np.isin(labels, BIVME_VALVES)
+        if is_bivme(labels) and (base_plane == "auto" or valves.sum() >= 3):
+            base, notes = annulus_surface(points, labels, slices, planes)
+            if base is not None or valves.sum() < 3:
+                return base, notes
+        elif base_plane == "auto" and valves.sum() < 3:
+            return None, ()
+        if valves.sum() < 3:
+            raise InvalidInputError(
+                f"base_plane='valves' needs at least 3 points labelled {', '.join(BIVME_VALVES)}; the input has "
+                f"{int(valves.sum())}; give base_plane=(point, normal) or base_plane=None")
+        apex = np.isin(labels, BIVME_APEX)
+        inside = points[apex].mean(axis=0) if apex.any() else surface_points.mean(axis=0)
+        return fit_base_plane(points[valves], inside), ()
+    try:
+        point, normal = (np.asarray(part, dtype=np.float64) for part in base_plane)
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"base_plane must be 'valves', 'auto', None or (point, normal), got {base_plane!r}") from None
+    if point.shape != (3,) or normal.shape != (3,) or not np.isfinite(point).all() or not np.isfinite(normal).all() \
+            or not np.linalg.norm(normal) > 0:
+        raise InvalidInputError(f"base_plane (point, normal) needs two finite 3-vectors, the normal nonzero (it "
+                                f"points out of the domain), got {base_plane!r}")
+    return BaseSurface.plane(point, normal), ()

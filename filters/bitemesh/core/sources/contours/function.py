@@ -1,0 +1,162 @@
+"""The implicit function of a domain bounded by labelled contour surfaces: the CSG of one implicit per surface,
+closed by the base, and which surface gives f where."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ...errors import check_number, check_points
+from ...implicit.samples import contour_gap
+from ...mesh.topology import boundary_facets
+from .csg import evaluate_domain
+
+#: the name the base takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
+BASE = "BASE"
+
+
+@dataclass(frozen=True, eq=False)
+class LabelledImplicit:
+    """The domain's f: the CSG of one implicit per surface, closed by the base; callable (m, 3) -> (m,).
+
+    Attributes
+    ----------
+    surfaces : name -> callable implicit (f > 0 inside), the surfaces the domain uses
+    tree : the parsed domain (see :func:`~bitemesh.core.sources.contours.csg.parse_domain`); expression : its text
+    base : the :class:`~bitemesh.core.sources.contours.base.BaseSurface` that closes the domain, or None
+    min_wall : float, input units, the thinnest wall a difference keeps (see
+        :func:`~bitemesh.core.sources.contours.csg.evaluate_domain`)
+    lower, upper : (3,) float64, a box holding the domain (every point with f > 0)
+    points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
+        where none); slices : name -> (n,) their slice ids
+    derived : names of the surfaces built from others, not fitted to contours (an RV epicardium grown from the
+        RV endocardium); shifts : slice id -> (3,) the in-plane shift each short-axis slice was moved by
+        (:mod:`~bitemesh.core.sources.contours.registration`; ``points`` are the moved ones); disagreement : how far the
+        short- and long-axis contours still disagree once moved (input units, median); notes : what was read,
+        derived or chosen, one sentence each
+    """
+
+    surfaces: dict
+    tree: tuple
+    expression: str
+    base: object
+    min_wall: float
+    lower: np.ndarray
+    upper: np.ndarray
+    points: dict
+    normals: dict
+    slices: dict = field(default_factory=dict)
+    derived: tuple = ()
+    shifts: dict = field(default_factory=dict)
+    disagreement: float = 0.0
+    notes: tuple = ()
+
+    @property
+    def names(self) -> tuple:
+        """The surface names, then :data:`BASE`: the values of :meth:`active_surface`."""
+        return (*self.surfaces, BASE)
+
+    def _evaluate(self, x):
+        x = check_points(x, "x", dims=(3,))
+        value, source = evaluate_domain(self.tree, {name: function(x) for name, function in self.surfaces.items()},
+                                        self.min_wall)
+        if self.base is not None:
+            below = self.base.below(x)
+            cut = below < value
+            value, source = np.where(cut, below, value), np.where(cut, len(self.surfaces), source)
+        return value, source
+
+    def __call__(self, x) -> np.ndarray:
+        """(m,) f at (m, 3) points, > 0 inside the domain."""
+        return self._evaluate(x)[0]
+
+    def active_surface(self, x) -> np.ndarray:
+        """(m,) index into :attr:`names` of the surface (or the base) whose implicit gives f at each point."""
+        return self._evaluate(x)[1]
+
+    def with_min_wall(self, min_wall: float) -> LabelledImplicit:
+        """The same surfaces, with another thinnest wall (input units)."""
+        return replace(self, min_wall=check_number(min_wall, "min_wall", low=0))
+
+    def moved(self, shift) -> LabelledImplicit:
+        """The same domain translated by ``shift`` (3,): every sampled surface, the base, the box, the points."""
+        shift = np.asarray(shift, dtype=np.float64)
+        return replace(self, surfaces={name: replace(grid, origin=grid.origin + shift)
+                                       for name, grid in self.surfaces.items()},
+                       base=None if self.base is None else self.base.moved(shift),
+                       lower=self.lower + shift, upper=self.upper + shift,
+                       points={name: points + shift for name, points in self.points.items()})
+
+    def _kept(self) -> np.ndarray:
+        """(n,) bool over the points of every surface in turn: those below the base (those above it are cut away)."""
+        samples = np.vstack(list(self.points.values()))
+        return np.ones(len(samples), bool) if self.base is None else self.base.below(samples) >= 0
+
+    def surface_samples(self) -> np.ndarray:
+        """(n, 3) the points of every surface that lie below the base (those above it are cut away)."""
+        return np.vstack(list(self.points.values()))[self._kept()]
+
+    def locate(self, indices) -> str:
+        """Where the :meth:`surface_samples` of ``indices`` lie, as a sentence with a hint: the slice that holds
+        most of them when one does (and its tilt to the short-axis stack when it is neither parallel nor
+        perpendicular to it); "" when they are spread over the slices."""
+        kept = self._kept()
+        names = np.concatenate([[name] * len(points) for name, points in self.points.items()])[kept][indices]
+        slices = np.concatenate([self.slices.get(name, np.full(len(points), -1))
+                                 for name, points in self.points.items()])[kept][indices]
+        if not len(slices):
+            return ""
+        numbers, counts = np.unique(slices, return_counts=True)
+        number = int(numbers[np.argmax(counts)])
+        if number < 0 or counts.max() < 0.5 * len(slices):
+            return ""
+        mine = np.concatenate([points[self.slices[name] == number] for name, points in self.points.items()
+                               if name in self.slices])
+        tilt = ""
+        if self.base is not None and len(mine) >= 3:
+            normal = np.linalg.svd(mine - mine.mean(axis=0), full_matrices=False)[2][2]
+            angle = float(np.degrees(np.arccos(min(1.0, abs(normal @ self.base.normal)))))
+            tilt = f", a slice at {angle:.0f} degrees to the short-axis stack," if 10 < angle < 80 else ""
+        surfaces = ", ".join(f"{name} {int(np.sum(names[slices == number] == name))}"
+                             for name in dict.fromkeys(names[slices == number].tolist()))
+        return (f"{counts.max()} of those {len(slices)} points lie on slice {number} ({surfaces}){tilt} whose "
+                "contours the other slices contradict: check that slice's position and orientation (the image "
+                "header, its labels), or leave its rows out of the file")
+
+    def contour_gap(self) -> float:
+        """The gap the contours leave between their slices (:func:`bitemesh.core.implicit.samples.contour_gap`), the
+        largest over the surfaces (input units)."""
+        return max((contour_gap(points, self.slices[name]) for name, points in self.points.items()
+                    if name in self.slices), default=0.0)
+
+    def tracing_noise(self) -> float:
+        """The uncertainty of traced contours (input units): half the median distance between neighbouring contour
+        points (about the pixel size they were traced and resampled at), or the :attr:`disagreement` between the
+        short- and long-axis contours when larger (no surface can pass nearer to both)."""
+        spacing = [cKDTree(points).query(points, k=2)[0][:, 1] for points in self.points.values() if len(points) > 1]
+        return max(0.5 * float(np.median(np.concatenate(spacing))) if spacing else 0.0, self.disagreement)
+
+    def is_base(self, x) -> np.ndarray:
+        """(m,) True where the base, not a surface, gives f at (m, 3) points."""
+        return self.active_surface(x) == len(self.surfaces)
+
+    def is_unsampled(self, x) -> np.ndarray:
+        """(m,) True where no contour gives f at (m, 3) points: the base or a :attr:`derived` surface."""
+        unsampled = [len(self.surfaces)] + [list(self.surfaces).index(name) for name in self.derived]
+        return np.isin(self.active_surface(x), unsampled)
+
+
+
+def boundary_surfaces(mesh, function: LabelledImplicit):
+    """The boundary triangles of a mesh of ``function``'s domain, and the surface each lies on.
+
+    Returns
+    -------
+    facets : (b, 3) int64, boundary triangles oriented out of the domain
+    surface : (b,) int64, index into ``function.names`` (the surfaces, then "BASE") of the implicit active at each
+        triangle's centroid
+    """
+    facets = boundary_facets(np.asarray(mesh.cells))
+    return facets, function.active_surface(np.asarray(mesh.points)[facets].mean(axis=1))
+

@@ -1,0 +1,177 @@
+"""Labelled contours on the meshing spine: :func:`labelled_source` (the domain's f as a
+:class:`~bitemesh.core.sources.source.Source`, with what cardiac contours imply: R, the thinnest wall, the handles),
+:func:`run_labelled` (the source, the spine, and for a heart the plausibility check) and
+:func:`mesh_from_labelled_points` (its mesh, with the parameters as keywords).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import fields, replace
+
+import numpy as np
+
+from ...errors import check_points
+from ...mesh.simplicial import Mesh
+from ...parameters import (STEP_PARAMETERS, BitingParameters, FidelityParameters, ImplicitParameters,
+                           LabelledParameters, OptimizeParameters, SpuriousParameters, parameters_from_keywords)
+from ...progress import ProgressCallback, sub_progress
+from ..source import Frame, Source
+from ...steps.spine import MeshingResult, mesh_source, timed
+from ...mesh.tags import DOMAIN, MYOCARDIUM, surface_tags
+from .cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, LV_DOMAIN, check_heart
+from .fit import labelled_implicit
+from .function import LabelledImplicit
+
+logger = logging.getLogger("bitemesh")
+
+
+#: the thinnest wall is at least this x R (so that a wall is about one cell thick) when min_wall is not given.
+WALL_PER_RADIUS = 1.25
+#: and at least this (input units): the RV free wall of adult hearts is 2 to 5 mm thick.
+MIN_WALL = 2.5
+
+
+def thinnest_wall(radius: float) -> float:
+    """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS` x R."""
+    return max(MIN_WALL, WALL_PER_RADIUS * radius)
+
+
+#: the result of :func:`run_labelled`; its ``function`` is the LabelledImplicit (for :func:`boundary_surfaces`).
+LabelledMeshingResult = MeshingResult
+
+
+def is_myocardium(function: LabelledImplicit) -> bool:
+    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV): with a base, a ball, its
+    cavities open through it (handles = "auto" removes the handles of its mesh and fills its voids); without one,
+    its cavities are closed voids."""
+    return (set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
+
+
+def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
+    """``mesh`` of ``function``'s domain (its frame) with every boundary triangle tagged by the surface it lies on
+    (:func:`~bitemesh.core.mesh.tags.surface_tags`: tag = position in ``function.names`` + 1; biv-me EPI 1, LV_ENDO 2,
+    RV_ENDO 3, BASE 4), one region (MYOCARDIUM for a heart's myocardium, else DOMAIN).
+
+    The valve openings are no triangles of a myocardium: its cavities open through the base plane, so each valve
+    is a hole in the BASE ring, bounded where the LV_ENDO or RV_ENDO triangles meet the base.  The base plane is
+    one plane through the valves' centres, not the valve rings, so a cavity's domain (a blood pool) has one BASE
+    cap for all its valves; splitting that cap by valve is not done.
+    """
+    return surface_tags(mesh, function.active_surface, function.names,
+                        MYOCARDIUM if is_myocardium(function) else DOMAIN)
+
+
+def labelled_keywords(parameters: LabelledParameters, given_only: bool = False) -> dict:
+    """LabelledParameters as keywords of :func:`run_labelled` (the CLI, the VTK filters and Slicer all pass them so):
+    an empty domain is None (the default domain), base_plane "none" None (no cut), allow_implausible a bool.
+    ``given_only``: only the fields not at their defaults (so that a config file's values stand where no flag was
+    given)."""
+    keywords = {item.name: getattr(parameters, item.name) for item in fields(LabelledParameters)}
+    if given_only:
+        keywords = {name: value for name, value in keywords.items() if value != getattr(LabelledParameters, name)}
+    if "domain" in keywords:
+        keywords["domain"] = (keywords["domain"] or "").strip() or None   # a GUI's empty text may come as None
+    if keywords.get("base_plane") == "none":
+        keywords["base_plane"] = None
+    if "allow_implausible" in keywords:
+        keywords["allow_implausible"] = bool(keywords["allow_implausible"])
+    return keywords
+
+
+def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
+                    progress: ProgressCallback = None, **options) -> Source:
+    """Labelled contour points as a :class:`~bitemesh.core.sources.source.Source`: :func:`labelled_implicit` fitted
+    centred on the points' bounding box (in mm still), the thinnest wall following R unless ``min_wall`` is given
+    (:func:`thinnest_wall`), R = 2 mm by default for biv-me surfaces
+    (:data:`~bitemesh.core.sources.contours.cardiac.CARDIAC_RADIUS`), handles removed from a myocardium, and the
+    surface points below the base plane as the samples (the base plane's cap and derived surfaces left out of the
+    fidelity), the boundary tagged by surface (:func:`labelled_tags`)."""
+    points = check_points(points, dims=(3,))
+    frame = Frame.around(points, scaled=False)   # millimetres stay millimetres: the defaults are in mm
+    if base_plane is not None and not isinstance(base_plane, str):
+        try:
+            point, normal = base_plane
+            base_plane = (np.asarray(point, dtype=np.float64) - frame.shift, normal)
+        except (TypeError, ValueError):
+            pass   # labelled_implicit refuses it with its message
+    function, lower, upper = labelled_implicit(points - frame.shift, labels, domain, base_plane, slices=slices,
+                                               surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
+                                               else min_wall, progress=progress, **options)
+    for note in function.notes:
+        logger.info(note)
+    cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+    ball = is_myocardium(function) and function.base is not None   # no handle, no void
+    return Source(function, lower, upper, frame, samples=function.surface_samples(),
+                  at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None
+                  else None,
+                  noise=function.tracing_noise(), gap=function.contour_gap(),
+                  open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
+                  notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
+                  radius_note=f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)"
+                  if cardiac else "", handles="remove" if ball else "keep", tagging=labelled_tags,
+                  locate=function.locate)
+
+
+def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
+                 implicit: ImplicitParameters | None = None, biting: BitingParameters | None = None,
+                 spurious: SpuriousParameters | None = None, optimize: OptimizeParameters = OptimizeParameters(),
+                 fidelity: FidelityParameters | None = None, allow_implausible: bool = False,
+                 progress: ProgressCallback = None, **options) -> LabelledMeshingResult:
+    """Every step on labelled contour points: :func:`labelled_source`, then the spine
+    (:func:`~bitemesh.core.steps.spine.mesh_source`), then, for a two-cavity or LV myocardium, the plausibility check
+    (:func:`~bitemesh.core.sources.contours.cardiac.check_heart`; ``allow_implausible`` turns a refusal into a warning).
+
+    R is ``biting.radius`` or chosen for ``biting.cells`` cells from the volume of the domain; for biv-me surfaces
+    with neither given (cells at its default), R = 2 mm.  Parameters left None take their defaults; ``min_wall``
+    defaults to :func:`thinnest_wall` of R, so that no wall is thinner than about one cell (a thinner wall would
+    open in holes).  ``implicit`` gives the grid I (grid_spacing, margin, max_memory_mb; its method is not used).
+    ``optimize`` runs the MeshOptimizer on the valid domain when its switch is 1.  ``options`` go to
+    :func:`labelled_implicit` (kernel, offset, outlets, base_offset, resolution, ...).
+
+    ``result.function`` is the domain's LabelledImplicit in the input's coordinates, like the mesh.  The fidelity
+    check compares the mesh with the surface points below the base plane, the base plane's cap left out
+    (``fidelity``: its bounds, default FidelityParameters()).
+    """
+    seconds = {}
+    with timed(seconds, "implicit fit"):
+        source = labelled_source(points, labels, domain=domain, base_plane=base_plane, slices=slices,
+                                 surfaces=surfaces, min_wall=min_wall, progress=sub_progress(progress, 0.0, 0.3),
+                                 **options)
+    result = mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
+                         spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
+                         fidelity or FidelityParameters())
+    result = replace(result, function=result.function.moved(source.frame.shift))
+    if is_myocardium(source.function):
+        with timed(seconds, "plausibility"):
+            check_heart(result.mesh, result.function, result.radius, result.fidelity,
+                        allow_implausible=allow_implausible)
+    return result
+
+
+def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, min_wall=None,
+                              progress: ProgressCallback = None, **options) -> Mesh:
+    """A valid tetrahedral mesh of the domain bounded by labelled contour surfaces (a biv-me GPFile's myocardium).
+
+    Parameters
+    ----------
+    points : (n, 3) float64, contour points (mm); labels : (n,) str or int, one per point
+    domain, base_plane, slices : as for :func:`labelled_implicit` (default for biv-me labels: the two-cavity
+        myocardium ``EPI - LV_ENDO - RV_ENDO`` below the valve plane)
+    min_wall : float, input units, the thinnest wall; default max(2.5, 1.25 R) (see :func:`run_labelled`)
+    options : any field of ImplicitParameters, BitingParameters (``radius``: R, input units, default chosen for
+        about ``cells`` cells), SpuriousParameters, OptimizeParameters and FidelityParameters by name, e.g.
+        ``cells=20000, optimize=0`` (no MeshOptimizer); the others go to :func:`labelled_implicit` (kernel,
+        offset, surfaces, outlets, base_offset, resolution, ...).
+
+    Returns
+    -------
+    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and Region, its boundary triangles
+    tagged by surface (:func:`labelled_tags`).
+    """
+    names = {item.name for cls in STEP_PARAMETERS for item in fields(cls)}
+    steps = {name: options.pop(name) for name in list(options) if name in names}
+    implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(steps, STEP_PARAMETERS)
+    return run_labelled(points, labels, domain=domain, base_plane=base_plane, slices=slices, min_wall=min_wall,
+                        implicit=implicit, biting=biting, spurious=spurious, optimize=optimize, fidelity=fidelity,
+                        progress=progress, **options).mesh

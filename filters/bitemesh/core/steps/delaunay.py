@@ -1,0 +1,31 @@
+"""Delaunay triangulation of the nodes with qhull, every simplex positively oriented."""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import Delaunay, QhullError
+
+from ..errors import InvalidInputError, check_points
+from ..mesh.simplicial import signed_measures
+
+
+def delaunay(nodes: np.ndarray) -> np.ndarray:
+    """Triangulate (n, k) nodes (k = 2 or 3), centred first so that coordinates far from the origin keep their
+    precision.
+
+    Returns
+    -------
+    cells : (m, k + 1) int64, triangles or tetrahedra with positive signed measure (qhull's flat simplices dropped)
+    """
+    nodes = check_points(nodes, "nodes")
+    if len(nodes) < nodes.shape[1] + 1:
+        raise InvalidInputError(f"nodes must hold at least {nodes.shape[1] + 1} points, got {len(nodes)}")
+    centred = nodes - 0.5 * (nodes.min(axis=0) + nodes.max(axis=0))   # qhull's tolerances are absolute
+    try:
+        cells = Delaunay(centred).simplices.astype(np.int64)
+    except QhullError as error:
+        raise InvalidInputError(f"nodes are degenerate (all on a line or a plane?): qhull says "
+                                f"{str(error).splitlines()[0]}") from None
+    measure = signed_measures(centred, cells)
+    flipped = measure < 0
+    cells[flipped, :2] = cells[flipped, 1::-1]
+    return cells[measure != 0]

@@ -1,0 +1,284 @@
+"""Fidelity: how closely a mesh's boundary follows the samples it was made from, measured both ways.
+
+- **samples to the boundary**: the distance of every input sample to the boundary surface (triangles; segments
+  in 2D).  A mesh that lost a part of the shape, or filled a cavity, leaves samples far from its boundary.
+- **the boundary to the samples**: the distance of every boundary facet (its centroid, weighted by its area) to
+  the nearest sample.  A surface that the data does not support (a blob around outliers, a sheet from wrong
+  normals) lies far from every sample, off to one side of them; a surface the data leaves a wide gap in (a scan's
+  hole, a heart's base between its long-axis contours) lies far from the samples too, but they surround it.
+
+The bounds follow from what a correct mesh can do.  Its boundary is a piecewise linear surface with edges about R
+long on the zero level of f, which itself lies within the noise of the samples: a sample is within about R plus a
+few noise levels of it (features smaller than R are rounded).  Between samples the boundary is at most half the
+data's largest gap from them (contours on slices leave gaps of the slice spacing), plus R; beyond that, a facet still
+counts as supported when the samples within twice its distance from them surround it in its tangent plane (no gap
+of their directions wider than a half turn).  :func:`check_fidelity` refuses a mesh when more than a small fraction
+of either measure exceeds its bound.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import BitemeshWarning, MeshingError
+from ..mesh.simplicial import Mesh
+from ..parameters import FidelityParameters
+from ..mesh.topology import boundary_facets
+
+#: a sample may be this many noise levels, plus R, from the boundary.
+NOISE_LEVELS = 3.0
+#: facets whose centroids are nearest to a sample are searched first, this many.
+_CANDIDATES = 8
+#: at most this many samples are measured against the boundary (a deterministic subsample: enough to count 0.5 %
+#: of them to within a few percent); every sample is a candidate nearest sample of the boundary.
+MAX_SAMPLES = 25_000
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """How closely a mesh's boundary follows its samples (lengths in user units, shares in percent).
+
+    Attributes
+    ----------
+    samples : number of samples measured against the boundary
+    noise : the samples' noise level (see :func:`bitemesh.core.implicit.samples.noise_level`)
+    to_boundary_mean, to_boundary_p95, to_boundary_max : distances of the samples to the boundary
+    far_bound : R + 3 x noise, the distance beyond which a sample counts as far
+    far_samples : percent of the samples farther than ``far_bound`` from the boundary
+    from_samples_mean, from_samples_max : distances of the boundary (area-weighted mean) to the nearest sample
+    support_bound : R + half the data's largest gap, the distance beyond which the boundary counts as unsupported
+        unless the samples surround it
+    unsupported_area : percent of the boundary's area farther than ``support_bound`` from every sample and not
+        surrounded by them
+    """
+
+    samples: int
+    noise: float
+    to_boundary_mean: float
+    to_boundary_p95: float
+    to_boundary_max: float
+    far_bound: float
+    far_samples: float
+    from_samples_mean: float
+    from_samples_max: float
+    support_bound: float
+    unsupported_area: float
+
+    def describe(self) -> str:
+        """One line for a summary: both measures and their bounds."""
+        return (f"samples to boundary mean {self.to_boundary_mean:.3g}, 95% {self.to_boundary_p95:.3g}, max "
+                f"{self.to_boundary_max:.3g} ({self.far_samples:.2f}% beyond {self.far_bound:.3g}); boundary to "
+                f"samples mean {self.from_samples_mean:.3g}, max {self.from_samples_max:.3g} "
+                f"({self.unsupported_area:.2f}% of its area beyond {self.support_bound:.3g})")
+
+    def scaled(self, factor: float) -> Fidelity:
+        """The same measures with every length multiplied by ``factor`` (local frame -> user units)."""
+        lengths = ("noise", "to_boundary_mean", "to_boundary_p95", "to_boundary_max", "far_bound",
+                   "from_samples_mean", "from_samples_max", "support_bound")
+        return Fidelity(**{**self.__dict__, **{name: getattr(self, name) * factor for name in lengths}})
+
+
+def closest_on_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(m, k) the point of each facet nearest to each point: triangles (corners (m, 3, 3)) or, in 2D, segments
+    (corners (m, 2, 2)); ``points`` (m, k) pairs with ``corners`` row by row."""
+    a, b = corners[:, 0], corners[:, 1]
+    if corners.shape[1] == 2:
+        edge = b - a
+        t = np.einsum("mi,mi->m", points - a, edge) / np.maximum(np.einsum("mi,mi->m", edge, edge), 1e-300)
+        return a + np.clip(t, 0.0, 1.0)[:, None] * edge
+    c = corners[:, 2]
+    ab, ac = b - a, c - a
+    # barycentric minimisation over the triangle: the unconstrained projection, then the three edges if outside
+    d00, d01, d11 = (np.einsum("mi,mi->m", u, v) for u, v in ((ab, ab), (ab, ac), (ac, ac)))
+    ap = points - a
+    d20, d21 = np.einsum("mi,mi->m", ap, ab), np.einsum("mi,mi->m", ap, ac)
+    denominator = np.maximum(d00 * d11 - d01 * d01, 1e-300)
+    v = (d11 * d20 - d01 * d21) / denominator
+    w = (d00 * d21 - d01 * d20) / denominator
+    best = a + v[:, None] * ab + w[:, None] * ac
+    inside = (v >= 0) & (w >= 0) & (v + w <= 1)
+    nearest = np.where(inside[:, None], best, np.inf)
+    for start, end in ((a, b), (b, c), (c, a)):
+        on_edge = closest_on_facets(points, np.stack([start, end], axis=1))
+        closer = ~inside & (np.linalg.norm(points - on_edge, axis=1) < np.linalg.norm(points - nearest, axis=1))
+        nearest[closer] = on_edge[closer]
+    return nearest
+
+
+def distances_to_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(n,) exact distance of each point to the nearest of the facets ``corners`` (f, k, k).
+
+    The facets with the nearest centroids are tried first.  A facet nearer than the answer has its centroid within
+    the answer plus its own radius (centroid to farthest corner): the facets up to the 99th percentile of those
+    radii are then searched within that reach of the points that could still gain, and the few larger ones
+    separately within theirs.
+    """
+    centroids = corners.mean(axis=1)
+    radii = np.linalg.norm(corners - centroids[:, None], axis=2).max(axis=1)
+    reach = float(np.percentile(radii, 99))
+    best = np.full(len(points), np.inf)
+    tree = cKDTree(centroids)
+    count = min(_CANDIDATES, len(centroids))
+    near_distance, near = tree.query(points, k=count)
+    near_distance, near = near_distance.reshape(len(points), count), near.reshape(len(points), count)
+    _nearer(points, corners, best, np.repeat(np.arange(len(points)), count), near.ravel())
+    if count < len(centroids):
+        unsure = np.flatnonzero(near_distance[:, -1] < best + reach)
+        _nearer(points, corners, best, *_pairs(unsure, tree.query_ball_point(points[unsure], best[unsure] + reach)))
+    large = np.flatnonzero(radii > reach)
+    if len(large):
+        found = cKDTree(centroids[large]).query_ball_point(points, best + radii[large].max())
+        rows, index = _pairs(np.arange(len(points)), found)
+        _nearer(points, corners, best, rows, large[index])
+    return best
+
+
+def _pairs(rows: np.ndarray, found) -> tuple:
+    """(point rows, facet indices) of a ball query's lists, one pair per facet found."""
+    counts = [len(facets) for facets in found]
+    facets = np.concatenate([np.asarray(facets, dtype=np.int64) for facets in found]) if sum(counts) else \
+        np.zeros(0, dtype=np.int64)
+    return np.repeat(rows, counts), facets
+
+
+def _nearer(points, corners, best, rows, facets) -> None:
+    """Lower ``best[rows]`` to the distance of each point row to its paired facet, where nearer."""
+    if len(rows):
+        distance = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[facets]), axis=1)
+        np.minimum.at(best, rows, distance)
+
+
+def facet_measures(corners: np.ndarray) -> np.ndarray:
+    """(f,) area of each triangle (length of each segment in 2D)."""
+    if corners.shape[1] == 2:
+        return np.linalg.norm(corners[:, 1] - corners[:, 0], axis=1)
+    return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+
+
+def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: float, gap: float,
+                     open_boundary=None) -> Fidelity:
+    """Compare the boundary of ``mesh`` with ``samples`` both ways (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : a valid mesh; samples : (n, k) float64, points on the surface the data gives (same units)
+    radius : R; noise : the samples' noise level; gap : the data's largest gap between samples
+    open_boundary : callable (f, k) facet centroids -> (f,) bool, the facets that the method makes rather than the
+        data (a base plane), left out of the boundary-to-samples measure; or None
+    """
+    facets = boundary_facets(mesh.cells)
+    corners = mesh.points[facets]
+    measured = samples[::max(1, -(-len(samples) // MAX_SAMPLES))]
+    to_boundary = distances_to_facets(measured, corners)
+    far_bound = radius + NOISE_LEVELS * noise
+    centroids = corners.mean(axis=1)
+    area = facet_measures(corners)
+    if open_boundary is not None:
+        area = np.where(open_boundary(centroids), 0.0, area)
+    tree = cKDTree(samples)
+    from_samples = tree.query(centroids)[0]
+    support_bound = radius + 0.5 * gap
+    far = np.flatnonzero((from_samples > support_bound) & (area > 0))
+    unsupported = far[~surrounded(centroids[far], facet_normals(corners[far]), samples, tree,
+                                  2 * from_samples[far] + radius)]
+    total = max(float(area.sum()), 1e-300)
+    return Fidelity(
+        samples=len(measured), noise=float(noise),
+        to_boundary_mean=float(to_boundary.mean()), to_boundary_p95=float(np.percentile(to_boundary, 95)),
+        to_boundary_max=float(to_boundary.max()), far_bound=float(far_bound),
+        far_samples=100.0 * float(np.mean(to_boundary > far_bound)),
+        from_samples_mean=float((from_samples * area).sum() / total),
+        from_samples_max=float(from_samples[area > 0].max(initial=0.0)), support_bound=float(support_bound),
+        unsupported_area=100.0 * float(area[unsupported].sum() / total))
+
+
+def facet_normals(corners: np.ndarray) -> np.ndarray:
+    """(f, k) unit normals of triangles (f, 3, 3) or segments (f, 2, 2)."""
+    if corners.shape[1] == 2:
+        edge = corners[:, 1] - corners[:, 0]
+        normal = np.column_stack([edge[:, 1], -edge[:, 0]])
+    else:
+        normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    return normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+
+
+def surrounded(points: np.ndarray, normals: np.ndarray, samples: np.ndarray, tree, reach: np.ndarray) -> np.ndarray:
+    """(m,) True where the samples within ``reach`` (m,) of each point surround it in the plane (line, in 2D)
+    normal to its ``normals`` row: their directions leave no gap wider than a half turn."""
+    result = np.zeros(len(points), bool)
+    for row, near in enumerate(tree.query_ball_point(points, reach) if len(points) else []):
+        offsets = samples[near] - points[row]
+        offsets -= np.outer(offsets @ normals[row], normals[row])   # into the tangent plane
+        if points.shape[1] == 2:
+            along = offsets @ np.array([-normals[row, 1], normals[row, 0]])
+            result[row] = (along > 0).any() and (along < 0).any()
+            continue
+        first = np.cross(normals[row], [1.0, 0.0, 0.0] if abs(normals[row, 0]) < 0.9 else [0.0, 1.0, 0.0])
+        angles = np.sort(np.arctan2(offsets @ np.cross(normals[row], first), offsets @ first))
+        if len(angles) >= 3:
+            result[row] = np.diff(np.r_[angles, angles[0] + 2 * np.pi]).max() < np.pi
+    return result
+
+
+def on_plane(point, normal, tolerance: float):
+    """The ``open_boundary`` of a domain cut by a plane: (f, k) centroids -> True within ``tolerance`` of it."""
+    point, normal = np.asarray(point, dtype=np.float64), np.asarray(normal, dtype=np.float64)
+    return lambda centroids: np.abs((centroids - point) @ normal) <= tolerance
+
+
+def far_from(mesh: Mesh, samples: np.ndarray, bound: float) -> np.ndarray:
+    """(m,) the indices of the ``samples`` (n, k) farther than ``bound`` from the boundary of ``mesh``."""
+    return np.flatnonzero(distances_to_facets(samples, mesh.points[boundary_facets(mesh.cells)]) > bound)
+
+
+def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "", where=None) -> list:
+    """The bounds of ``parameters`` that ``fidelity`` exceeds, as messages; raise :class:`MeshingError` naming them
+    unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`.  ``where``: a
+    callable () -> a sentence saying where the far samples lie with a hint, said instead of the likely causes when
+    not empty (it is called only when samples are too far)."""
+    problems, located = [], ""
+    if fidelity.far_samples > parameters.far_samples:
+        located = where() if where is not None else ""
+        problems.append(
+            f"{fidelity.far_samples:.1f}% of the input points lie farther than {fidelity.far_bound:.3g}{units} "
+            f"(R + 3 x noise) from the mesh boundary (allowed: far_samples = {parameters.far_samples:g}%; up to "
+            f"{fidelity.to_boundary_max:.3g}{units}): the mesh lost part of the shape")
+    if fidelity.unsupported_area > parameters.unsupported_area:
+        problems.append(
+            f"{fidelity.unsupported_area:.1f}% of the boundary's area lies farther than "
+            f"{fidelity.support_bound:.3g}{units} (R + half the data's gap) from every input point (allowed: "
+            f"unsupported_area = {parameters.unsupported_area:g}%; up to {fidelity.from_samples_max:.3g}{units}): "
+            "the mesh has surfaces the data does not support")
+    if problems:
+        causes = located or ("Likely causes: outliers, normals that do not point outward, a wrong column layout, or "
+                             "parts thinner than R; check the input, lower radius")
+        text = ("the mesh does not follow the data: " + "; ".join(problems) + f". {causes}; or set "
+                "allow_unfaithful (--allow-unfaithful) to keep the mesh anyway")
+        if not parameters.allow_unfaithful:
+            raise MeshingError(text)
+        warnings.warn(text, BitemeshWarning, stacklevel=2)
+    return problems
+
+
+def thinner_than_radius(grid, inside: np.ndarray, samples: np.ndarray, radius: float, scale: float = 1.0) -> str:
+    """Where far ``samples`` (m, k) lie on parts of f > 0 thinner than R: a sentence with the radius that resolves
+    them (in user units: lengths x ``scale``), from the half-thickness of f > 0 (``inside``, on the nodes of
+    ``grid``: its largest inscribed distance within R of each sample); "" when most of them do not.  The radius
+    given is half the parts' median thickness there: two node spacings across them, which the optimizer keeps (at
+    one spacing across, its sliver removal takes the thin tips of a slender ellipsoid off)."""
+    from scipy import ndimage
+    if not len(samples):
+        return ""
+    half = ndimage.distance_transform_edt(inside, sampling=grid.spacing)
+    reach = int(np.ceil(radius / float(np.min(grid.spacing))))
+    thickness = ndimage.maximum_filter(half, size=2 * reach + 1)[grid.nearest_nodes(samples)]
+    thin = (thickness > 0) & (thickness < radius)
+    if thin.mean() < 0.5:
+        return ""
+    half = float(np.median(thickness[thin]))   # two node spacings across the part
+    return (f"{int(thin.sum())} of those {len(samples)} points lie on parts thinner than R = {radius * scale:.4g} "
+            f"(about {2 * half * scale:.3g} across there): give radius <= {half * scale:.3g}, or about "
+            f"{max(2.0, (radius / half) ** inside.ndim):.0f} x the cells")

@@ -1,0 +1,259 @@
+"""From all Delaunay cells to a valid domain: spurious cells out, enclosed voids filled, stray parts dropped,
+and the boundary made a closed manifold.
+
+A plain implementation of the paper leaves flat cells, pinched edges and vertices, and loose components; the
+product hands on only meshes that pass :func:`bitemesh.core.mesh.topology.non_manifold_faces` with nothing found.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+
+from ..errors import MeshingError
+from ..grid.sampled import ImplicitGrid
+from .handles import break_handles, handle_count
+from ..mesh.simplicial import Mesh, signed_measures
+from ..parameters import SpuriousParameters
+from ..mesh.validity import check_valid_domain
+from ..mesh.quality import radius_ratio
+from ..progress import ProgressCallback, report, sub_progress
+from .spurious import outside_cells
+from ..mesh.topology import CellComplex, euler_change, vertex_incidence
+
+logger = logging.getLogger("bitemesh")
+
+#: rounds of repair before giving up, and the first rounds in which a pinch may be mended by filling.
+MAX_REPAIR_ROUNDS = 30
+FILL_ROUNDS = 5
+#: rounds of handle removal, each followed by the repair.
+HANDLE_ROUNDS = 2
+#: an enclosed void of less volume than this many cells (of the median volume) is below the mesh's resolution.
+SMALL_VOID = 10
+#: cells with a radius ratio below this are flat.
+FLAT_QUALITY = 0.02
+#: cells with a radius ratio below this have no volume to speak of (a finite-element solver cannot use them).
+DEGENERATE = 1e-6
+
+
+@dataclass(frozen=True)
+class DelaunayCells:
+    """All the Delaunay cells, with what the repair asks of them round after round, computed once: their facet
+    and ridge tables (``complex``), volume, and which are flat or degenerate (radius ratio below
+    :data:`FLAT_QUALITY`, :data:`DEGENERATE`); each (m,)."""
+
+    points: np.ndarray
+    cells: np.ndarray
+    complex: CellComplex
+    volume: np.ndarray
+    flat: np.ndarray
+    degenerate: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, cells: np.ndarray) -> DelaunayCells:
+        quality = radius_ratio(points, cells)
+        return cls(points, cells, CellComplex(cells, len(points)), signed_measures(points, cells),
+                   quality < FLAT_QUALITY, quality < DEGENERATE)
+
+
+def enclosed_inside_voids(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray,
+                          every: bool = False) -> np.ndarray:
+    """(m,) bool, the dropped cells that form voids closed off from the hull and lie inside (mean f > 0 there), or
+    are smaller than :data:`SMALL_VOID` cells (a pocket of a cavity thinner than a cell, cut off from it); with
+    ``every``, every void closed off from the hull (a domain known to have none: a myocardium).
+
+    A cavity that f says is outside (a ventricle, the hole of a shell) stays open unless ``every``.
+    """
+    dropped = np.flatnonzero(~keep)
+    if len(dropped) == 0:
+        return np.zeros(len(keep), bool)
+    complex_ = delaunay.complex
+    on_hull = (complex_.hull_counts[complex_.facet_ids[dropped]] == 1).any(axis=1)
+    labels = complex_.components(~keep)
+    touches_hull = np.bincount(labels, weights=on_hull) > 0
+    volume = delaunay.volume[dropped]
+    centroid_value = grid.evaluate(delaunay.points[delaunay.cells[dropped]].mean(axis=1))
+    void_volume = np.bincount(labels, weights=volume)
+    mean_value = np.bincount(labels, weights=volume * centroid_value) / void_volume
+    small = void_volume < SMALL_VOID * np.median(delaunay.volume[keep]) if keep.any() else False
+    fill = np.zeros(len(keep), bool)
+    fill[dropped] = (~touches_hull & ((mean_value > 0) | small | every))[labels]
+    return fill
+
+
+def drop_small_components(delaunay: DelaunayCells, keep: np.ndarray, fraction: float) -> np.ndarray:
+    """``keep`` without the facet-connected parts whose volume is below ``fraction`` x the largest part's."""
+    kept = np.flatnonzero(keep)
+    labels = delaunay.complex.components(keep)
+    volume = np.bincount(labels, weights=delaunay.volume[kept])
+    result = keep.copy()
+    result[kept] = (volume >= fraction * volume.max())[labels]
+    return result
+
+
+def peel_flat_boundary_cells(delaunay: DelaunayCells, keep: np.ndarray) -> np.ndarray:
+    """``keep`` without the nearly flat cells that lie on the boundary, layer by layer.
+
+    Nodes projected onto a planar part of the surface are coplanar, and qhull joins four of them into a flat cell
+    that lies on the surface (two or more facets on the boundary): it carries no volume, and removing it leaves
+    the boundary where it was.  A flat cell with a single boundary facet is a slit into the domain: removing it
+    would pinch the boundary, and the pinch repair would then cut a notch; such a cell goes only when it has no
+    volume at all (``DEGENERATE``).  Each layer updates the facet counts by the cells peeled.
+    """
+    facet_ids = delaunay.complex.facet_ids
+    counts = delaunay.complex.facet_counts(keep)
+    candidates = np.flatnonzero(keep & delaunay.flat)
+    result = keep.copy()
+    for _ in range(MAX_REPAIR_ROUNDS):
+        candidates = candidates[result[candidates]]
+        on_boundary = (counts[facet_ids[candidates]] == 1).sum(axis=1)
+        peel = candidates[(on_boundary >= 2) | ((on_boundary == 1) & delaunay.degenerate[candidates])]
+        if len(peel) == 0:
+            break
+        result[peel] = False
+        counts -= np.bincount(facet_ids[peel].ravel(), minlength=len(counts))
+    return result
+
+
+def fans(n_points: int, cells: np.ndarray, facet_size: int):
+    """(count, labels) of the groups of the (c, k + 1) ``cells`` joined through shared facets (``facet_size``
+    vertices in common)."""
+    local = vertex_incidence(n_points, cells)
+    shared = (sparse.csr_matrix(local.T) @ local).toarray()
+    return csgraph.connected_components(shared >= facet_size, directed=False)
+
+
+def unpinch(delaunay: DelaunayCells, keep: np.ndarray, faces: list, *, fill: bool) -> np.ndarray:
+    """``keep`` mended around each face where the domain is not a manifold.
+
+    The kept cells around a face fall into fans (two share a facet, of k vertices, that then holds the face),
+    and so do the missing ones (the sides of the gap).  Either every fan but the one of largest volume goes (with
+    a single fan, a vertex whose link is an annulus, all go), or, with ``fill``, the missing Delaunay cells around
+    the face come in, which makes it a manifold point, or, around a vertex whose link is an annulus (a vertex on
+    both sides of a wall one cell thick), those of one side: whichever changes less volume, unless it opens a
+    tunnel (lowers the Euler characteristic: removing the annulus punches a hole through the wall, a fill can
+    put a pillar across a thin cavity) and another choice does not.  Flat cells never come in (the peel would
+    take them out again).
+    """
+    points, cells, volume, flat = delaunay.points, delaunay.cells, delaunay.volume, delaunay.flat
+    incidence = delaunay.complex.incidence
+    result = keep.copy()
+    facet = cells.shape[1] - 1
+    for face in (f for group in faces for f in group):
+        around = delaunay.complex.cells_around(face)
+        members, gap = around[keep[around]], around[~keep[around]]
+        n_fans, labels = fans(len(points), cells[members], facet)
+        largest = np.argmax(np.bincount(labels, weights=volume[members])) if n_fans > 1 else -1
+        choices = [(members[labels != largest], False)]
+        if fill and not flat[gap].any():
+            choices.append((gap, True))
+        if fill and n_fans == 1 and len(gap):
+            n_sides, sides = fans(len(points), cells[gap], facet)
+            choices += [(gap[sides == side], True) for side in range(n_sides)
+                        if n_sides > 1 and not flat[gap[sides == side]].any()]
+        cost = [(euler_change(incidence, cells, result, *choice) < 0, volume[choice[0]].sum()) for choice in choices]
+        changed, value = choices[min(range(len(choices)), key=cost.__getitem__)]
+        result[changed] = value
+    return result
+
+
+def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
+             progress: ProgressCallback = None) -> np.ndarray:
+    """``keep`` made a valid domain: flat boundary cells peeled, small parts dropped, pinches mended, round after
+    round until the boundary is a manifold; enclosed voids filled."""
+    for round_ in range(MAX_REPAIR_ROUNDS):
+        report(progress, round_ / MAX_REPAIR_ROUNDS, "repairing the boundary")
+        if not keep.any():
+            raise MeshingError("no cell is inside the domain; check the normals' orientation, or lower radius")
+        keep = peel_flat_boundary_cells(delaunay, keep)
+        keep = drop_small_components(delaunay, keep, parameters.min_component)
+        pinched = delaunay.complex.non_manifold_faces(keep)
+        if not pinched:
+            break
+        # filling first, then only removing: the rounds that only remove cannot cycle
+        keep = unpinch(delaunay, keep, pinched, fill=round_ < FILL_ROUNDS)
+        if round_ < FILL_ROUNDS:   # a fill next to a removal can close off a void
+            keep |= enclosed_inside_voids(grid, delaunay, keep)
+    else:
+        raise MeshingError(f"the boundary is still not a manifold after {MAX_REPAIR_ROUNDS} rounds of repair; "
+                           "try a smaller radius or a finer grid_spacing")
+    # filling a whole enclosed void of a manifold domain leaves it a manifold
+    return keep | enclosed_inside_voids(grid, delaunay, keep)
+
+
+def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
+                    progress: ProgressCallback = None) -> np.ndarray:
+    """``keep`` with its handles thinner than about two cells cut or filled, repaired (a repair can reopen a fill:
+    then once more), and every enclosed void filled (a domain without handles has none: a spurious bubble of a
+    fitted surface inside a wall); what was done is logged."""
+    points, cells = delaunay.points, delaunay.cells
+    voids = enclosed_inside_voids(grid, delaunay, keep, every=True)
+    if voids.any():
+        logger.info("%d enclosed void(s) filled, %.3g in all (a bubble of a fitted surface inside the wall; "
+                    "handles = 'remove')", int(delaunay.complex.components(voids).max() + 1),
+                    float(delaunay.volume[voids].sum()))
+        keep = repaired(grid, delaunay, keep | voids, parameters)
+    before, handles = keep, handle_count(cells[keep])
+    for round_ in range(HANDLE_ROUNDS):
+        report(progress, round_ / HANDLE_ROUNDS, "removing handles")
+        keep, removed = break_handles(grid, points, delaunay.complex, keep)
+        if not removed:
+            break
+        keep = repaired(grid, delaunay, keep, parameters)
+    left = handle_count(cells[keep])
+    if left < handles:
+        logger.info("%d handle(s) thinner than two cells removed: %d cells cut, %d filled (handles = 'remove')",
+                    handles - left, int((before & ~keep).sum()), int((keep & ~before).sum()))
+    if left:
+        logger.info("%d handle(s) kept: thicker than two cells, or no single cut or fill removes them", left)
+    return keep
+
+
+def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
+                 parameters: SpuriousParameters = SpuriousParameters(),
+                 progress: ProgressCallback = None) -> Mesh:
+    """Keep the Delaunay cells of the domain and make it a valid one; with ``parameters.handles`` "remove" (3D),
+    without handles too (:func:`bitemesh.core.steps.handles.break_handles`).
+
+    Parameters
+    ----------
+    grid : the implicit function f on the grid I
+    points : (n, k) float64, the nodes
+    cells : (m, k + 1) int64, all Delaunay cells of the nodes, positively oriented
+
+    Returns
+    -------
+    The valid domain mesh; unused nodes are dropped.
+    """
+    keep = _domain_cells(grid, points, cells, parameters, progress)
+    report(progress, 1.0, "repairing the boundary")
+    mesh = compact(points, cells[keep])   # the tables of all Delaunay cells (about 10x the cells' bytes) are gone
+    problems = check_valid_domain(mesh)
+    if problems:
+        raise MeshingError(f"the mesh is not a valid domain: {problems[0]}; try a smaller radius or a finer "
+                           "grid_spacing")
+    return mesh
+
+
+def _domain_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, parameters: SpuriousParameters,
+                  progress: ProgressCallback) -> np.ndarray:
+    """(m,) bool, the Delaunay cells of the valid domain: inside f > 0 (and the voids they enclose), repaired,
+    without handles when asked."""
+    keep = ~outside_cells(grid, points, cells, parameters.threshold)
+    delaunay = DelaunayCells.of(points, cells)
+    keep |= enclosed_inside_voids(grid, delaunay, keep)
+    keep = repaired(grid, delaunay, keep, parameters, sub_progress(progress, 0.0, 0.8))
+    if parameters.handles == "remove" and cells.shape[1] == 4:
+        keep = without_handles(grid, delaunay, keep, parameters, sub_progress(progress, 0.8, 1.0))
+    return keep
+
+
+def compact(points: np.ndarray, cells: np.ndarray) -> Mesh:
+    """The mesh of ``cells`` with only the points they use, renumbered in their original order."""
+    used = np.unique(cells)
+    renumber = np.full(len(points), -1, dtype=np.int64)
+    renumber[used] = np.arange(used.size)
+    return Mesh(points[used], renumber[cells])

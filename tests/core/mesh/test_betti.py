@@ -1,0 +1,78 @@
+"""Topology as part of fidelity (issue 31): the parts, handles and voids of grids and meshes
+(:mod:`bitemesh.core.mesh.betti`) against shapes whose Betti numbers are known, the cubical Euler characteristic against
+a count of every cell, and a mesh refused for holes its f does not have."""
+from __future__ import annotations
+
+from itertools import product
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bitemesh.core.mesh.betti import Topology, check_topology, cubical_euler, grid_topology, mesh_topology
+from bitemesh.core.errors import BitemeshWarning, MeshingError
+from bitemesh.core.parameters import BitingParameters
+from bitemesh.core.sources.points import run
+from bitemesh.core.shapes import sample_surface, sphere, torus
+
+AXES = np.mgrid[-20:21, -20:21, -20:21]
+RADIUS = np.linalg.norm(AXES, axis=0)
+AROUND_Z = np.hypot(AXES[0], AXES[1])
+
+
+@pytest.mark.parametrize("inside, expected", [
+    (RADIUS < 15, (1, 0, 0)),                                                  # a ball
+    ((RADIUS < 15) & (RADIUS > 10), (1, 0, 1)),                                # a hollow ball
+    ((AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16, (1, 1, 0)),                     # a torus
+    ((np.abs(AXES[0]) - 9) ** 2 + AXES[1] ** 2 + AXES[2] ** 2 < 25,
+     (2, 0, 0)),                                                               # two balls
+    (((AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16) | ((RADIUS < 6) & (RADIUS > 3)), (2, 1, 1)),   # and a shell
+])
+def test_the_grid_topology_of_shapes_with_known_betti_numbers(inside, expected):
+    assert grid_topology(inside) == Topology(*expected)
+
+
+def test_the_grid_topology_in_2d_counts_holes_as_handles():
+    plane = np.mgrid[-20:21, -20:21]
+    distance = np.linalg.norm(plane, axis=0)
+    assert grid_topology((distance < 15) & (distance > 8)) == Topology(1, 1, 0)
+    assert grid_topology(distance < 15) == Topology(1, 0, 0)
+
+
+def brute_euler(inside: np.ndarray) -> int:
+    """V - E + F - C of the union of the closed unit cubes flagged, by listing every face of each one."""
+    faces = set()
+    for voxel in zip(*np.nonzero(inside)):
+        for corner in product((0, 1, 2), repeat=inside.ndim):   # 0, 2: the cube's sides; 1: its middle
+            faces.add(tuple(2 * v + c for v, c in zip(voxel, corner)))
+    return sum((-1) ** sum(coordinate % 2 for coordinate in face) for face in faces)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 3), st.integers(2, 3), st.floats(0.1, 0.9), st.integers(0, 2**32 - 1))
+def test_the_cubical_euler_characteristic_is_the_count_of_every_face(size, dim, share, seed):
+    """The vectorised count over cell types equals the count of the distinct faces of every flagged cube (its
+    vertices, edges, squares and itself), whatever the flags; and it does not change under flips and transposes."""
+    inside = np.random.default_rng(seed).random((size + 2,) * dim) < share
+    assert cubical_euler(inside) == brute_euler(inside)
+    assert cubical_euler(inside[::-1].T) == cubical_euler(inside)
+
+
+@pytest.mark.parametrize("shape, expected", [(sphere(), (1, 0, 0)), (torus(), (1, 1, 0))])
+def test_the_mesh_topology_of_a_sphere_and_a_torus(shape, expected):
+    points, normals = sample_surface(shape, 0.08)
+    result = run(points, normals, biting=BitingParameters(cells=3000))
+    assert mesh_topology(result.mesh) == Topology(*expected)
+
+
+def test_a_mesh_with_a_hole_its_grid_lacks_is_refused_naming_it():
+    """The torus's mesh against a ball's grid: one hole more than f has, refused (kept with a warning when
+    allowed); against its own kind (a torus's grid) nothing is said."""
+    mesh = run(*sample_surface(torus(), 0.08), biting=BitingParameters(cells=3000)).mesh
+    ball = RADIUS < 15
+    with pytest.raises(MeshingError, match=r"1 hole\(s\) or tunnel\(s\).*lower radius"):
+        check_topology(mesh, ball, 0.1, allow=False)
+    with pytest.warns(BitemeshWarning, match="allow-unfaithful"):
+        assert check_topology(mesh, ball, 0.1, allow=True) == "1 hole(s) or tunnel(s)"
+    assert check_topology(mesh, (AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16, 0.1, allow=False) == ""
