@@ -4,7 +4,7 @@
 
 The cases are scattered points of four shapes (die, sphere, torus, two-cavity shell) at two sampling seeds, each
 meshed with the same options.  The plain loop meshes them one after the other in this process as
-``bitemesh mesh`` does (``mesh_input`` then ``write_mesh``), with one BLAS thread like Dask's workers.  Each batch
+``bitemesh mesh`` does (``bitemesh.mesh`` then ``write_mesh``), with one BLAS thread like Dask's workers.  Each batch
 starts its own LocalCluster; its start and its workers' warm-up are timed apart from the cases.  The runs take
 turns (loop, two plain loops side by side, 1 worker, 2 workers) ``--repeats`` times, and the report gives the
 median of each, so that a burst of others' work on the shared machine falls on all of them.  Writes a markdown
@@ -27,7 +27,7 @@ sys.path.insert(0, str(HERE.parent / "filters"))
 
 import numpy as np  # noqa: E402
 
-from bitemesh.cohorts.meshing import mesh_input  # noqa: E402
+from bitemesh.meshing import mesh  # noqa: E402
 from bitemesh.cohorts.run import batch  # noqa: E402
 from bitemesh.core.shapes import die, sample_surface, sphere, torus, two_cavity_shell  # noqa: E402
 from bitemesh.io import write_mesh  # noqa: E402
@@ -62,7 +62,7 @@ def plain_loop(files, options, folder: Path) -> tuple:
 
 def _mesh_all(files, options, folder) -> None:
     for path in files:
-        write_mesh(mesh_input(path, options).mesh, folder / f"{path.stem}.vtu")
+        write_mesh(mesh(path, options).mesh, folder / f"{path.stem}.vtu")
 
 
 def two_plain_processes(files, options, folder: Path) -> float:

@@ -30,7 +30,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 sys.path.insert(0, str(HERE.parent))
 
-from bitemesh.cohorts.meshing import mesh_input, parse_option
+from bitemesh.meshing import mesh
+from bitemesh.options import parse_option
 from bitemesh.core.errors import BitemeshError
 from bitemesh.io import read_labelled_points
 from heart_measures import read_surface, measure_heart
@@ -61,7 +62,7 @@ def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> 
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            result = mesh_input(path, options)
+            result = mesh(path, options)
     except BitemeshError as error:
         return {"name": name, "refused": str(error), "seconds": time.perf_counter() - clock}
     seconds = time.perf_counter() - clock

@@ -42,20 +42,13 @@ LEVEL = 0.5
 
 def fibred_heart(path: str | None, cells: int):
     """The mesh (a bitemesh Mesh with facet tags and the fibre arrays): read from ``path``, or meshed."""
+    import bitemesh
     if path:
-        from bitemesh.io import read_mesh
-        return read_mesh(path)
+        return bitemesh.read(path)
     from importlib import resources
 
-    from bitemesh.core.sources.contours.run import run_labelled
-    from bitemesh.core.fem.fibres import with_fibres
-    from bitemesh.core.parameters import BitingParameters
-    from bitemesh.io import read_labelled_points
-
     with resources.as_file(resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt") as source:
-        points, labels, slices = read_labelled_points(source)
-    mesh = run_labelled(points, labels, slices=slices, biting=BitingParameters(cells=cells)).mesh
-    return with_fibres(mesh)[0]
+        return bitemesh.mesh(source, cells=cells, fibres=1).mesh
 
 
 def long_axis(mesh) -> np.ndarray:

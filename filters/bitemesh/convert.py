@@ -74,6 +74,47 @@ def point_labels(dataset, what: str = "the input"):
     return labels, slices
 
 
+def dataset_samples(dataset):
+    """What a vtkPointSet holds as samples: (points, normals or None, labels or None, slices or None).
+
+    With a ``Label`` point array (labelled contours): (n, 3) points, (n,) labels and slice ids (:func:`point_labels`)
+    and no normals.  Else scattered points: the ``Normals`` point array or the normals attribute; points with z = 0
+    everywhere are 2D (a contour in the xy plane), and both come back with two columns.
+    """
+    from vtkmodules.vtkCommonDataModel import vtkPointSet
+    if not isinstance(dataset, vtkPointSet) or dataset.GetNumberOfPoints() == 0:
+        raise InvalidInputError("the input holds no points; connect scattered points (vtkPolyData) or a label map")
+    labels, slices = point_labels(dataset)
+    if labels is not None:
+        return point_coordinates(dataset), None, labels, slices
+    normals = dataset.GetPointData().GetNormals()
+    normals = point_array(dataset, "Normals") if normals is None else numpy_support.vtk_to_numpy(normals).copy()
+    points = planar_as_2d(point_coordinates(dataset))
+    if normals is not None and normals.ndim == 2 and normals.shape[1] > points.shape[1]:
+        normals = normals[:, :points.shape[1]]
+    return points, normals, None, None
+
+
+def image_voxels(image: vtkImageData):
+    """A label map as VTK holds it: ((n_i, n_j[, n_k]) labels indexed [i, j, k], (k + 1, k + 1) index -> physical
+    matrix of its spacing and origin); a 2D image (one slice) gives 2D."""
+    dims = image.GetDimensions()
+    dim = 2 if dims[2] == 1 else 3
+    scalars = image.GetPointData().GetScalars()
+    if scalars is None:
+        raise InvalidInputError("the label map has no point scalars (the labels)")
+    labels = numpy_support.vtk_to_numpy(scalars).reshape(dims, order="F").reshape(dims[:dim])
+    matrix = np.eye(dim + 1)
+    matrix[:dim, :dim] = np.diag(image.GetSpacing()[:dim])
+    matrix[:dim, dim] = image.GetOrigin()[:dim]
+    return labels, matrix
+
+
+def planar_as_2d(points: np.ndarray) -> np.ndarray:
+    """(n, 2) when every z is 0 (a 2D point set, as VTK stores it), else the (n, 3) points unchanged."""
+    return points[:, :2] if len(points) and np.all(points[:, 2] == 0) else points
+
+
 def _as_3d(points: np.ndarray) -> np.ndarray:
     points = np.asarray(points, dtype=np.float64)
     return np.column_stack([points, np.zeros(len(points))]) if points.shape[1] == 2 else points

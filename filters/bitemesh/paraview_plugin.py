@@ -171,10 +171,10 @@ def property_setter(item, vtk_setter):
 class LabelMapsNeedSimpleITK:
     """Mixin for PointsToImplicit: a label map input needs SimpleITK, which Debian does not package."""
 
-    def label_source(self, image: vtkImageData):
-        # before any work on the label map: ParaView reports the real error, not an extent error after it
-        require_simpleitk()
-        return super().label_source(image)
+    def source_of(self, data):
+        if isinstance(data, vtkImageData):   # before any work on the label map: ParaView reports the real error
+            require_simpleitk()
+        return super().source_of(data)
 
 
 def require_simpleitk() -> None:
@@ -204,7 +204,7 @@ def paraview_filter(class_name: str):
     namespace = {"__module__": __name__, "__qualname__": class_name, "__doc__": base.__doc__}
     for item in items:
         namespace[f"Set{camel(item.name)}"] = property_setter(item, getattr(base, f"Set{camel(item.name)}"))
-    bases = (*((LabelMapsNeedSimpleITK,) if hasattr(base, "label_source") else ()), base)
+    bases = (*((LabelMapsNeedSimpleITK,) if hasattr(base, "source_of") else ()), base)
     cls = type(class_name, bases, namespace)
 
     decorators = []  # innermost first; properties keep this order in the panel

@@ -6,7 +6,7 @@ The data fixtures are built once for the folder (package scope): the tests only 
 from __future__ import annotations
 
 import pytest
-from bitemesh.cli import mesh as mesh_command
+from bitemesh import meshing
 from bitemesh.core.sources import points as pipeline
 from bitemesh.core.shapes import annulus, sample_surface
 
@@ -40,12 +40,11 @@ def reference(inputs, tmp_path_factory):
 
 @pytest.fixture
 def pipeline_spy(monkeypatch):
-    """Records whether ``bitemesh mesh`` reached the pipeline (bitemesh.cli imports its commands in ``main``: the
-    command's module is imported here, whatever ran before)."""
+    """Records whether ``bitemesh mesh`` reached the points' pipeline (through the front door)."""
     calls = []
 
     def spy(*args, **kwargs):
         calls.append(args)
         return pipeline.run(*args, **kwargs)
-    monkeypatch.setattr(mesh_command, "run_pipeline", spy)
+    monkeypatch.setattr(meshing, "run", spy)
     return calls

@@ -101,7 +101,7 @@ def test_the_api_names_the_bad_argument(unit_sphere_samples, points, normals, wo
         points = unit_sphere_samples[0]
     normals = {"wrong shape": np.ones((5, 3)), "zeros": np.zeros_like(points), None: None}[normals]
     with pytest.raises(bitemesh.InvalidInputError) as caught:
-        bitemesh.mesh_from_points(points, normals, cells=1000)
+        bitemesh.mesh(bitemesh.Samples(points, normals), cells=1000)
     for word in words:
         assert word in str(caught.value)
 

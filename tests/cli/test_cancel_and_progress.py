@@ -6,8 +6,7 @@ import io
 
 import numpy as np
 import pytest
-from bitemesh import cli
-from bitemesh.cli import demo as demo_command
+from bitemesh import cli, meshing
 from bitemesh.cli import mesh as mesh_command
 from bitemesh.cli import options as cli_options
 from bitemesh.cli.options import ProgressBar
@@ -16,9 +15,6 @@ from bitemesh.core.errors import Cancelled
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
 
 from tests.cli.commands import assert_no_traceback
-
-#: the commands' modules (bitemesh.cli imports them only when ``main`` runs)
-COMMANDS = {"mesh": mesh_command, "demo": demo_command}
 
 # --------------------------------------------------------------------------------------------- cancellation
 
@@ -56,7 +52,7 @@ def test_interrupt_exits_130(command, stop, inputs, tmp_path, monkeypatch, capsy
     def interrupted(*args, progress=None, **kwargs):
         progress(0.5, "biting")
         raise stop()
-    monkeypatch.setattr(COMMANDS[command], "run_pipeline", interrupted)
+    monkeypatch.setattr(meshing, "run", interrupted)   # the mesh command's and the die demo's
     output = tmp_path / "out.vtu"
     argv = ["mesh", str(inputs["xyz+normals"])] if command == "mesh" else ["demo"]
     code = cli.main(argv + ["-o", str(output)])

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bitemesh import cli
+from bitemesh import cli, meshing
 from bitemesh.cli import demo as demo_command
 from bitemesh.cli import mesh as mesh_command
 from bitemesh.core.fem.fibres import FIBRE_ARRAYS, fibre_field
@@ -19,6 +19,13 @@ from tests.fibrecheck import tagged_shell
 def shell_result(*args, **kwargs) -> MeshingResult:
     mesh = tagged_shell()
     return MeshingResult(mesh=mesh, implicit=None, nodes=mesh.points, radius=7.4, seconds={"meshing": 1.0})
+
+
+def meshed_as_the_shell(monkeypatch):
+    """The front door meshes any input as the tagged shell: labelled contours whose meshing returns it."""
+    monkeypatch.setattr(meshing, "read_input", lambda input, options: meshing.Samples(
+        np.zeros((1, 3)), labels=np.array(["EPI"])))
+    monkeypatch.setattr(meshing, "run_labelled", shell_result)
 
 
 def forbidden(*args, **kwargs):
@@ -36,7 +43,7 @@ def check_written(path, out):
 
 
 def test_mesh_fibres_writes_the_fibres_as_cell_vectors(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(mesh_command, "mesh_input", shell_result)
+    meshed_as_the_shell(monkeypatch)
     output = tmp_path / "heart.vtu"
     assert cli.main(["mesh", "contours.txt", "-o", str(output), "--fibres", "--alpha-endo", "40"]) == 0
     out, err = capsys.readouterr()
@@ -45,7 +52,7 @@ def test_mesh_fibres_writes_the_fibres_as_cell_vectors(tmp_path, monkeypatch, ca
 
 
 def test_demo_heart_fibres_writes_the_fibres(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(demo_command, "mesh_heart", lambda args, progress: (shell_result(), ""))
+    meshed_as_the_shell(monkeypatch)
     output = tmp_path / "heart.vtk"
     assert cli.main(["demo", "heart", "--fibres", "-o", str(output)]) == 0
     check_written(output, capsys.readouterr()[0])
@@ -58,7 +65,7 @@ def test_fibres_of_scattered_points_are_refused_naming_the_missing_surfaces(inpu
     _, err = capsys.readouterr()
     assert_no_traceback(err)
     last = err.strip().splitlines()[-1]   # after the notes and the progress bar of the meshing
-    assert code == 1 and last.startswith("bitemesh: error: --fibres: "), err
+    assert code == 1 and last.startswith("bitemesh: error: fibres (--fibres): "), err
     assert "has no EPI, LV_ENDO, RV_ENDO, BASE" in last and "mesh labelled biventricular contours" in last
     assert not output.exists()
 
@@ -70,7 +77,7 @@ def test_fibres_of_scattered_points_are_refused_naming_the_missing_surfaces(inpu
     (["demo", "die", "-o", "{}/m.vtu", "--fibres"], [r"--fibres: the die has no myocardium", r"demo heart"]),
 ], ids=["msh", "angle", "demo-inp", "demo-die"])
 def test_fibres_options_are_refused_before_any_work(argv, names, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(mesh_command, "mesh_input", forbidden)
+    monkeypatch.setattr(mesh_command, "mesh", forbidden)
     monkeypatch.setattr(demo_command, "mesh_heart", forbidden)
     monkeypatch.setattr(demo_command, "mesh_die", forbidden)
     assert_one_line_error(capsys, cli.main([part.format(tmp_path) for part in argv]), *names)

@@ -3,8 +3,7 @@ shipped biv-me heart)."""
 from __future__ import annotations
 
 import pytest
-from bitemesh import cli
-from bitemesh.cli import demo as demo_command
+from bitemesh import cli, meshing
 from bitemesh.core.mesh.quality import quality_summary, radius_ratio
 from bitemesh.core.shapes import die
 from bitemesh.io import read_mesh
@@ -79,7 +78,7 @@ def test_demo_meshes_the_die(tmp_path, monkeypatch, capsys):
 def test_demo_refuses_a_bad_output_before_work(tmp_path, monkeypatch, capsys):
     def forbidden(*args, **kwargs):
         raise AssertionError("the demo meshed before checking its output")
-    monkeypatch.setattr(demo_command, "run_pipeline", forbidden)
+    monkeypatch.setattr(meshing, "run", forbidden)
     assert_one_line_error(capsys, cli.main(["demo", "-o", str(tmp_path / "die.stl")]), r"\.stl")
 
 

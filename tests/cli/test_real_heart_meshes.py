@@ -11,7 +11,7 @@ from functools import cache
 import numpy as np
 import pytest
 
-from bitemesh.cohorts.meshing import mesh_input
+from bitemesh.meshing import mesh
 from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.core.mesh.topology import boundary_facets
@@ -38,7 +38,7 @@ def meshed(frame: int, variant: str = ""):
     import tempfile
     path, time_frame = (CINE / f"GPFile_{frame:03d}.txt", None) if not variant else \
         class_file(CINE, frame, variant, tempfile.mkdtemp(prefix="bitemesh-heart-"))
-    result = mesh_input(path, {"optimize": 0, **({} if time_frame is None else {"frame": time_frame})})
+    result = mesh(path, {"optimize": 0, **({} if time_frame is None else {"frame": time_frame})})
     points, labels, slices = read_labelled_points(path, frame=time_frame)
     for number, shift in result.function.shifts.items():
         points[slices == number] += shift

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 from bitemesh.cohorts.cases import Case, case_hash, find_cases, read_manifest
-from bitemesh.cohorts.meshing import parse_option, resolved
+from bitemesh.options import as_options, parse_option
 from bitemesh.core.errors import InvalidInputError
 
 from tests.cohorts.conftest import write_manifest
@@ -53,12 +53,12 @@ def test_a_bad_manifest_is_refused_naming_the_column_and_the_value(header, cells
 
 
 def test_options_are_those_of_bitemesh_mesh():
-    assert resolved({"cells": 2000})["cells"] == 2000 and resolved({})["optimize"] == 1
-    assert resolved({"label": 3})["label"] == (3,)
+    assert as_options({"cells": 2000}).cells == 2000 and as_options({}).optimize == 1
+    assert as_options({"label": 3}).label == (3,)
     with pytest.raises(InvalidInputError, match="did you mean grid_spacing"):
-        resolved({"grid_spacings": 0.1})
+        as_options({"grid_spacings": 0.1})
     with pytest.raises(InvalidInputError, match="radius"):
-        resolved({"radius": -2})
+        as_options({"radius": -2})
     assert parse_option("radius", "-1") is None and parse_option("radius", "auto") is None
     assert parse_option("seed", "7") == 7 and parse_option("threshold", "0.3") == 0.3
     assert parse_option("ras", "1") is True and parse_option("domain", " EPI - LV_ENDO ") == "EPI - LV_ENDO"

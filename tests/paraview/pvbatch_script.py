@@ -30,6 +30,7 @@ import time
 import traceback
 from pathlib import Path
 
+from bitemesh.core.sources.points import run as points_run
 import bitemesh
 import numpy as np
 from bitemesh import algorithms
@@ -50,14 +51,15 @@ from vtkmodules.vtkCommonDataModel import vtkImageData
 FILTERS = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
            "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
            "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter", "FibreField": "FibreField"}
-#: the README's Programmable Filter script (Output Data Set Type: vtkUnstructuredGrid); CELLS is substituted.
+#: the Programmable Filter script of docs/vtk-paraview-slicer.md (Output Data Set Type: vtkUnstructuredGrid);
+#: CELLS is substituted.
 PROGRAMMABLE_SCRIPT = """
 import bitemesh
 from bitemesh.convert import mesh_to_unstructured
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
 points = vtk_to_numpy(self.GetInput().GetPoints().GetData())     # (n, 3): the input's points
-mesh = bitemesh.mesh_from_points(points, cells=CELLS)             # any parameter of bitemesh.mesh_from_points
+mesh = bitemesh.mesh(points, cells=CELLS).mesh                     # any option of bitemesh.Options
 self.GetOutput().ShallowCopy(mesh_to_unstructured(mesh))
 """
 
@@ -71,7 +73,7 @@ def one_shot(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
     SaveData(str(out / "one_shot.vtu"), proxy=proxy)
 
     clock = time.perf_counter()
-    result = bitemesh.run(xyz, None, ImplicitParameters(), BitingParameters(cells=args.cells, seed=args.seed),
+    result = points_run(xyz, None, ImplicitParameters(), BitingParameters(cells=args.cells, seed=args.seed),
                           SpuriousParameters())
     facts["seconds"]["bitemesh.run (same process)"] = round(time.perf_counter() - clock, 3)
     same_mesh("one-shot = bitemesh.run", mesh, result.mesh)
@@ -154,7 +156,7 @@ def chain(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
     for key in plain.cell_data:
         check(f"chain cell data {key} = plain VTK's", np.array_equal(mesh.cell_data.get(key), plain.cell_data[key]),
               key)
-    result = bitemesh.run(xyz, None, ImplicitParameters(grid_spacing=args.grid_spacing, margin=margin),
+    result = points_run(xyz, None, ImplicitParameters(grid_spacing=args.grid_spacing, margin=margin),
                           BitingParameters(radius=args.radius, seed=args.seed), SpuriousParameters(),
                           optimize=OptimizeParameters(optimize=0))   # the five filters: the plain method
     # bitemesh.run meshes the points centred and scaled to unit size, the chain in the points' own frame (its image
@@ -275,12 +277,12 @@ def gpfile(args, out: Path) -> None:
 
 @guarded("programmable filter")
 def programmable(points_proxy, xyz: np.ndarray, args) -> None:
-    """The README's Programmable Filter script gives bitemesh.mesh_from_points's mesh."""
+    """The docs' Programmable Filter script (docs/vtk-paraview-slicer.md) gives bitemesh.mesh's mesh."""
     cells = 1000
     proxy = ProgrammableFilter(Input=points_proxy, OutputDataSetType="vtkUnstructuredGrid",
                                Script=PROGRAMMABLE_SCRIPT.replace("CELLS", str(cells)))
     mesh = unstructured_to_mesh(updated(proxy))
-    same_mesh("Programmable Filter = bitemesh.mesh_from_points", mesh, bitemesh.mesh_from_points(xyz, cells=cells))
+    same_mesh("Programmable Filter = bitemesh.mesh", mesh, bitemesh.mesh(xyz, cells=cells).mesh)
 
 
 @guarded("label map")

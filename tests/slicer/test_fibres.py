@@ -15,7 +15,7 @@ Skipped where slicer-core is absent (the main environment).
 from __future__ import annotations
 
 import bitemesh.core.sources.contours.run
-import bitemesh.core.fem.fibres
+import bitemesh.meshing
 import numpy as np
 import pytest
 from bitemesh import Cancelled, InvalidInputError
@@ -53,7 +53,7 @@ def last_heart():
 @pytest.fixture
 def heart(scene, logic, monkeypatch):
     """The demo heart's labelled points in the scene, and the core's entry point memoised (see the docstring)."""
-    monkeypatch.setattr(bitemesh.core.sources.contours.run, "run_labelled", memoised_run_labelled)
+    monkeypatch.setattr(bitemesh.meshing, "run_labelled", memoised_run_labelled)
     return logic.loadLabelledPoints(GPFILE, scene=scene)
 
 
@@ -141,7 +141,7 @@ def test_fibres_off_give_no_fibre_arrays_and_a_rerun_drops_them(scene, logic, he
     def never(*arguments, **keywords):
         raise AssertionError("with_fibres called with fibres off")
 
-    monkeypatch.setattr(bitemesh.core.fem.fibres, "with_fibres", never)
+    monkeypatch.setattr(bitemesh.meshing, "with_fibres", never)
     result = logic.process(heart, model, **HEART)   # fibres off: the default
     assert result.mesh.cells.shape[0] == model.GetMesh().GetNumberOfCells() and "fibres" not in result.seconds
     assert [name for name in FIBRE_ARRAYS if cell_array(model, name) is not None] == []
@@ -201,7 +201,7 @@ def test_a_mesh_without_the_hearts_surfaces_is_refused_and_the_output_left_as_it
     node, model = make_input(scene), output_model(scene)
     logic.process(node, model, cells=2000, optimize=0)
     before = snapshot(scene, model)
-    with pytest.raises(InvalidInputError, match=r"^Add fibres \(the Fibres option\): fibres need the boundary "
+    with pytest.raises(InvalidInputError, match=r"^fibres \(--fibres\): fibres need the boundary "
                        r"surfaces EPI, LV_ENDO, RV_ENDO, BASE tagged on the mesh, and it has no EPI, LV_ENDO, "
                        r"RV_ENDO, BASE \(its facet tags: BOUNDARY_1\); mesh labelled biventricular contours"):
         logic.process(node, model, cells=2000, optimize=0, fibres=1)
@@ -212,7 +212,7 @@ def test_bad_angles_are_refused_before_meshing(scene, logic, monkeypatch):
     def stand_in(*arguments, **keywords):
         raise AssertionError("meshing started")
 
-    monkeypatch.setattr(bitemesh.core.sources.contours.run, "run_labelled", stand_in)
+    monkeypatch.setattr(bitemesh.meshing, "run_labelled", stand_in)
     node, model = logic.loadLabelledPoints(GPFILE, scene=scene), output_model(scene)
     with pytest.raises(InvalidInputError, match=r"alpha_epi must be in \[-90, 90\], got -91"):
         logic.process(node, model, fibres=1, alpha_epi=-91.0)

@@ -167,8 +167,8 @@ def test_keywords_split_by_dataclass_and_unknown_names_are_refused():
         lib_parameters.splitParameters({"minDihedral": 25.0}, "mpu")
     assert lib_parameters.coreParameters({"radius": -1.0, "gridSpacing": 0.5, "method": "rbf", "cells": 500}) == \
         {"radius": None, "grid_spacing": 0.5, "method": "rbf", "cells": 500}
-    # a scene saved when 0 meant "automatic" (where 0 is outside the range) still means it
-    assert lib_parameters.coreParameters({"radius": 0.0, "errorBound": 0.0}) == {"radius": None, "error_bound": None}
+    # 0 is a value, refused by the core where it is outside the range (never "automatic": that is -1)
+    assert lib_parameters.coreParameters({"radius": 0.0, "errorBound": 0.0}) == {"radius": 0.0, "error_bound": 0.0}
     assert lib_parameters.coreParameters({"minWall": -1.0, "margin": 0.0, "minDihedral": 25.0, "iterations": 0}) == \
         {"min_wall": None, "margin": 0.0, "min_dihedral": 25.0, "iterations": 0}
     assert lib_parameters.coreParameters({"fibres": True, "alphaEndo": 60.0, "alphaEpi": -60.0, "betaEndo": 0.0,

@@ -1,16 +1,16 @@
 """BiteMeshLogic hands every panel parameter to bitemesh: the optimizer's bounds (only when the optimizer is on), the
 labelled contours' walls and plausibility switch, the margin, the handles and the fidelity bounds reach the core's
 entry point for points, labelled contours and segments; a tighter optimizer bound changes the mesh as it changes
-bitemesh.run's; unknown names and bad bounds are refused before anything runs.
+the core's; unknown names and bad bounds are refused before anything runs.
 
 Run: cd /work/main && PYTHONPATH=filters .slicer-venv/bin/python -m pytest tests/slicer -q -p no:cacheprovider
 Skipped where slicer-core is absent (the main environment).
 """
 from __future__ import annotations
 
+from bitemesh.core.sources.points import run as points_run
 import bitemesh
-import bitemesh.core.sources.contours.run
-import bitemesh.labelmap
+import bitemesh.meshing
 import numpy as np
 import pytest
 from bitemesh import InvalidInputError
@@ -37,26 +37,27 @@ def stand_in(*arguments, **keywords):
 
 
 def points_input(scene, monkeypatch, logic):
-    monkeypatch.setattr(bitemesh, "run", stand_in)
+    monkeypatch.setattr(bitemesh.meshing, "run", stand_in)
     return point_list(scene, sphere_points(200))
 
 
 def labelled_input(scene, monkeypatch, logic):
-    monkeypatch.setattr(bitemesh.core.sources.contours.run, "run_labelled", stand_in)
+    monkeypatch.setattr(bitemesh.meshing, "run_labelled", stand_in)
     return logic.loadLabelledPoints(GPFILE, scene=scene)
 
 
 def segment_input(scene, monkeypatch, logic):
-    monkeypatch.setattr(bitemesh.labelmap, "mesh_label_grid", stand_in)
+    monkeypatch.setattr(bitemesh.meshing, "mesh_label_grid", stand_in)
     return ball_segmentation(scene, np.eye(3))[0]
 
 
 def reached(logic, node, scene, **parameters):
-    """The arguments the logic hands the core's entry point, by name (points: bitemesh.run's positional ones)."""
+    """The arguments the front door hands the core's entry point, by name (points and normals or labels: the
+    positional ones)."""
     with pytest.raises(Reached) as caught:
         logic.process(node, output_model(scene), **parameters)
     arguments, keywords = caught.value.arguments, caught.value.keywords
-    names = ("points", "normals", "implicit", "biting", "spurious", "progress") if len(arguments) == 6 else ()
+    names = ("points", "normals or labels") if len(arguments) == 2 else ()
     return {**dict(zip(names, arguments)), **keywords}
 
 
@@ -92,7 +93,7 @@ def test_a_tighter_optimizer_bound_changes_the_mesh_as_in_bitemesh_run(scene, lo
     tight, default = output_model(scene), output_model(scene)
     logic.process(point_list(scene, points), tight, radius=5.0, optimize=1, min_dihedral=40.0)
     logic.process(point_list(scene, points), default, radius=5.0, optimize=1)
-    expected = bitemesh.run(points, None, ImplicitParameters(), BitingParameters(radius=5.0), SpuriousParameters(),
+    expected = points_run(points, None, ImplicitParameters(), BitingParameters(radius=5.0), SpuriousParameters(),
                             optimize=OptimizeParameters(optimize=1, min_dihedral=40.0)).mesh
     mesh = mesh_of(tight)
     np.testing.assert_array_equal(mesh.cells, expected.cells)

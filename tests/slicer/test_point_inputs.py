@@ -6,7 +6,7 @@ Skipped where slicer-core is absent (the main environment).
 """
 from __future__ import annotations
 
-import bitemesh
+from bitemesh.core.sources.points import run as points_run
 import numpy as np
 import pytest
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, QualityParameters, SpuriousParameters
@@ -43,7 +43,7 @@ def test_point_list_mesh_equals_bitemesh_run(scene, logic):
     model = output_model(scene)
     parameters = {"radius": 4.0, "grid_spacing": 1.0, "threshold": 0.4, "seed": 3}
     logic.process(point_list(scene, points), model, **parameters)
-    expected = bitemesh.run(points, None, ImplicitParameters(grid_spacing=1.0), BitingParameters(radius=4.0, seed=3),
+    expected = points_run(points, None, ImplicitParameters(grid_spacing=1.0), BitingParameters(radius=4.0, seed=3),
                             SpuriousParameters(threshold=0.4)).mesh
     mesh = mesh_of(model)
     assert mesh.points.shape == expected.points.shape and mesh.cells.shape == expected.cells.shape

@@ -18,6 +18,7 @@ from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
 from ..core.errors import BitemeshError, BitemeshWarning, Cancelled
 from ..core.parameters import AUTOMATIC, is_optional
+from ..options import Options
 
 
 def camel(name: str) -> str:
@@ -84,6 +85,11 @@ class BitemeshAlgorithm(VTKPythonAlgorithmBase):
         """The checked parameter dataclass from the current values, its other fields at their defaults (raises
         InvalidInputError naming a bad one)."""
         return dataclass(**{f.name: self._values[f.name] for f in fields(dataclass) if f.name in self._values})
+
+    def options(self) -> Options:
+        """The filter's parameters as the front door's options (:func:`bitemesh.mesh`), the others at their
+        defaults."""
+        return Options(**self._values)
 
     def progress(self, fraction: float, message: str = "") -> None:
         """The core's progress callback: VTK progress, and an abort request becomes Cancelled."""

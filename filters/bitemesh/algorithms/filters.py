@@ -24,47 +24,14 @@ from ..core.optimize.optimizer import optimize_mesh
 from ..core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, LabelledParameters,
                                LabelMapParameters, OptimizeParameters, QualityParameters,
                                SpuriousParameters)
-from ..core.sources.points import points_source, run
 from ..core.steps.spine import radius_on_grid
 from ..core.progress import sub_progress
 from ..core.mesh.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
+from ..meshing import mesh as mesh_input, source as input_source
 from ..convert import (add_field_values, attach_samples, attached_samples, field_array, grid_to_image, image_to_grid,
-                       mesh_to_unstructured, nodes_to_polydata, point_array, point_coordinates, point_labels,
-                       tags_to_polydata, unstructured_to_mesh)
-
-
-def scattered_points(dataset):
-    """(points, normals or None) of a vtkPointSet: the ``Normals`` point array, or the point normals attribute.
-
-    Points with z = 0 everywhere are 2D (a contour in the xy plane): both come back with two columns.
-    """
-    if not isinstance(dataset, vtkPointSet) or dataset.GetNumberOfPoints() == 0:
-        raise InvalidInputError("the input holds no points; connect scattered points (vtkPolyData) or a label map")
-    normals = dataset.GetPointData().GetNormals()
-    normals = point_array(dataset, "Normals") if normals is None else numpy_support.vtk_to_numpy(normals).copy()
-    points = planar_as_2d(point_coordinates(dataset))
-    if normals is not None and normals.ndim == 2 and normals.shape[1] > points.shape[1]:
-        normals = normals[:, :points.shape[1]]
-    return points, normals
-
-
-def labelled_contours(dataset):
-    """(points (n, 3), labels (n,), slice ids (n,) or None) of a point set with a ``Label`` point array, else
-    None."""
-    if not isinstance(dataset, vtkPointSet) or dataset.GetNumberOfPoints() == 0:
-        return None
-    labels, slices = point_labels(dataset)
-    return None if labels is None else (point_coordinates(dataset), labels, slices)
-
-
-def fit_options(parameters: LabelledParameters) -> dict:
-    """The keywords of :func:`~bitemesh.core.sources.contours.run.labelled_source` that change the fit (all but the
-    thinnest wall, applied after it, and the plausibility switch, which PointsToImplicit has not)."""
-    from ..core.sources.contours.run import labelled_keywords
-    keywords = labelled_keywords(parameters)
-    del keywords["min_wall"], keywords["allow_implausible"]
-    return keywords
+                       mesh_to_unstructured, nodes_to_polydata, planar_as_2d, point_coordinates, tags_to_polydata,
+                       unstructured_to_mesh)
 
 
 #: the parameters of BitingParameters that lay out the grid I (R); the others are the BitingSampler's alone.
@@ -95,49 +62,18 @@ class PointsToImplicit(BitemeshAlgorithm):
         self._grid = None    # ((source key, grid options), (grid I in user coordinates, R)) of the last sampling
 
     def source_of(self, data):
-        """The :class:`~bitemesh.core.sources.source.Source` of the input, fitted once per input and fit options."""
-        contours = None if isinstance(data, vtkImageData) else labelled_contours(data)
-        if isinstance(data, vtkImageData):
-            options = (("label", self.parameters(LabelMapParameters).label),)
-        elif contours is not None:
-            options = (("labelled", *fit_options(self.parameters(LabelledParameters)).items()),)
-        else:
-            implicit = self.parameters(ImplicitParameters)
-            options = (("points", implicit.method, implicit.error_bound, implicit.outliers),)
-        key = (data.GetMTime(), options)
+        """The :class:`~bitemesh.core.sources.source.Source` of the input (:func:`bitemesh.meshing.source`), fitted
+        once per input and fit options."""
+        options = self.options()
+        fit = replace(options, radius=None, cells=None, grid_spacing=None, margin=None, min_wall=None)
+        key = (data.GetMTime(), fit)
         if self._source is None or self._source[0] != key:
-            if isinstance(data, vtkImageData):
-                source = self.label_source(data)
-            elif contours is not None:
-                from ..core.sources.contours.run import labelled_source
-                points, labels, slices = contours
-                source = labelled_source(points, labels, slices=slices, progress=sub_progress(self.progress, 0, 0.4),
-                                         **fit_options(self.parameters(LabelledParameters)))
-            else:
-                points, normals = scattered_points(data)
-                source = points_source(points, normals, self.parameters(ImplicitParameters),
-                                       sub_progress(self.progress, 0.0, 0.4))
-            self._source = (key, source)
-        source = self._source[1]
-        min_wall = None if contours is None else self.parameters(LabelledParameters).min_wall
-        if min_wall is not None:   # a given thinnest wall instead of one that follows R: no new fit
-            source = replace(source, function=source.function.with_min_wall(min_wall), at_radius=None)
-        return source
-
-    def label_source(self, image: vtkImageData):
-        """The label map's Source: its signed distance on its voxels, the voxel faces as samples."""
-        from ..labelmap import label_grid_source
-        dims = image.GetDimensions()
-        dim = 2 if dims[2] == 1 else 3
-        scalars = image.GetPointData().GetScalars()
-        if scalars is None:
-            raise InvalidInputError("the label map has no point scalars (the labels)")
-        labels = numpy_support.vtk_to_numpy(scalars).reshape(dims, order="F").reshape(dims[:dim])
-        matrix = np.eye(dim + 1)
-        matrix[:dim, :dim] = np.diag(image.GetSpacing()[:dim])
-        matrix[:dim, dim] = image.GetOrigin()[:dim]
-        return label_grid_source(labels, matrix, labels=self.parameters(LabelMapParameters).label,
-                                 implicit=self.parameters(ImplicitParameters))
+            self._source = (key, input_source(data, fit, sub_progress(self.progress, 0.0, 0.4)))
+        found = self._source[1]
+        if options.min_wall is not None and hasattr(found.function, "with_min_wall"):
+            # a given thinnest wall instead of one that follows R: no new fit
+            found = replace(found, function=found.function.with_min_wall(options.min_wall), at_radius=None)
+        return found
 
     def grid_of(self, data):
         """(f on the grid I in user coordinates, R in user units, the Source), sampled once per source and grid
@@ -328,9 +264,9 @@ class MeshOptimizer(MeshWithImplicitFilter):
 class MeshFromPoints(BitemeshAlgorithm):
     """The whole method in one filter: scattered points -> a valid mesh with its quality arrays and its tags.
 
-    As ``bitemesh.run``: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by default;
-    the MeshOptimizer runs unless ``SetOptimize(0)``.  Points with a ``Label`` point array are labelled contours,
-    meshed as ``bitemesh.core.labelled.run_labelled`` does (``Domain``, ``BasePlane``, ``MinWall``).
+    As :func:`bitemesh.mesh`: R is ``Radius`` or chosen for about ``Cells`` cells, the grid spacing R / 4 by
+    default; the MeshOptimizer runs unless ``SetOptimize(0)``.  Points with a ``Label`` point array are labelled
+    contours, meshed as the domain their surfaces bound (``Domain``, ``BasePlane``, ``MinWall``).
 
     Port 0: the mesh (vtkUnstructuredGrid), with the cell array ``Region``.  Port 1: its tagged boundary
     (vtkPolyData sharing every point of the mesh, point id = node id; triangles, lines in 2D; cell array
@@ -347,29 +283,13 @@ class MeshFromPoints(BitemeshAlgorithm):
         return 1
 
     def execute(self, request, inInfo, outInfo):
-        source = vtkPointSet.GetData(inInfo[0])
-        steps = {"implicit": self.parameters(ImplicitParameters), "biting": self.parameters(BitingParameters),
-                 "spurious": self.parameters(SpuriousParameters), "optimize": self.parameters(OptimizeParameters),
-                 "fidelity": self.parameters(FidelityParameters), "progress": self.progress}
-        contours = labelled_contours(source)
-        if contours is None:
-            result = run(*scattered_points(source), **steps)
-        else:
-            from ..core.sources.contours.run import labelled_keywords, run_labelled
-            points, labels, slices = contours
-            result = run_labelled(points, labels, slices=slices,
-                                  **labelled_keywords(self.parameters(LabelledParameters)), **steps)
+        result = mesh_input(vtkPointSet.GetData(inInfo[0]), self.options(), progress=self.progress)
         output = vtkUnstructuredGrid.GetData(outInfo, 0)
         mesh_to_unstructured(result.mesh, output)
         output.GetFieldData().AddArray(field_array("Radius", [result.radius]))
         if result.fidelity is not None:
             add_field_values(output, asdict(result.fidelity), "Fidelity")
         tags_to_polydata(result.mesh, vtkPolyData.GetData(outInfo, 1))
-
-
-def planar_as_2d(points: np.ndarray) -> np.ndarray:
-    """(n, 2) when every z is 0 (a 2D point set, as VTK stores it), else the (n, 3) points unchanged."""
-    return points[:, :2] if len(points) and np.all(points[:, 2] == 0) else points
 
 
 def node_coordinates(dataset) -> np.ndarray:

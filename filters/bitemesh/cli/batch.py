@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import sys
 
-from ..cohorts.meshing import OPTION_NAMES
 from ..core.errors import MeshingError
 from ..io import MESH_EXTENSIONS
-from .mesh import add_mesh_options
+from .mesh import add_mesh_options, options_of
 from .options import ProgressBar
 
 
@@ -52,7 +51,7 @@ def run(args) -> None:
 
     bar = ProgressBar()
     try:
-        rows = batch(args.inputs, {name: getattr(args, name) for name in OPTION_NAMES}, output_dir=args.output_dir,
+        rows = batch(args.inputs, options_of(args).as_dict(), output_dir=args.output_dir,
                      workers=args.workers, worker_memory=args.worker_memory, retries=args.retries,
                      scheduler=args.scheduler, extension=args.format, progress=bar, on_client=connected)
     except KeyboardInterrupt:

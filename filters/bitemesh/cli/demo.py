@@ -11,13 +11,12 @@ from dataclasses import fields
 from importlib import resources
 
 from ..core.errors import InvalidInputError
-from ..core.parameters import (DEFAULT_CELLS, BitingParameters, ImplicitParameters, OptimizeParameters,
-                               SpuriousParameters)
-from ..core.sources.points import run as run_pipeline
+from ..core.fem.fibres import FibreParameters
+from ..core.parameters import DEFAULT_CELLS, BitingParameters, OptimizeParameters
 from ..core.shapes import die, sample_surface
-from ..io import read_labelled_points
-from .options import (ProgressBar, add_fibre_options, add_fibres, add_parameter_options, check_output, describe,
-                      fibre_parameters, parameters_from_args, write_and_report)
+from ..meshing import Samples, check_output, mesh
+from ..options import Options
+from .options import ProgressBar, add_fibre_options, add_parameter_options, describe, write_and_report
 
 #: cells asked for the heart: the cells-per-volume estimate undershoots by about 12 % on thin walls.
 HEART_CELLS = 155000
@@ -41,38 +40,33 @@ def run(args) -> None:
     if args.cells is not None:
         BitingParameters(cells=args.cells)   # its range, refused naming cells before the heart's scaling
     args.output = args.output or f"{args.dataset}.vtu"
-    check_output(args.output)
-    fibres = fibre_parameters(args)
-    if fibres and args.dataset != "heart":
+    heart = args.dataset == "heart"
+    cells = (round(args.cells * HEART_CELLS / 136000) if args.cells else HEART_CELLS) if heart else args.cells
+    options = Options(cells=cells, **{item.name: getattr(args, item.name)
+                                      for cls in (OptimizeParameters, FibreParameters) for item in fields(cls)})
+    check_output(args.output, options)
+    if options.fibres and not heart:
         raise InvalidInputError("--fibres: the die has no myocardium; the heart has: bitemesh demo heart --fibres")
     bar = ProgressBar()
     try:
-        result, note = (mesh_heart if args.dataset == "heart" else mesh_die)(args, bar)
+        result, note = (mesh_heart if heart else mesh_die)(options, bar)
     finally:
         bar.close()
-    write_and_report(add_fibres(result, fibres), args.output, note)
+    write_and_report(result, args.output, note)
 
 
-def mesh_die(args, progress):
+def mesh_die(options: Options, progress):
     shape = die()
     points, normals = sample_surface(shape, spacing=0.04, noise=0.002, seed=1)
     print(f"die: {len(points)} scattered points with normals, noise sd 0.002 (die size 2)")
-    biting = BitingParameters(cells=args.cells) if args.cells else BitingParameters()
-    result = run_pipeline(points, normals, ImplicitParameters(), biting, progress=progress,
-                          optimize=parameters_from_args(args, (OptimizeParameters,))[0])
+    result = mesh(Samples(points, normals), options, progress=progress)
     volume_error = result.mesh.cell_data["Volume"].sum() / shape.measure - 1
     return result, f", volume {volume_error:+.2%} of the exact die"
 
 
-def mesh_heart(args, progress):
-    from ..core.sources.contours.run import run_labelled
+def mesh_heart(options: Options, progress):
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
+    print("heart: guide points on short- and long-axis cardiac MR contours (biv-me patient1, Apache-2.0), mm")
     with resources.as_file(source) as path:
-        points, labels, slices = read_labelled_points(path)
-    print(f"heart: {len(points)} guide points on short- and long-axis cardiac MR contours (biv-me patient1, "
-          "Apache-2.0), mm")
-    cells = round(args.cells * HEART_CELLS / 136000) if args.cells else HEART_CELLS
-    result = run_labelled(points, labels, slices=slices, implicit=ImplicitParameters(),
-                          biting=BitingParameters(cells=cells), spurious=SpuriousParameters(),
-                          optimize=parameters_from_args(args, (OptimizeParameters,))[0], progress=progress)
+        result = mesh(path, options, progress=progress)
     return result, f", myocardium {result.mesh.cell_data['Volume'].sum() / 1000:.1f} ml"

@@ -3,11 +3,10 @@ from __future__ import annotations
 
 from dataclasses import fields
 
-from ..cohorts.meshing import OPTION_NAMES, mesh_input
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
-from ..core.sources.points import run as run_pipeline
-from .options import (ProgressBar, add_fibre_options, add_fibres, add_parameter_options, check_output, describe,
-                      fibre_parameters, write_and_report)
+from ..meshing import check_output, mesh
+from ..options import OPTION_NAMES, Options
+from .options import ProgressBar, add_fibre_options, add_parameter_options, describe, write_and_report
 
 
 def add_parser(subcommands) -> None:
@@ -17,10 +16,10 @@ def add_parser(subcommands) -> None:
                     ".vtp/.vtk/.vtu/.ply/.obj/.stl (points, and normals where present; a volume mesh's boundary); "
                     "or labelled contour points (a biv-me GPFile, a table with a label column, a VTP with a Label "
                     "array), meshed as the domain their surfaces bound (--domain); or the labels of a label map "
-                    "(.nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, meshed in its physical LPS space). Writes .vtu/.vtk, .msh "
-                    "(gmsh), .inp (Abaqus) or .mesh (MEDIT). --fibres adds the myocardial fibres of a biventricular "
-                    "heart (labelled contours) as cell vectors (.vtu/.vtk).")
-    parser.add_argument("input", help="the scattered points, or a label map")
+                    "(.nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, meshed in its physical LPS space). Writes .vtu/.vtk, "
+                    ".msh (gmsh), .xdmf (XDMF + HDF5, for dolfinx), .inp (Abaqus) or .mesh (MEDIT). --fibres adds "
+                    "the myocardial fibres of a biventricular heart (labelled contours) as cell vectors (.vtu/.vtk).")
+    parser.add_argument("input", help="the scattered points, labelled contours or a label map")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_mesh_options(parser)
     parser.set_defaults(run=run)
@@ -41,13 +40,17 @@ def add_mesh_options(parser) -> None:
     add_fibre_options(parser)
 
 
+def options_of(args) -> Options:
+    """The Options of parsed ``bitemesh mesh`` flags (checked by the step dataclasses)."""
+    return Options(**{name: getattr(args, name) for name in OPTION_NAMES})
+
+
 def run(args) -> None:
-    check_output(args.output)
-    fibres = fibre_parameters(args)
+    options = options_of(args)
+    check_output(args.output, options)
     bar = ProgressBar()
     try:
-        result = mesh_input(args.input, {name: getattr(args, name) for name in OPTION_NAMES}, progress=bar,
-                            mesh_points=run_pipeline)
+        result = mesh(args.input, options, progress=bar)
     finally:
         bar.close()
-    write_and_report(add_fibres(result, fibres), args.output)
+    write_and_report(result, args.output)

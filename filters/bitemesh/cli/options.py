@@ -3,15 +3,12 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import fields, replace
-from pathlib import Path
+from dataclasses import fields
 
-from ..cohorts.meshing import fibres_asked
-from ..core.errors import InvalidInputError
-from ..core.fem.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
-from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
+from ..core.fem.fibres import FIBRE_ARRAYS, FibreParameters
 from ..core.mesh.quality import quality_summary
-from ..io import MESH_EXTENSIONS, write_mesh
+from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
+from ..meshing import write
 
 
 def describe(metadata: dict, default) -> str:
@@ -54,28 +51,6 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
 def add_fibre_options(parser) -> None:
     """``--fibres`` and the angles of the rule (FibreParameters)."""
     add_parameter_options(parser, (FibreParameters,))
-
-
-def fibre_parameters(args):
-    """The FibreParameters of ``--fibres`` and the angles, checked (ranges) before any work, or None without
-    ``--fibres``; an output that would drop the fibres is refused."""
-    return fibres_asked({item.name: getattr(args, item.name) for item in fields(FibreParameters)}, args.output)
-
-
-def add_fibres(result, parameters):
-    """``result`` with its mesh carrying the rule-based fibres (:func:`bitemesh.core.fem.fibres.with_fibres`) and their
-    time among the steps'; ``result`` itself when ``parameters`` is None (no ``--fibres``)."""
-    if parameters is None:
-        return result
-    bar = ProgressBar()
-    try:
-        mesh, seconds = with_fibres(result.mesh, parameters, bar)
-    except InvalidInputError as error:
-        raise InvalidInputError(f"--fibres: {error}") from None
-    finally:
-        bar.close()
-    print(f"fibres: cell arrays {', '.join(FIBRE_ARRAYS)} (Bayer et al. 2012)")
-    return replace(result, mesh=mesh, seconds={**result.seconds, "fibres": seconds})
 
 
 def or_automatic(kind):
@@ -135,8 +110,10 @@ class ProgressBar:
 def write_and_report(result, output, note: str = "") -> None:
     """Write the mesh of a pipeline result, then print R, the quality summary, the fidelity and the time per
     step."""
-    write_mesh(result.mesh, output)
+    write(result, output)
     print(f"wrote {output} (radius R = {result.radius:.4g}{note})")
+    if "fibres" in result.seconds:
+        print(f"fibres: cell arrays {', '.join(FIBRE_ARRAYS)} (Bayer et al. 2012)")
     print(quality_summary(result.mesh))
     if result.fidelity is not None:
         print(f"fidelity: {result.fidelity.describe()}")
@@ -151,12 +128,3 @@ def print_timings(seconds: dict, stream=None) -> None:
     for name, value in seconds.items():
         print(f"  {name:<{width}}  {value:7.2f} s", file=stream)
     print(f"  {'total':<{width}}  {sum(seconds.values()):7.2f} s", file=stream)
-
-
-def check_output(path) -> None:
-    """Refuse, before any work, an output path whose extension bitemesh cannot write."""
-    if not str(path).lower().endswith(MESH_EXTENSIONS):
-        raise InvalidInputError(f"output {path} has an unsupported extension; use one of {', '.join(MESH_EXTENSIONS)}")
-    directory = Path(path).parent
-    if not directory.is_dir():
-        raise InvalidInputError(f"output {path}: the directory '{directory}' does not exist")

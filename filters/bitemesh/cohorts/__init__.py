@@ -1,6 +1,6 @@
-"""Cohorts: many cases meshed on dask.distributed, each as ``bitemesh mesh`` meshes it (``bitemesh batch``).
+"""Cohorts: many cases meshed on dask.distributed, each by :func:`bitemesh.mesh` as ``bitemesh mesh`` meshes it
+(``bitemesh batch``).
 
-- :mod:`.meshing`: one case, the options named like the ``bitemesh mesh`` flags (``bitemesh mesh`` uses it too);
 - :mod:`.cases`: the cases from files, folders, glob patterns or a manifest CSV; their hash and records;
 - :mod:`.run`: the Dask driver, :func:`batch`;
 - :mod:`.report`: summary.csv and report.html.

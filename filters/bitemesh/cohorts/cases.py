@@ -11,11 +11,11 @@ from pathlib import Path
 
 from .. import __version__
 from ..core.errors import InvalidInputError
-from ..io import LABEL_MAP_EXTENSIONS, LABELLED_EXTENSIONS, MESH_EXTENSIONS, POINT_EXTENSIONS, atomic_output
-from .meshing import check_names, parse_option, resolved
+from ..io import MESH_EXTENSIONS, atomic_output
+from ..meshing import INPUT_EXTENSIONS
+from ..options import as_options, check_names, parse_option
 
 #: the files a folder or a glob pattern gives as cases
-INPUT_EXTENSIONS = tuple(sorted(set(POINT_EXTENSIONS) | set(LABELLED_EXTENSIONS) | set(LABEL_MAP_EXTENSIONS)))
 #: the manifest's columns that are no option: the input file and the output's name
 MANIFEST_COLUMNS = ("input", "output")
 #: the folder of OUTDIR holding each finished case's record (hash, summary row) and picture
@@ -119,7 +119,7 @@ def read_manifest(path: Path, extension: str = ".vtu") -> list:
         given = {option: parse_option(option, cells[option], f"{where}, column {option!r}") for option in options
                  if cells[option].strip()}
         try:
-            resolved(given)
+            as_options(given)
         except InvalidInputError as error:
             raise InvalidInputError(f"{where}: {error}") from None
         cases.append(Case(name, source, given, own))
@@ -136,7 +136,7 @@ def case_hash(case: Case, options: dict) -> str:
     """sha256 of the input file, the config file if any, every option's value (defaults filled) and the bitemesh
     version: the same hash means the same mesh."""
     digest = hashlib.sha256(f"bitemesh {__version__}\n".encode())
-    full = resolved({**options, **case.options})
+    full = as_options({**options, **case.options}).as_dict()
     digest.update(json.dumps(full, sort_keys=True, default=str).encode())
     digest.update(case.extension.encode())
     file_digest(case.input, digest)

@@ -13,16 +13,15 @@ import os
 import secrets
 import time
 import warnings
-from dataclasses import replace
 from pathlib import Path
 
 from ..core.errors import BitemeshError, InvalidInputError
-from ..core.fem.fibres import with_fibres
-from ..core.progress import ProgressCallback
 from ..core.mesh.quality import quality_summary
-from ..io import remove_stale_partials, write_mesh
+from ..core.progress import ProgressCallback
+from ..io import remove_stale_partials
+from ..meshing import check_output, mesh, write
+from ..options import as_options
 from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
-from .meshing import fibres_asked, mesh_input, resolved
 from .report import picture_path, render_cut, save_picture, write_report, write_summary
 
 #: the columns of summary.csv (R, fidelity and volume in input units; seconds of wall clock on the worker)
@@ -84,12 +83,8 @@ def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            full = {**options, **case.options}
-            result = mesh_input(case.input, full)
-            fibres = fibres_asked(full, case.output_name)
-            if fibres is not None:   # as bitemesh mesh --fibres adds them
-                result = replace(result, mesh=with_fibres(result.mesh, fibres)[0])
-            write_mesh(result.mesh, output_dir / case.output_name)
+            result = mesh(case.input, {**options, **case.options})
+            write(result, output_dir / case.output_name)
     except Exception as error:   # noqa: BLE001 (one case's failure, whatever it is, is its row)
         message = str(error) if isinstance(error, BitemeshError) else f"{type(error).__name__}: {error}"
         return row_of(case, "failed", message, seconds=round(time.perf_counter() - start, 3))
@@ -217,7 +212,7 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
     check_cluster(client, scheduler, workers, worker_memory, retries)
     cases = find_cases(cases, extension)
     options = dict(options or {})
-    resolved(options)
+    as_options(options)
     if not cases:
         raise InvalidInputError("no cases: the inputs hold no file bitemesh can mesh")
     output_dir = Path(output_dir)
@@ -225,7 +220,7 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
     digests, rows = {}, {}
     for case in cases:
         try:
-            fibres_asked(resolved({**options, **case.options}), case.output_name)   # refused before any work
+            check_output(output_dir / case.output_name, {**options, **case.options})   # refused before any work
             digests[case.name] = case_hash(case, options)
         except OSError as error:
             rows[case.name] = row_of(case, "failed", f"cannot read '{case.input}': {error.strerror or error}")

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import asdict, fields
 
 import numpy as np
 
@@ -49,6 +50,13 @@ logger = logging.getLogger("BiteMesh")
 #: the MRML classes process() takes as input.
 INPUT_TYPES = ("vtkMRMLMarkupsFiducialNode", "vtkMRMLMarkupsClosedCurveNode", "vtkMRMLModelNode",
                "vtkMRMLSegmentationNode")
+
+
+def withoutContourOptions(options):
+    """``options`` with the panel's "Labelled contours" section at its defaults: the panel hands every value to
+    every input, and that section applies to labelled contours only."""
+    from bitemesh.core.parameters import LabelledParameters
+    return options.replace(**{item.name: item.default for item in fields(LabelledParameters)})
 
 
 class BiteMeshLogic(ScriptedLoadableModuleLogic):
@@ -120,7 +128,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         """
         bitemesh = requireBitemesh()
         from bitemesh.core.errors import Cancelled, InvalidInputError
-        from bitemesh.core.sources.contours.run import labelled_keywords, run_labelled
+        from bitemesh.core.mesh.quality import quality_summary
         from bitemesh.core.progress import report, sub_progress
 
         clock = time.perf_counter()
@@ -128,13 +136,11 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         self._checkOutput(outputModelNode, nodes)
         contours = all(node.IsA("vtkMRMLMarkupsClosedCurveNode") for node in nodes)
         settings = coreSettings(parameters, method="rbf" if contours else "mpu")
-        implicit, biting = settings["ImplicitParameters"], settings["BitingParameters"]
-        spurious, quality = settings["SpuriousParameters"], settings["QualityParameters"]
-        fidelity, labelled = settings["FidelityParameters"], settings["LabelledParameters"]
-        optimize = settings["OptimizeParameters"]   # the core runs the MeshOptimizer when optimize.optimize is 1
-        fibres = settings["FibreParameters"] if settings["FibreParameters"].fibres else None
-        meshed = 0.85 if fibres is not None else 0.95   # the progress at the end of meshing
-        domain = (labelled.domain or "").strip()   # "" (or None) stands for the default domain
+        options = bitemesh.Options(**{name: value for dataclassName, values in settings.items()
+                                      if dataclassName != "QualityParameters"
+                                      for name, value in asdict(values).items()})
+        fibres = settings["FibreParameters"] if options.fibres else None
+        domain = (options.domain or "").strip()   # "" (or None) stands for the default domain
 
         report(progress, 0.0, "reading the input")
         if any(node.IsA("vtkMRMLSegmentationNode") for node in nodes):
@@ -143,36 +149,28 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             if segmentId is not None and not isinstance(segmentId, str):
                 raise InvalidInputError(f"segmentId must be a segment ID string, got {segmentId!r}")
             if domain:
-                raise InvalidInputError(f"domain: {labelled.domain!r} combines labelled contours, and a segmentation "
+                raise InvalidInputError(f"domain: {options.domain!r} combines labelled contours, and a segmentation "
                                         "has none; clear domain to mesh the segment")
-            mesh, result = meshSegment(nodes[0], segmentId, implicit, biting, spurious, optimize, fidelity,
-                                       sub_progress(progress, 0.0, meshed))
-        elif domain or any(node.IsA("vtkMRMLModelNode") and modelLabels(node)[0] is not None for node in nodes):
-            points, labels, slices = labelledPoints(nodes)
-            report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")
-            result = run_labelled(points, labels, slices=slices, **labelled_keywords(labelled), implicit=implicit,
-                                  biting=biting, spurious=spurious, optimize=optimize, fidelity=fidelity,
-                                  progress=sub_progress(progress, 0.02, meshed))
-            mesh = result.mesh
+            mesh, result = meshSegment(nodes[0], segmentId, withoutContourOptions(options),
+                                       sub_progress(progress, 0.0, 0.95))
         else:
-            points, normals, slices = scatteredPoints(nodes, implicit.method)
-            report(progress, 0.02, f"meshing {len(points)} points")
-            result = bitemesh.run(points, normals, implicit, biting, spurious, sub_progress(progress, 0.02, meshed),
-                                  optimize=optimize, fidelity=fidelity, slices=slices)
+            if domain or any(node.IsA("vtkMRMLModelNode") and modelLabels(node)[0] is not None for node in nodes):
+                points, labels, slices = labelledPoints(nodes)
+                samples = bitemesh.Samples(points, labels=labels, slices=slices)
+                report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")
+            else:
+                points, normals, slices = scatteredPoints(nodes, options.method)
+                samples = bitemesh.Samples(points, normals, slices=slices)
+                options = withoutContourOptions(options)
+                report(progress, 0.02, f"meshing {len(points)} points")
+            result = bitemesh.mesh(samples, options, progress=sub_progress(progress, 0.02, 0.95))
             mesh = result.mesh
         radius, seconds = result.radius, dict(result.seconds)
-        if fibres is not None:   # before anything is written: a refusal leaves the output as it was
-            from bitemesh.core.fem.fibres import with_fibres
-            report(progress, meshed, "adding the fibres")
-            try:
-                mesh, seconds["fibres"] = with_fibres(mesh, fibres, sub_progress(progress, meshed, 0.95))
-            except InvalidInputError as error:
-                raise InvalidInputError(f"Add fibres (the Fibres option): {error}") from None
 
         report(progress, 0.95, "writing the mesh")
-        summary = bitemesh.quality_summary(mesh)
+        summary = quality_summary(mesh)
         table, series, chart = writeOutputs(mesh, radius, summary, result.fidelity, outputModelNode,
-                                                  quality.bins)
+                                            settings["QualityParameters"].bins)
         writeFibres(outputModelNode, fibres)
         surfaces = writeSurfaces(mesh, outputModelNode)
         seconds["total"] = time.perf_counter() - clock

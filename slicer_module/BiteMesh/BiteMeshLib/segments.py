@@ -54,19 +54,18 @@ def segmentLabelmap(node, segmentId=None):
         ijkToWorld
 
 
-def meshSegment(node, segmentId, implicit, biting, spurious, optimize, fidelity, progress):
-    """Mesh one segment: its binary labelmap through bitemesh.labelmap.mesh_label_grid (the path the bitemesh
+def meshSegment(node, segmentId, options, progress):
+    """Mesh one segment: its binary labelmap as bitemesh.Voxels through bitemesh.mesh (the path the bitemesh
     command takes for label map files), which meshes in the voxel frame and places the mesh with the labelmap's
     IJK-to-RAS matrix; then the segmentation's parent transforms carry it to world."""
-    from bitemesh.core.mesh.simplicial import signed_measures
+    import bitemesh
     from bitemesh.core.mesh.quality import cell_quality
-    from bitemesh.labelmap import mesh_label_grid
+    from bitemesh.core.mesh.simplicial import signed_measures
 
     labels, _, ijk0, ijkToWorld = segmentLabelmap(node, segmentId)
     firstVoxel = np.eye(4)
     firstVoxel[:3, 3] = ijk0   # labels[0, 0, 0] is voxel ijk0 of the labelmap's frame
-    result = mesh_label_grid(labels, ijkToWorld @ firstVoxel, implicit=implicit, biting=biting,
-                             spurious=spurious, optimize=optimize, fidelity=fidelity, progress=progress)
+    result = bitemesh.mesh(bitemesh.Voxels(labels, ijkToWorld @ firstVoxel), options, progress=progress)
     transform = toWorld(node)
     if transform is None:
         return result.mesh, result

@@ -1,0 +1,187 @@
+"""The front door: any input and one :class:`~bitemesh.options.Options` -> one meshing result.
+
+It reads the input (a file, arrays, a VTK data set), picks the source by kind (scattered points, labelled
+contours, a label map), runs the spine and what follows it (the heart's plausibility check, the fibres) and hands
+back the result with its report.  The command line, the cohorts, the VTK filters, ParaView and the Slicer module
+all call it; no other module tells inputs apart.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from .core.errors import InvalidInputError
+from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
+from .core.parameters import ImplicitParameters, LabelledParameters
+from .core.progress import ProgressCallback, report, sub_progress
+from .core.sources.contours.run import labelled_keywords, labelled_source, run_labelled
+from .core.sources.points import points_source, run
+from .core.sources.source import Source
+from .core.steps.spine import MeshingResult
+from .io import (LABEL_MAP_EXTENSIONS, LABELLED_EXTENSIONS, MESH_EXTENSIONS, NO_CELL_ARRAYS, POINT_EXTENSIONS,
+                 LabelMap, looks_labelled, read_label_map, read_labelled_config, read_labelled_points, read_points,
+                 write_mesh)
+from .labelmap import label_grid_source, mesh_label_grid
+from .options import Options, as_options, flag
+
+#: the files :func:`mesh` reads: point tables and surfaces, labelled contours, label maps.
+INPUT_EXTENSIONS = tuple(sorted(set(POINT_EXTENSIONS) | set(LABELLED_EXTENSIONS) | set(LABEL_MAP_EXTENSIONS)))
+
+
+@dataclass(frozen=True)
+class Samples:
+    """Points in memory: (n, k) float64 points (k = 2 or 3), optional (n, k) outward normals; with (n,) labels (str
+    or int, one per point) they are labelled contours, with (n,) int slice ids the contour each was traced on."""
+
+    points: np.ndarray
+    normals: Optional[np.ndarray] = None
+    labels: Optional[np.ndarray] = None
+    slices: Optional[np.ndarray] = None
+
+
+@dataclass(frozen=True)
+class Voxels:
+    """A label map in memory: (n_i, n_j[, n_k]) integer labels indexed [i, j, k] and the (k + 1, k + 1) matrix from
+    voxel index to physical point (mm; the voxel sizes as its columns' lengths)."""
+
+    labels: np.ndarray
+    ijk_to_physical: np.ndarray
+
+
+def read_input(input, options: Options) -> Samples | Voxels:
+    """``input`` as Samples or Voxels: a path (a point table, a VTK-readable surface, labelled contours, a label
+    map), a LabelMap, an (n, k) array of points, a VTK point set or image, or Samples or Voxels themselves."""
+    if isinstance(input, (Samples, Voxels)):
+        data = input
+    elif isinstance(input, LabelMap):
+        data = Voxels(input.labels, input.index_to_physical(ras=options.ras))
+    elif isinstance(input, (str, os.PathLike)):
+        data = read_file(Path(input), options)
+    elif hasattr(input, "IsA"):   # a VTK data object
+        from .convert import dataset_samples, image_voxels
+        data = Voxels(*image_voxels(input)) if input.IsA("vtkImageData") else Samples(*dataset_samples(input))
+    elif isinstance(input, (np.ndarray, list, tuple)):
+        data = Samples(np.asarray(input, dtype=np.float64))
+    else:
+        raise InvalidInputError(f"input: {type(input).__name__} is not a mesh input; give a file path, an (n, 3) "
+                                "array of points, bitemesh.Samples, bitemesh.Voxels, a LabelMap or a VTK data set")
+    check_applies(data, options, input)
+    return data
+
+
+def read_file(path: Path, options: Options) -> Samples | Voxels:
+    """A file as Samples or Voxels, by its extension and, for tables and VTK files, whether it has labels."""
+    name = str(path)
+    if name.lower().endswith(LABEL_MAP_EXTENSIONS):
+        if options.columns:
+            raise InvalidInputError(f"--columns applies to text tables, not to the label map '{path}'")
+        label_map = read_label_map(path)
+        return Voxels(label_map.labels, label_map.index_to_physical(ras=options.ras))
+    if looks_labelled(path) or "label" in options.columns.lower():
+        points, labels, slices = read_labelled_points(path, columns=options.columns or None, frame=options.frame)
+        return Samples(points, labels=labels, slices=slices)
+    return Samples(*read_points(path, options.columns or None))
+
+
+def check_applies(data, options: Options, input) -> None:
+    """Refuse options given for another kind of input: the labelled-contour options (and --frame, --config) for
+    anything but labelled contours, the label-map options for anything but a label map."""
+    labelled = isinstance(data, Samples) and data.labels is not None
+    given = options.given(LabelledParameters)
+    contour_options = [flag(name) for name in ("config", "frame") if getattr(options, name) is not None] + \
+        [flag(name) for name in given]
+    if contour_options and not labelled:
+        what = f"'{input}'" if isinstance(input, (str, os.PathLike)) else "the input"
+        raise InvalidInputError(
+            f"{contour_options[0]} applies to labelled contours, and {what} has no label column or Label array (a "
+            "biv-me GPFile, a table whose header names a label column, a VTP with a Label point array); leave "
+            f"{contour_options[0]} out to mesh the points as one surface")
+    if options.label is not None and not isinstance(data, Voxels):
+        raise InvalidInputError(f"--label {' '.join(map(str, options.label))} applies to label maps; leave it out "
+                                "to mesh these points")
+
+
+def contour_keywords(options: Options) -> dict:
+    """The keywords of run_labelled and labelled_source: every labelled-contour option, the config file's values
+    over the defaults, the options given over both."""
+    parameters = options.of(LabelledParameters)
+    config = read_labelled_config(options.config) if options.config else {}
+    return {**labelled_keywords(parameters), **config, **labelled_keywords(parameters, given_only=True)}
+
+
+def source(input, options=None, progress: ProgressCallback = None) -> Source:
+    """The :class:`~bitemesh.core.sources.source.Source` of ``input`` (what PointsToImplicit samples on the grid I):
+    f fitted to the points, the contours' domain, or the label map's signed distance."""
+    options = as_options(options)
+    data = read_input(input, options)
+    implicit = options.of(ImplicitParameters)
+    if isinstance(data, Voxels):
+        return label_grid_source(data.labels, data.ijk_to_physical, labels=labels_of(options), implicit=implicit)
+    if data.labels is not None:
+        keywords = contour_keywords(options)
+        keywords.pop("allow_implausible", None)   # a check of the mesh, not of the fit
+        return labelled_source(data.points, data.labels, slices=data.slices, progress=progress, **keywords)
+    return points_source(data.points, data.normals, implicit, progress, slices=data.slices)
+
+
+def labels_of(options: Options):
+    return None if options.label is None else set(options.label)
+
+
+def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -> MeshingResult:
+    """Mesh ``input`` with ``options`` (an Options, a dict of option names, or None for the defaults) and
+    ``changes`` (option names, e.g. ``cells=20000``, ``optimize=0``).
+
+    Parameters
+    ----------
+    input : a file (points, labelled contours, a label map), an (n, k) array of points, Samples, Voxels, a
+        LabelMap, or a VTK point set or image
+    progress : callable(fraction, message), optional; it may raise bitemesh.Cancelled
+
+    Returns
+    -------
+    MeshingResult: ``mesh`` (user coordinates, quality arrays, tagged facets; fibres with ``fibres=1``),
+    ``radius`` R, ``fidelity``, ``notes`` (what was done to the data), ``seconds`` per step
+    """
+    options = as_options(options, **changes)
+    fibres = options.of(FibreParameters) if options.fibres else None
+    meshed = sub_progress(progress, 0.0, 0.9 if fibres else 1.0)
+    data = read_input(input, options)
+    if isinstance(data, Voxels):
+        result = mesh_label_grid(data.labels, data.ijk_to_physical, labels=labels_of(options), progress=meshed,
+                                 **options.steps)
+    elif data.labels is not None:
+        result = run_labelled(data.points, data.labels, slices=data.slices, progress=meshed, **options.steps,
+                              **contour_keywords(options))
+    else:
+        result = run(data.points, data.normals, progress=meshed, slices=data.slices, **options.steps)
+    if fibres is None:
+        return result
+    report(progress, 0.9, "adding the fibres")
+    try:
+        mesh_with_fibres, seconds = with_fibres(result.mesh, fibres, sub_progress(progress, 0.9, 1.0))
+    except InvalidInputError as error:
+        raise InvalidInputError(f"fibres (--fibres): {error}") from None
+    return replace(result, mesh=mesh_with_fibres, seconds={**result.seconds, "fibres": seconds})
+
+
+def check_output(path, options=None) -> None:
+    """Refuse, before any work, an output path bitemesh cannot write, or one that would lose the fibres."""
+    if not str(path).lower().endswith(MESH_EXTENSIONS):
+        raise InvalidInputError(f"output {path} has an unsupported extension; use one of {', '.join(MESH_EXTENSIONS)}")
+    directory = Path(path).parent
+    if not directory.is_dir():
+        raise InvalidInputError(f"output {path}: the directory '{directory}' does not exist")
+    suffix = Path(path).suffix.lower()
+    if options is not None and as_options(options).fibres and suffix in NO_CELL_ARRAYS:
+        raise InvalidInputError(f"--fibres: a {suffix} file keeps no cell arrays but the regions, so the fibres "
+                                f"would be lost; write .vtu or .vtk, which keep {', '.join(FIBRE_ARRAYS)}")
+
+
+def write(result, path) -> None:
+    """Write a mesh (or a MeshingResult's mesh) to ``path`` with its tags, atomically (companions too)."""
+    write_mesh(getattr(result, "mesh", result), path)
