@@ -35,7 +35,7 @@ def architecture() -> str:
              "the code to: a room may import only the rooms it lists (and numpy, scipy, numba; VTK above core), so "
              "that no arrow points up.", "",
              "| room | what lives there | may import |", "|---|---|---|"]
-    for name, spec in layers["rooms"].items():
+    for spec in layers["rooms"].values():
         lines.append(f"| `{spec['path']}` | {spec['holds']} | {', '.join(spec['imports']) or 'nothing of bitemesh'} |")
     lines += ["", "Besides: core imports no VTK; only `paraview_plugin` imports paraview; nothing imports `cli` or "
               "`paraview_plugin`. Only the front door (`meshing`) calls a source by kind of input:", ""]
