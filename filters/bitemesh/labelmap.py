@@ -1,6 +1,6 @@
 """Label maps: turn the chosen labels into a signed distance on a grid and mesh it, with the mesh placed in the
-image's physical space.  Reading the files (NRRD, NIfTI, MetaImage through SimpleITK: :class:`LabelMap`,
-:func:`read_label_map`) is :mod:`bitemesh.io.labelmaps`, whose names this module re-exports.
+image's physical space.  Reading the files (NRRD, NIfTI, MetaImage through SimpleITK: ``LabelMap``,
+``read_label_map``) is :mod:`bitemesh.io.labelmaps`; ``bitemesh.mesh`` takes files, LabelMaps and voxel arrays.
 
 Frames
 ------
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import logging
 import numbers
-from pathlib import Path
 
 import numpy as np
 
@@ -36,13 +35,12 @@ from .core.errors import InvalidInputError, check_number
 from .core.grid.sampled import ImplicitGrid
 from .core.mesh.interfaces import LabelRegions
 from .core.parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
-                              STEP_PARAMETERS, SpuriousParameters, parameters_from_keywords)
+                              SpuriousParameters)
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.sources.source import Frame, Source
 from .core.steps.spine import MeshingResult, mesh_source, timed
 from .core.mesh.tags import region_labels
-from .io.labelmaps import (LabelMap, import_simpleitk,
-                           read_label_map)
+from .io.labelmaps import import_simpleitk
 
 logger = logging.getLogger("bitemesh")
 
@@ -279,7 +277,8 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                     seconds: dict | None = None) -> LabelMapMeshingResult:
     """Mesh the chosen labels of a voxel array and place the mesh with a homogeneous index-to-physical matrix.
 
-    The one path from voxels to a mesh, shared by :func:`label_map_mesh` (files) and the Slicer module (segments).
+    The one path from voxels to a mesh: ``bitemesh.mesh`` takes label map files, LabelMaps and Voxels (the Slicer
+    module's segments) through it.
 
     Parameters
     ----------
@@ -316,35 +315,3 @@ def mesh_label_grid(labels_ijk: np.ndarray, ijk_to_physical, *, labels=None,
                                    smoothing=smoothing, progress=sub_progress(progress, 0.0, 0.1))
     return mesh_source(source, implicit, biting or BitingParameters(), spurious or SpuriousParameters(), optimize,
                        sub_progress(progress, 0.1, 1.0), seconds, fidelity or FidelityParameters())
-
-
-def label_map_mesh(label_map, *, labels=None, ras=False, smoothing=SMOOTHING_VOXELS,
-                   progress: ProgressCallback = None, **parameters) -> LabelMapMeshingResult:
-    """A valid tetrahedral (triangular for a 2D image) mesh of labels of a label map, in its physical space.
-
-    Parameters
-    ----------
-    label_map : LabelMap, or the path of a file that :func:`read_label_map` reads
-    labels : None (every nonzero voxel), one int, or a set of ints: their union, a region per label (as
-        :func:`mesh_label_grid`)
-    ras : False: points in ITK's LPS (the file's physical space); True: in RAS (x and y negated), as in Slicer
-    smoothing : standard deviation (voxels) of the staircase filter (see :func:`label_map_to_grid`); 0 is off
-    progress : callable(fraction, message), optional
-    parameters : any field of ImplicitParameters (``grid_spacing``: the grid I, mm, default R / 4 or the voxels
-        when between R / 8 and R / 4; ``max_memory_mb``), BitingParameters (``radius``: R, mm, default chosen for
-        about ``cells`` cells; ``order``, ``seed``), SpuriousParameters, OptimizeParameters (``optimize=0``: no
-        MeshOptimizer) and FidelityParameters, by name
-
-    Returns
-    -------
-    LabelMapMeshingResult; ``.mesh`` has cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and
-    Region, and its tagged facets (see :func:`mesh_label_grid`).
-    """
-    if isinstance(label_map, (str, Path)):
-        label_map = read_label_map(label_map)
-    elif not isinstance(label_map, LabelMap):
-        raise InvalidInputError(f"label_map must be a LabelMap or a file path, got {type(label_map).__name__}")
-    implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(parameters, STEP_PARAMETERS)
-    return mesh_label_grid(label_map.labels, label_map.index_to_physical(ras=ras), labels=labels,
-                           implicit=implicit, biting=biting, spurious=spurious, optimize=optimize,
-                           fidelity=fidelity, smoothing=smoothing, progress=progress)

@@ -43,7 +43,7 @@ class _Checked:
                 object.__setattr__(self, item.name, "")
         labels = self.label
         if labels is not None:
-            labels = (labels,) if isinstance(labels, int) else tuple(labels)
+            labels = tuple(labels) if isinstance(labels, (tuple, list, set, frozenset)) else (labels,)
             labels = tuple(LabelMapParameters(label=label).label for label in labels) or None
         object.__setattr__(self, "label", labels)
         object.__setattr__(self, "ras", bool(self.ras))

@@ -4,6 +4,7 @@ The shapes are analytic (an ellipsoid, a ball cut in two), voxelised by their vo
 voxel sizes, a non-zero origin and an oblique direction, so that a wrong axis order, a transposed direction or a
 lost origin moves the mesh by far more than the tolerances.
 """
+import bitemesh
 import numpy as np
 import pytest
 from bitemesh import cli
@@ -12,7 +13,7 @@ from bitemesh.core.mesh.simplicial import signed_measures
 from bitemesh.core.mesh.quality import dihedral_angles
 from bitemesh.io import read_mesh
 from bitemesh.io.labelmaps import LabelMap, read_label_map
-from bitemesh.labelmap import label_map_mesh, label_map_to_grid, mesh_label_grid
+from bitemesh.labelmap import label_map_to_grid, mesh_label_grid
 
 from tests.builders import rotation
 from tests.meshcheck import assert_valid_domain, centroid
@@ -86,8 +87,8 @@ def ellipsoid_meshes(ellipsoid_file):
     """The file meshed in LPS and in RAS (same seed), the plain method (the reading and the frames are tested here;
     the optimizer on a label map in test_optimize_relaxes_a_rotated_label_map_in_place)."""
     label_map = read_label_map(ellipsoid_file)
-    return (label_map_mesh(label_map, cells=CELLS, optimize=0),
-            label_map_mesh(label_map, cells=CELLS, ras=True, optimize=0))
+    return (bitemesh.mesh(label_map, cells=CELLS, optimize=0),
+            bitemesh.mesh(label_map, cells=CELLS, ras=True, optimize=0))
 
 
 # ------------------------------------------------------------------------------------------------ reading
@@ -174,7 +175,7 @@ def test_the_result_maps_its_implicit_grid_to_physical_space(ellipsoid_meshes):
 def test_a_reflected_direction_keeps_cells_positive_and_the_shape_in_place():
     direction = DIRECTION @ np.diag([1.0, -1.0, 1.0])   # determinant -1
     labels, centre = ellipsoid_label_map(direction)
-    result = label_map_mesh(LabelMap(labels, ORIGIN, SPACING, direction), cells=2500)
+    result = bitemesh.mesh(LabelMap(labels, ORIGIN, SPACING, direction), cells=2500)
     assert (signed_measures(result.mesh.points, result.mesh.cells) > 0).all()
     assert_valid_domain(result.mesh, euler=2, components=1, measure=4 / 3 * np.pi * np.prod(SEMI_AXES),
                         measure_tolerance=0.04)
@@ -182,7 +183,7 @@ def test_a_reflected_direction_keeps_cells_positive_and_the_shape_in_place():
 
 
 def test_a_path_is_read_and_meshed_in_one_call(ellipsoid_file):
-    result = label_map_mesh(ellipsoid_file, cells=1500, labels=LABEL)
+    result = bitemesh.mesh(ellipsoid_file, cells=1500, label=LABEL)
     assert result.labels == (LABEL,)
     assert_valid_domain(result.mesh, components=1)
 
@@ -201,12 +202,13 @@ def test_optimize_relaxes_a_rotated_label_map_in_place(ellipsoid, ellipsoid_file
 
 
 def test_mesh_label_grid_takes_the_index_to_physical_matrix(ellipsoid):
-    """The function the Slicer module calls: the same mesh as label_map_mesh for the same matrix."""
+    """The voxels' path of the front door (the Slicer module's too): the same mesh as a LabelMap with the same
+    matrix."""
     labels, _ = ellipsoid
     label_map = LabelMap(labels, ORIGIN, SPACING, DIRECTION)
     from bitemesh.core.parameters import BitingParameters
     direct = mesh_label_grid(labels, label_map.index_to_physical(), biting=BitingParameters(cells=1500))
-    through = label_map_mesh(label_map, cells=1500)
+    through = bitemesh.mesh(label_map, cells=1500)
     np.testing.assert_array_equal(direct.mesh.points, through.mesh.points)
     np.testing.assert_array_equal(direct.mesh.cells, through.mesh.cells)
 
@@ -214,7 +216,7 @@ def test_mesh_label_grid_takes_the_index_to_physical_matrix(ellipsoid):
 def test_progress_runs_from_start_to_done(ellipsoid):
     labels, _ = ellipsoid
     fractions = []
-    label_map_mesh(LabelMap(labels, ORIGIN, SPACING, DIRECTION), cells=1000,
+    bitemesh.mesh(LabelMap(labels, ORIGIN, SPACING, DIRECTION), cells=1000,
                    progress=lambda fraction, message: fractions.append(fraction))
     assert fractions[-1] == 1.0 and all(0.0 <= f <= 1.0 for f in fractions)
     assert fractions == sorted(fractions)
@@ -243,7 +245,7 @@ def halves():
 
 def test_one_label_gives_only_its_region(halves):
     label_map, centre, radius, direction = halves
-    result = label_map_mesh(label_map, labels={2}, cells=8000)
+    result = bitemesh.mesh(label_map, label=(2,), cells=8000)
     assert result.labels == (2,)
     assert_valid_domain(result.mesh, euler=2, components=1, measure=2 / 3 * np.pi * radius**3,
                         measure_tolerance=0.04)
@@ -251,13 +253,13 @@ def test_one_label_gives_only_its_region(halves):
     along_i = (centroid(result.mesh) - centre) @ direction[:, 0]
     assert along_i == pytest.approx(3 * radius / 8, abs=2 * label_map.spacing[0])
     assert ((result.mesh.points - centre) @ direction[:, 0]).min() > -label_map.spacing[0]
-    same = label_map_mesh(label_map, labels=2, cells=8000)   # an int is a set of one
+    same = bitemesh.mesh(label_map, label=2, cells=8000)   # an int is a set of one
     np.testing.assert_array_equal(same.mesh.points, result.mesh.points)
 
 
 def test_a_set_of_labels_is_their_union(halves):
     label_map, centre, radius, _ = halves
-    result = label_map_mesh(label_map, labels={1, 2}, cells=8000)
+    result = bitemesh.mesh(label_map, label=(1, 2), cells=8000)
     assert result.labels == (1, 2)
     assert_valid_domain(result.mesh, euler=2, components=1, measure=4 / 3 * np.pi * radius**3,
                         measure_tolerance=0.025)
@@ -266,7 +268,7 @@ def test_a_set_of_labels_is_their_union(halves):
 
 def test_no_labels_given_means_every_nonzero_label(halves):
     label_map, *_ = halves
-    result = label_map_mesh(label_map, cells=3000)
+    result = bitemesh.mesh(label_map, cells=3000)
     assert_valid_domain(result.mesh, components=2)   # the ball and the box
 
 
@@ -322,11 +324,11 @@ def test_an_unreadable_file_is_a_clear_error(tmp_path):
 def test_an_absent_label_lists_the_labels_present(halves, tmp_path):
     label_map, *_ = halves
     with pytest.raises(InvalidInputError, match=r"label 7 is absent from the label map; labels present: 1, 2, 3"):
-        label_map_mesh(label_map, labels=7)
+        bitemesh.mesh(label_map, label=7)
     with pytest.raises(InvalidInputError, match=r"labels 4, 7 are absent"):
-        label_map_mesh(label_map, labels={1, 4, 7})
-    with pytest.raises(InvalidInputError, match="whole numbers"):
-        label_map_mesh(label_map, labels=1.5)
+        bitemesh.mesh(label_map, label=(1, 4, 7))
+    with pytest.raises(InvalidInputError, match="label must be a whole number"):
+        bitemesh.mesh(label_map, label=1.5)
 
 
 def test_a_float_image_is_not_a_label_map(tmp_path):
@@ -341,7 +343,7 @@ def test_an_empty_label_map_is_a_clear_error(tmp_path):
     with pytest.raises(InvalidInputError, match="empty: every voxel is 0"):
         read_label_map(tmp_path / "empty.mha")
     with pytest.raises(InvalidInputError, match="empty: every voxel is 0"):
-        label_map_mesh(LabelMap(np.zeros((6, 7, 8), np.uint8)))
+        bitemesh.mesh(LabelMap(np.zeros((6, 7, 8), np.uint8)))
 
 
 def test_a_vector_image_is_not_a_label_map(tmp_path):
@@ -371,7 +373,7 @@ def test_a_2d_label_map_gives_triangles_in_its_plane(tmp_path):
     centre = origin + direction @ (spacing * np.array([35.3, 39.6]))
     disc = np.linalg.norm(origin + (index * spacing) @ direction.T - centre, axis=-1) < 12.0
     write_image(disc.astype(np.uint8), tmp_path / "disc.nrrd", spacing, origin, direction)
-    result = label_map_mesh(tmp_path / "disc.nrrd", cells=2000)
+    result = bitemesh.mesh(tmp_path / "disc.nrrd", cells=2000)
     assert result.mesh.cells.shape[1] == 3
     assert_valid_domain(result.mesh, components=1, measure=np.pi * 12.0**2,
                         measure_tolerance=0.02)
@@ -381,7 +383,7 @@ def test_a_2d_label_map_gives_triangles_in_its_plane(tmp_path):
 def test_a_label_touching_the_image_border_is_closed():
     labels = np.zeros((12, 14, 10), np.uint8)
     labels[:, 3:10, 2:8] = 1   # through the whole i range
-    result = label_map_mesh(LabelMap(labels, spacing=[1.0, 1.0, 1.0]), cells=5000)
+    result = bitemesh.mesh(LabelMap(labels, spacing=[1.0, 1.0, 1.0]), cells=5000)
     # The box's faces lie halfway between the voxel centres (i from -0.5 to 11.5); its sharp edges cost the mesh
     # about 2 % at this R.
     assert_valid_domain(result.mesh, euler=2, components=1, measure=12 * 7 * 6, measure_tolerance=0.04)
@@ -399,7 +401,7 @@ def test_segmentation_specks_are_dropped_with_a_note_and_the_shape_meshes(caplog
     labels = ball.copy()
     labels[tuple(specks.T)] = 1
     with caplog.at_level("INFO", logger="bitemesh"):
-        result = label_map_mesh(LabelMap(labels), cells=5000, optimize=0)
+        result = bitemesh.mesh(LabelMap(labels), cells=5000, optimize=0)
     assert "dropped 60 speck(s) of the labels" in caplog.text
     assert_valid_domain(result.mesh, euler=2, components=1, measure=float(ball.sum()), measure_tolerance=0.03)
 
@@ -410,4 +412,4 @@ def test_a_label_of_one_voxel_is_refused_not_meshed_as_a_blob():
     labels = np.zeros((20, 20, 20), np.uint8)
     labels[10, 10, 10] = 1
     with pytest.raises(InvalidInputError, match="1 voxel.*too small for the image to resolve a shape"):
-        label_map_mesh(LabelMap(labels))
+        bitemesh.mesh(LabelMap(labels))

@@ -9,8 +9,8 @@ from math import factorial
 
 import numpy as np
 import pytest
+import bitemesh
 from bitemesh.core.fem import assembly as fem
-from bitemesh.core.sources import points as pipeline
 from bitemesh.core.optimize.measures import boundary_nodes, mean_edge_length
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.fem.check import FemParameters, fem_check, jacobi_scaled
@@ -28,7 +28,8 @@ TIGHT = FemParameters(tolerance=1e-8)
 def sphere(unit_sphere_samples):
     """sphere(cells, optimize): the unit sphere meshed by the pipeline, each mesh made once for the module."""
     points, normals = unit_sphere_samples
-    return cache(lambda cells, optimize: pipeline.mesh_from_points(points, normals, cells=cells, optimize=optimize))
+    return cache(lambda cells, optimize: bitemesh.mesh(bitemesh.Samples(points, normals), cells=cells,
+                                                       optimize=optimize).mesh)
 
 
 # --- the pieces -------------------------------------------------------------------------------------------------

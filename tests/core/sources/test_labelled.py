@@ -13,7 +13,7 @@ from bitemesh.core.sources.contours.cardiac import BIVME_DEFAULT_DOMAIN
 from bitemesh.core.sources.contours.base import fit_base_plane
 from bitemesh.core.sources.contours.surface_fit import fit_contour_rbf
 from bitemesh.core.sources.contours.fit import labelled_implicit
-from bitemesh.core.sources.contours.run import mesh_from_labelled_points, run_labelled
+from bitemesh.core.sources.contours.run import run_labelled
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.shapes import two_cavity_shell
 
@@ -288,10 +288,10 @@ def test_optimize_relaxes_the_shell_without_changing_its_shape_or_topology(shell
     assert "optimize" in optimized.seconds
 
 
-def test_mesh_from_labelled_points_is_deterministic(shell):
+def test_labelled_contours_mesh_the_same_twice(shell):
     points, labels, slices = shell
-    meshes = [mesh_from_labelled_points(points, labels, domain=SHELL_DOMAIN, base_plane=BASE, slices=slices,
-                                        cells=3000, seed=4) for _ in range(2)]
+    meshes = [run_labelled(points, labels, domain=SHELL_DOMAIN, base_plane=BASE, slices=slices,
+                           biting=BitingParameters(cells=3000, seed=4)).mesh for _ in range(2)]
     assert np.array_equal(meshes[0].points, meshes[1].points) and np.array_equal(meshes[0].cells, meshes[1].cells)
     assert set(meshes[0].cell_data) == {"RadiusRatio", "MinDihedralAngle", "MaxDihedralAngle", "Volume", "Region"}
 

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from bitemesh.core.errors import InvalidInputError
-from bitemesh.core.sources.points import mesh_from_points, run
+import bitemesh
+from bitemesh.core.sources.points import run
 from bitemesh.core.steps.spine import radius_for_cells
 from bitemesh.core.shapes import annulus, die, sample_surface, sphere, torus, two_cavity_shell
 from tests.meshcheck import assert_valid_domain
@@ -24,7 +25,8 @@ def test_scattered_points_give_a_valid_mesh_of_the_shape(samples, name, with_nor
     shape, points, normals = samples[name]
     # the default (optimised) with the normals given; the plain method where the normals are estimated (what
     # differs is the fit's input: the optimizer would only add time)
-    mesh = mesh_from_points(points, normals if with_normals else None, cells=20000, optimize=int(with_normals))
+    mesh = bitemesh.mesh(bitemesh.Samples(points, normals if with_normals else None), cells=20000,
+                         optimize=int(with_normals)).mesh
     assert_valid_domain(mesh, euler=shape.boundary_euler, components=1, measure=shape.measure,
                         measure_tolerance=0.02, mean_quality=0.78)
     assert 0.75 * 20000 < len(mesh.cells) < 1.25 * 20000
@@ -42,7 +44,7 @@ def test_scattered_points_give_a_valid_mesh_of_the_shape(samples, name, with_nor
 def test_a_2d_shape_with_a_hole_gives_valid_triangles():
     shape = annulus()
     points, normals = sample_surface(shape, 0.02, seed=2)
-    mesh = mesh_from_points(points, normals, method="rbf", cells=3000)
+    mesh = bitemesh.mesh(bitemesh.Samples(points, normals), method="rbf", cells=3000).mesh
     assert mesh.cells.shape[1] == 3
     assert_valid_domain(mesh, measure=shape.measure, measure_tolerance=0.02, mean_quality=0.85)
     from bitemesh.core.mesh.validity import count_boundary_components
@@ -51,9 +53,9 @@ def test_a_2d_shape_with_a_hole_gives_valid_triangles():
 
 def test_same_seed_same_mesh_and_another_seed_another_mesh(samples):
     _, points, normals = samples["torus"]
-    first = mesh_from_points(points, normals, cells=3000, seed=11)
-    again = mesh_from_points(points, normals, cells=3000, seed=11)
-    other = mesh_from_points(points, normals, cells=3000, seed=12)
+    first = bitemesh.mesh(bitemesh.Samples(points, normals), cells=3000, seed=11).mesh
+    again = bitemesh.mesh(bitemesh.Samples(points, normals), cells=3000, seed=11).mesh
+    other = bitemesh.mesh(bitemesh.Samples(points, normals), cells=3000, seed=12).mesh
     assert np.array_equal(first.points, again.points) and np.array_equal(first.cells, again.cells)
     assert not (len(first.points) == len(other.points) and np.array_equal(first.points, other.points))
 
@@ -72,14 +74,15 @@ def test_radius_sets_the_node_spacing(samples):
 def test_the_input_points_are_not_modified(samples):
     _, points, normals = samples["sphere"]
     points_copy, normals_copy = points.copy(), normals.copy()
-    mesh_from_points(points, normals, cells=1000)
+    bitemesh.mesh(bitemesh.Samples(points, normals), cells=1000)
     assert np.array_equal(points, points_copy) and np.array_equal(normals, normals_copy)
 
 
 def test_duplicated_points_do_not_change_the_mesh(samples):
     _, points, normals = samples["sphere"]
-    once = mesh_from_points(points, normals, cells=1000)
-    twice = mesh_from_points(np.concatenate([points, points]), np.concatenate([normals, normals]), cells=1000)
+    once = bitemesh.mesh(bitemesh.Samples(points, normals), cells=1000).mesh
+    twice = bitemesh.mesh(bitemesh.Samples(np.concatenate([points, points]), np.concatenate([normals, normals])),
+                          cells=1000).mesh
     assert np.array_equal(once.cells, twice.cells)
 
 
@@ -108,18 +111,18 @@ def test_bad_input_is_a_clear_error_naming_the_parameter(samples, case):
     normals = sphere_normals if points is None else None
     points = sphere_points if points is None else points
     with pytest.raises(InvalidInputError, match=words):
-        mesh_from_points(points, normals, **parameters)
+        bitemesh.mesh(bitemesh.Samples(points, normals), **parameters)
 
 
 def test_normals_of_the_wrong_shape_are_refused(samples):
     _, points, normals = samples["sphere"]
     with pytest.raises(InvalidInputError, match="normals"):
-        mesh_from_points(points, normals[:-1])
+        bitemesh.mesh(bitemesh.Samples(points, normals[:-1]))
 
 
 def test_the_optimizer_switch_is_a_field_and_off_with_bounds_says_so(samples):
     """``optimize`` is OptimizeParameters' first field, on by default (issue 12: FEM-grade by default), and
-    mesh_from_points takes it by name; bounds given with the switch off do nothing and say so; a misspelt keyword
+    bitemesh.mesh takes it by name; bounds given with the switch off do nothing and say so; a misspelt keyword
     is refused with the closest name."""
     from dataclasses import fields
 
@@ -128,13 +131,13 @@ def test_the_optimizer_switch_is_a_field_and_off_with_bounds_says_so(samples):
     _, points, normals = samples["sphere"]
     assert fields(OptimizeParameters)[0].name == "optimize" and OptimizeParameters().optimize == 1
     default = run(points, normals).mesh
-    plain = mesh_from_points(points, normals, optimize=0)
+    plain = bitemesh.mesh(bitemesh.Samples(points, normals), optimize=0).mesh
     assert default.cell_data["MinDihedralAngle"].min() >= 20 > plain.cell_data["MinDihedralAngle"].min() + 5
     with pytest.warns(BitemeshWarning, match="optimize=0: the MeshOptimizer does not run"):
         bounds = run(points, normals, optimize=OptimizeParameters(optimize=0, min_dihedral=25.0)).mesh
     assert np.array_equal(bounds.points, plain.points) and np.array_equal(bounds.cells, plain.cells)
-    with pytest.raises(InvalidInputError, match="optimise is not a parameter of this function; did you mean "
-                                                "optimize"):
-        mesh_from_points(points, normals, optimise=1)
+    with pytest.raises(InvalidInputError, match="'optimise' is not an option of bitemesh mesh; did you "
+                                                "mean optimize"):
+        bitemesh.mesh(bitemesh.Samples(points, normals), optimise=1)
     with pytest.raises(InvalidInputError, match="optimize must be in"):
-        mesh_from_points(points, normals, optimize=2)
+        bitemesh.mesh(bitemesh.Samples(points, normals), optimize=2)

@@ -1,7 +1,7 @@
 """Scattered points to a mesh: the points source on the one meshing spine (:mod:`bitemesh.core.steps.spine`).
 
-``mesh_from_points`` is the API most users want; ``run`` returns the whole :class:`MeshingResult`;
-``mesh_from_grid`` meshes an implicit function already sampled on a grid (an analytic shape).
+``run`` meshes points with one parameter dataclass per step (``bitemesh.mesh`` is the front door that calls it);
+``points_to_implicit`` samples their f on the grid I as the run lays it out.
 """
 from __future__ import annotations
 
@@ -13,9 +13,8 @@ from ..errors import InvalidInputError, check_points
 from ..grid.sampled import ImplicitGrid
 from ..implicit.mpu import MIN_POINTS
 from ..implicit.fit import fit_implicit
-from ..mesh.simplicial import Mesh
-from ..parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters, STEP_PARAMETERS,
-                          SpuriousParameters, parameters_from_keywords)
+from ..parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
+                          SpuriousParameters)
 from ..implicit.samples import (PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, near_duplicates,
                                 noise_level, sample_spacing)
 from ..progress import ProgressCallback, sub_progress
@@ -138,25 +137,3 @@ def run(points, normals=None, implicit: ImplicitParameters = ImplicitParameters(
         source = points_source(points, normals, implicit, sub_progress(progress, 0.0, 0.3), biting, slices)
     return mesh_source(source, implicit, biting, spurious, optimize, sub_progress(progress, 0.3, 1.0), seconds,
                        fidelity)
-
-
-def mesh_from_points(points, normals=None, *, progress: ProgressCallback = None, **parameters) -> Mesh:
-    """A valid tetrahedral (triangular in 2D) mesh of the shape sampled by scattered points.
-
-    Parameters
-    ----------
-    points : (n, 3) or (n, 2) float64, samples of the surface (input units)
-    normals : (n, k) float64 outward normals, or None to estimate them
-    parameters : any field of :class:`ImplicitParameters`, :class:`BitingParameters`, :class:`SpuriousParameters`,
-        :class:`OptimizeParameters` and :class:`FidelityParameters`, by name, e.g. ``radius=0.05`` (R, input
-        units; default chosen for about ``cells`` cells), ``cells=20000``, ``optimize=0`` (the paper's
-        plain method; the MeshOptimizer runs by default)
-    progress : callable(fraction, message), optional
-
-    Returns
-    -------
-    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and Region (1, ``DOMAIN``), its
-    boundary facets tagged one tag per connected piece (:func:`~bitemesh.core.mesh.tags.component_tags`).
-    """
-    implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(parameters, STEP_PARAMETERS)
-    return run(points, normals, implicit, biting, spurious, progress, optimize, fidelity).mesh

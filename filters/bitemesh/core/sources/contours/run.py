@@ -1,7 +1,6 @@
 """Labelled contours on the meshing spine: :func:`labelled_source` (the domain's f as a
 :class:`~bitemesh.core.sources.source.Source`, with what cardiac contours imply: R, the thinnest wall, the handles),
-:func:`run_labelled` (the source, the spine, and for a heart the plausibility check) and
-:func:`mesh_from_labelled_points` (its mesh, with the parameters as keywords).
+:func:`run_labelled` (the source, the spine, and for a heart the plausibility check).
 """
 from __future__ import annotations
 
@@ -12,8 +11,8 @@ import numpy as np
 
 from ...errors import check_points
 from ...mesh.simplicial import Mesh
-from ...parameters import (STEP_PARAMETERS, BitingParameters, FidelityParameters, ImplicitParameters,
-                           LabelledParameters, OptimizeParameters, SpuriousParameters, parameters_from_keywords)
+from ...parameters import (BitingParameters, FidelityParameters, ImplicitParameters,
+                           LabelledParameters, OptimizeParameters, SpuriousParameters)
 from ...progress import ProgressCallback, sub_progress
 from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
@@ -147,31 +146,3 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
             check_heart(result.mesh, result.function, result.radius, result.fidelity,
                         allow_implausible=allow_implausible)
     return result
-
-
-def mesh_from_labelled_points(points, labels, *, domain=None, base_plane="auto", slices=None, min_wall=None,
-                              progress: ProgressCallback = None, **options) -> Mesh:
-    """A valid tetrahedral mesh of the domain bounded by labelled contour surfaces (a biv-me GPFile's myocardium).
-
-    Parameters
-    ----------
-    points : (n, 3) float64, contour points (mm); labels : (n,) str or int, one per point
-    domain, base_plane, slices : as for :func:`labelled_implicit` (default for biv-me labels: the two-cavity
-        myocardium ``EPI - LV_ENDO - RV_ENDO`` below the valve plane)
-    min_wall : float, input units, the thinnest wall; default max(2.5, 1.25 R) (see :func:`run_labelled`)
-    options : any field of ImplicitParameters, BitingParameters (``radius``: R, input units, default chosen for
-        about ``cells`` cells), SpuriousParameters, OptimizeParameters and FidelityParameters by name, e.g.
-        ``cells=20000, optimize=0`` (no MeshOptimizer); the others go to :func:`labelled_implicit` (kernel,
-        offset, surfaces, outlets, base_offset, resolution, ...).
-
-    Returns
-    -------
-    Mesh with cell data RadiusRatio, MinDihedralAngle, MaxDihedralAngle, Volume and Region, its boundary triangles
-    tagged by surface (:func:`labelled_tags`).
-    """
-    names = {item.name for cls in STEP_PARAMETERS for item in fields(cls)}
-    steps = {name: options.pop(name) for name in list(options) if name in names}
-    implicit, biting, spurious, optimize, fidelity = parameters_from_keywords(steps, STEP_PARAMETERS)
-    return run_labelled(points, labels, domain=domain, base_plane=base_plane, slices=slices, min_wall=min_wall,
-                        implicit=implicit, biting=biting, spurious=spurious, optimize=optimize, fidelity=fidelity,
-                        progress=progress, **options).mesh
