@@ -171,6 +171,36 @@ def test_a_thin_cylinder_gets_about_the_cells_asked_for(capsys, tmp_path):
     assert 1500 <= len(read_mesh(output).cells) <= 6000   # 3000 asked
 
 
+def test_an_open_surface_is_refused_naming_its_opening_and_the_hint_meshes_it(capsys, tmp_path):
+    """A hemisphere scanned from one side (its flat side missing): refused, the message says where the opening is
+    (its centre, the origin, within R; its width, the sphere's diameter 2, within 25 %) and that the surface is
+    open; with the hint followed (--allow-unfaithful) the closed hemisphere is meshed, valid, with a warning."""
+    import re
+
+    from bitemesh.core.shapes import sample_surface, sphere
+    points, normals = sample_surface(sphere(), 0.05, noise=0.001, seed=1)
+    path = write_rows(tmp_path / "half.xyz", np.hstack([points, normals])[points[:, 2] > 0])
+    code, _, err, output = mesh_cli(capsys, tmp_path, path)
+    assert_refused(code, err, "does not follow the data", "the surface is open there", "sample the missing part",
+                   "--allow-unfaithful")
+    width, *centre = map(float, re.search(r"opening about ([\d.e+-]+) across around \(([^,]+), ([^,]+), ([^)]+)\)",
+                                          err).groups())
+    assert abs(width - 2.0) < 0.5 and np.linalg.norm(centre) < 0.2
+    assert not output.exists()
+    code, out, err, output = mesh_cli(capsys, tmp_path, path, "--allow-unfaithful")
+    assert code == 0 and "the surface is open there" in err
+    assert_valid_domain(read_mesh(output), euler=2, components=1)
+
+
+def test_a_closed_surface_with_a_small_hole_meshes_as_closed(capsys, tmp_path):
+    """A sphere without its cap below z = -0.9 (a hole 0.87 across, 2.5 % of the area): the fit closes it within
+    the bounds, and the mesh is the sphere."""
+    from bitemesh.core.shapes import sample_surface, sphere
+    points, normals = sample_surface(sphere(), 0.05, noise=0.001, seed=1)
+    path = write_rows(tmp_path / "holed.xyz", np.hstack([points, normals])[points[:, 2] > -0.9])
+    assert_follows(*mesh_cli(capsys, tmp_path, path), tolerance=0.05)
+
+
 def test_touching_spheres_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, unit_sphere_samples):
     points, _ = unit_sphere_samples
     path = write_rows(tmp_path / "pair.xyz", np.vstack([points - [1, 0, 0], points + [1, 0, 0]]))

@@ -151,6 +151,11 @@ def _nearer(points, corners, best, rows, facets) -> None:
         np.minimum.at(best, rows, distance)
 
 
+#: the neighbours that tell a sample on the rim of an open surface (all on one side) from one inside it, and the
+#: widest angle between them that a sample inside leaves (12 neighbours around: about 30 degrees; on a rim: 180).
+RIM_NEIGHBOURS, RIM_GAP = 12, 2 * np.pi / 3
+
+
 def facet_measures(corners: np.ndarray) -> np.ndarray:
     """(f,) area of each triangle (length of each segment in 2D)."""
     if corners.shape[1] == 2:
@@ -234,11 +239,50 @@ def far_from(mesh: Mesh, samples: np.ndarray, bound: float) -> np.ndarray:
     return np.flatnonzero(distances_to_facets(samples, mesh.points[boundary_facets(mesh.cells)]) > bound)
 
 
-def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "", where=None) -> list:
+def opening(mesh: Mesh, samples: np.ndarray, bound: float):
+    """Where the boundary of ``mesh`` spans an opening of the ``samples`` (n, k): (its centre (k,), its width, the
+    samples on its rim) when the samples nearest to the boundary farther than ``bound`` from every sample are
+    mostly on a rim (their neighbours on one side only: an open surface, a scan with a side missing), else None."""
+    corners = mesh.points[boundary_facets(mesh.cells)]
+    centroids = corners.mean(axis=1)
+    tree = cKDTree(samples)
+    distance, nearest = tree.query(centroids)
+    far = distance > bound
+    neighbours = min(RIM_NEIGHBOURS, len(samples) - 1)
+    if not far.any() or neighbours < samples.shape[1] + 1:
+        return None
+    rim = samples[np.unique(nearest[far])]
+    one_sided = widest_gaps(rim, samples[tree.query(rim, neighbours + 1)[1][:, 1:]]) > RIM_GAP
+    if one_sided.mean() < 0.5:
+        return None
+    area = facet_measures(corners[far])
+    centre = (centroids[far] * area[:, None]).sum(axis=0) / area.sum()
+    width = 2 * float(np.linalg.norm(rim[one_sided] - centre, axis=1).max())
+    return centre, width, int(one_sided.sum())
+
+
+def widest_gaps(points: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
+    """(m,) the widest angle (radians) between the directions to the ``neighbours`` (m, j, k) of each of the
+    ``points`` (m, k), seen in the plane of least variance of the neighbourhood (along the line, in 2D: 0 or pi):
+    about 2 pi / j inside a sampled surface, about pi on its rim."""
+    offsets = neighbours - points[:, None, :]
+    local = np.concatenate([points[:, None, :], neighbours], axis=1)
+    axes = np.linalg.svd(local - local.mean(axis=1, keepdims=True))[2]   # (m, k, k): rows by falling variance
+    if points.shape[1] == 2:
+        along = np.einsum("mjk,mk->mj", offsets, axes[:, 0])
+        return np.where((along > 0).any(axis=1) & (along < 0).any(axis=1), 0.0, np.pi)
+    angles = np.sort(np.arctan2(np.einsum("mjk,mk->mj", offsets, axes[:, 1]),
+                                np.einsum("mjk,mk->mj", offsets, axes[:, 0])), axis=1)
+    return np.diff(np.concatenate([angles, angles[:, :1] + 2 * np.pi], axis=1), axis=1).max(axis=1)
+
+
+def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "", where=None,
+                   unsupported=None) -> list:
     """The bounds of ``parameters`` that ``fidelity`` exceeds, as messages; raise :class:`MeshingError` naming them
-    unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`.  ``where``: a
-    callable () -> a sentence saying where the far samples lie with a hint, said instead of the likely causes when
-    not empty (it is called only when samples are too far)."""
+    unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`.  ``where`` and
+    ``unsupported``: callables () -> a sentence saying where the far samples lie, and where the unsupported
+    boundary is, each with a hint, said instead of the likely causes when not empty (each is called only when its
+    bound is exceeded)."""
     problems, located = [], ""
     if fidelity.far_samples > parameters.far_samples:
         located = where() if where is not None else ""
@@ -252,8 +296,10 @@ def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: st
             f"{fidelity.support_bound:.3g}{units} (R + half the data's gap) from every input point (allowed: "
             f"unsupported_area = {parameters.unsupported_area:g}%; up to {fidelity.from_samples_max:.3g}{units}): "
             "the mesh has surfaces the data does not support")
+        opened = unsupported() if unsupported is not None else ""
+        located = "; ".join(sentence for sentence in (located, opened) if sentence)
     if problems:
-        causes = located or ("Likely causes: outliers, normals that do not point outward, a wrong column layout, or "
+        causes = located[:1].upper() + located[1:] if located else ("Likely causes: outliers, normals that do not point outward, a wrong column layout, or "
                              "parts thinner than R; check the input, lower radius")
         text = ("the mesh does not follow the data: " + "; ".join(problems) + f". {causes}; or set "
                 "allow_unfaithful (--allow-unfaithful) to keep the mesh anyway")

@@ -25,7 +25,7 @@ from .delaunay import delaunay
 from .repair import carve_domain
 from ..errors import BitemeshWarning, InvalidInputError, check_number
 from ..mesh.betti import check_topology, on_dropped_parts
-from .fidelity import Fidelity, check_fidelity, far_from, measure_fidelity, thinner_than_radius
+from .fidelity import Fidelity, check_fidelity, far_from, measure_fidelity, opening, thinner_than_radius
 from ..grid.sampled import (BYTES_PER_NODE, EXACT_WITHIN, SampledGrid, available_memory_mb, grid_shape_unchecked,
                             inside_extents, sample_function)
 from ..mesh.simplicial import Mesh
@@ -373,7 +373,17 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
             if source.locate is not None:
                 return source.locate(np.flatnonzero(kept)[far])
             return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
-        check_fidelity(measured, fidelity, where=where)
+        def unsupported() -> str:   # an opening of the samples that the mesh closes
+            found = opening(result.mesh, samples, measured.support_bound / frame.scale)
+            if found is None:
+                return ""
+            centre, width, rim = found
+            return (f"the samples leave an opening about {width * frame.scale:.3g} across around "
+                    f"({', '.join(f'{value:.4g}' for value in frame.to_user(centre[None])[0])}), {rim} of them on "
+                    "its rim: the surface is open there (a scan with a side or a patch missing) and the mesh "
+                    "closes it where no point is; sample the missing part")
+        scattered = source.locate is None and source.open_boundary is None   # not contours: a rim means an opening
+        check_fidelity(measured, fidelity, where=where, unsupported=unsupported if scattered else None)
     with timed(seconds, "topology"):
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful))
     report(progress, 1.0, "done")
