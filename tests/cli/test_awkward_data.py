@@ -156,6 +156,28 @@ def test_a_plate_thinner_than_its_sampling_is_refused_with_a_cause(capsys, tmp_p
         assert code == 1 and "bitemesh: error:" in err and not output.exists()
 
 
+@pytest.mark.slow
+def test_a_densely_sampled_thin_plate_meshes_at_a_radius_that_resolves_it():
+    """A plate 1 x 1 x 0.02 sampled every 0.005 on all its faces, with normals, at radius 0.01 (two node spacings
+    across): one valid part without holes (it was "not a valid domain" after 35 s), its volume within 3 % of 0.02,
+    every sample within R of the boundary."""
+    import bitemesh
+    step = 0.005
+    grid = np.arange(0, 1 + step / 2, step)
+    x, y = (axis.ravel() for axis in np.meshgrid(grid, grid))
+    faces = [np.c_[x, y, np.full_like(x, 0.02)], np.c_[x, y, np.zeros_like(x)]]
+    normals = [np.tile([0.0, 0, 1], (len(x), 1)), np.tile([0.0, 0, -1], (len(x), 1))]
+    t, z = (axis.ravel() for axis in np.meshgrid(grid, np.arange(0, 0.02 + step / 2, step)))
+    for fixed, axis, outward in ((0, 1, -1), (1, 1, 1), (0, 0, -1), (1, 0, 1)):
+        side = np.c_[t, t, z]
+        side[:, axis] = fixed
+        faces.append(side)
+        normals.append(np.tile(np.eye(3)[axis] * outward, (len(t), 1)))
+    result = bitemesh.mesh(bitemesh.Samples(np.vstack(faces), np.vstack(normals)), radius=0.01)
+    assert_valid_domain(result.mesh, euler=2, components=1, measure=0.02, measure_tolerance=0.03)
+    assert result.fidelity.far_samples == 0 and result.fidelity.unsupported_area == 0
+
+
 def test_a_thin_cylinder_gets_about_the_cells_asked_for(capsys, tmp_path):
     rng = np.random.default_rng(4)
     height, angle, radius = rng.uniform(-1, 1, 4000), rng.uniform(0, 2 * np.pi, 4000), 0.05
