@@ -233,9 +233,13 @@ def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
 
 
 #: field-data arrays on the implicit image that carry the data's surface samples to the SpuriousCellFilter, which
-#: checks the mesh's fidelity against them: (n, 3) samples, their noise level and gap; and the point array
+#: checks the mesh's fidelity against them, (n, 3) (their noise and gap are in the plan); and the point array
 #: :data:`UNSAMPLED_ARRAY`.
-SAMPLE_ARRAYS = ("Samples", "SampleNoise", "SampleGap")
+SAMPLE_ARRAYS = ("Samples",)
+#: the field-data array that carries the spine's plan down the VTK chain: one tuple, a named component each: R
+#: (user units), 1 for a myocardium (its handles removed), the samples' noise and gap (user units); NaN: not set.
+PLAN_ARRAY = "BitemeshPlan"
+PLAN = ("Radius", "Myocardium", "SampleNoise", "SampleGap")
 #: a point array of the implicit image, 1 where the boundary near a node is made by the method rather than the
 #: data (a heart's base, a derived surface), left out of the fidelity's boundary-to-samples measure.
 UNSAMPLED_ARRAY = "Unsampled"
@@ -246,10 +250,8 @@ def attach_samples(image, samples: np.ndarray, noise: float, gap: float, unsampl
     the ``unsampled`` mask of its nodes (an ImplicitGrid of the image's layout, 1 or 0) as a point array."""
     array = numpy_support.numpy_to_vtk(np.ascontiguousarray(_as_3d(samples)), deep=True)
     array.SetName("Samples")
-    data = image.GetFieldData()
-    data.AddArray(array)
-    data.AddArray(field_array("SampleNoise", [noise]))
-    data.AddArray(field_array("SampleGap", [gap]))
+    image.GetFieldData().AddArray(array)
+    attach_plan(image, SampleNoise=noise, SampleGap=gap)
     if unsampled is not None:
         mask = numpy_support.numpy_to_vtk(np.ascontiguousarray(unsampled.values.ravel(order="F")), deep=True)
         mask.SetName(UNSAMPLED_ARRAY)
@@ -264,9 +266,29 @@ def attached_samples(image, dim: int):
     if array is None:
         return None
     samples = numpy_support.vtk_to_numpy(array).astype(np.float64).reshape(-1, 3)[:, :dim]
-    scalar = {name: data.GetArray(name).GetValue(0) for name in ("SampleNoise", "SampleGap") if data.GetArray(name)}
+    plan = plan_of(image)
     unsampled = image_to_grid(image, UNSAMPLED_ARRAY) if image.GetPointData().GetArray(UNSAMPLED_ARRAY) else None
-    return samples, scalar.get("SampleNoise", 0.0), scalar.get("SampleGap", 0.0), unsampled
+    return samples, plan.get("SampleNoise", 0.0), plan.get("SampleGap", 0.0), unsampled
+
+
+def attach_plan(dataset, **values) -> None:
+    """Set ``values`` (names of :data:`PLAN`, numbers) in ``dataset``'s plan, keeping the rest of what it holds."""
+    plan = {**plan_of(dataset), **values}
+    array = vtkDoubleArray()
+    array.SetName(PLAN_ARRAY)
+    array.SetNumberOfComponents(len(PLAN))
+    for index, name in enumerate(PLAN):
+        array.SetComponentName(index, name)
+    array.InsertNextTuple([float(plan.get(name, np.nan)) for name in PLAN])
+    dataset.GetFieldData().AddArray(array)   # replaces the plan of that name
+
+
+def plan_of(dataset) -> dict:
+    """The plan a dataset carries (:data:`PLAN_ARRAY`): name -> number, for those set; {} without one."""
+    array = dataset.GetFieldData().GetArray(PLAN_ARRAY) if dataset is not None else None
+    if array is None or array.GetNumberOfTuples() == 0:
+        return {}
+    return {name: value for name, value in zip(PLAN, array.GetTuple(0)) if not np.isnan(value)}
 
 
 def add_field_values(dataset, values: dict, prefix: str = "") -> None:

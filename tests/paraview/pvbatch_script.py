@@ -34,7 +34,7 @@ from bitemesh.core.sources.points import run as points_run
 import bitemesh
 import numpy as np
 from bitemesh import algorithms
-from bitemesh.convert import nodes_to_polydata, tag_names_of, unstructured_to_mesh, with_polydata_tags
+from bitemesh.convert import nodes_to_polydata, plan_of, tag_names_of, unstructured_to_mesh, with_polydata_tags
 from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.core.mesh.simplicial import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters, SpuriousParameters
@@ -77,7 +77,7 @@ def one_shot(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
                           SpuriousParameters())
     facts["seconds"]["bitemesh.run (same process)"] = round(time.perf_counter() - clock, 3)
     same_mesh("one-shot = bitemesh.run", mesh, result.mesh)
-    radius = grid.GetFieldData().GetArray("Radius").GetValue(0)
+    radius = plan_of(grid)["Radius"]
     check("one-shot field data Radius = run's R", radius == result.radius, f"{radius} vs {result.radius}")
     for key, values in result.mesh.cell_data.items():
         check(f"one-shot cell data {key} = run's", np.array_equal(mesh.cell_data.get(key), values), key)
@@ -238,7 +238,7 @@ def labelled(args, out: Path) -> None:
                                                                      "RV_ENDO": (3, 2), "MYOCARDIUM": (1, 3)}, names)
     SaveData(str(out / "labelled.vtu"), proxy=proxy)
     facts["labelled"] = {"points": grid.GetNumberOfPoints(), "cells": grid.GetNumberOfCells(),
-                         "radius": grid.GetFieldData().GetArray("Radius").GetValue(0), "file": "labelled.vtu"}
+                         "radius": plan_of(grid)["Radius"], "file": "labelled.vtu"}
 
 
 @guarded("gpfile")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from bitemesh.algorithms import MeshFromPoints
-from bitemesh.convert import cell_types, point_coordinates, unstructured_to_mesh
+from bitemesh.convert import cell_types, plan_of, point_coordinates, unstructured_to_mesh
 from bitemesh.core.mesh.quality import cell_quality
 from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.core.shapes import annulus, sample_surface
@@ -79,7 +79,7 @@ def test_mesh_from_points_gives_a_valid_mesh_in_one_filter(sphere_samples):
     whole.SetCells(3000)
     result = whole.update()
     assert_valid_domain(unstructured_to_mesh(result), euler=2, measure=SPHERE_VOLUME, measure_tolerance=0.03)
-    assert field_value(result, "Radius") > 0
+    assert plan_of(result)["Radius"] > 0
 
 
 def test_the_default_chain_and_mesh_from_points_give_the_same_shape(sphere_samples):
@@ -104,8 +104,8 @@ def test_the_default_chain_and_mesh_from_points_give_the_same_shape(sphere_sampl
     whole.SetCells(3000)
     whole.SetOptimize(0)
     one_shot = whole.update()
-    radius = field_value(one_shot, "Radius")
-    assert field_value(output(pipeline.implicit), "Radius") == pytest.approx(radius, rel=1e-9)
+    radius = plan_of(one_shot)["Radius"]
+    assert plan_of(output(pipeline.implicit))["Radius"] == pytest.approx(radius, rel=1e-9)
     meshes = unstructured_to_mesh(output(pipeline.quality)), unstructured_to_mesh(one_shot)
     counts = [len(mesh.cells) for mesh in meshes]
     assert abs(counts[0] - counts[1]) <= 0.04 * counts[1], counts

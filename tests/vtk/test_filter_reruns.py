@@ -13,7 +13,9 @@ from bitemesh.algorithms import (BitingSampler, DelaunayTetra, MeshFromPoints, P
                                  SpuriousCellFilter)
 from vtkmodules.vtkCommonCore import vtkCommand
 
-from tests.builders import field_value, output
+from bitemesh.convert import plan_of
+
+from tests.builders import output
 
 FILTERS = (PointsToImplicit, BitingSampler, DelaunayTetra, SpuriousCellFilter, QualityFilter, MeshFromPoints)
 
@@ -50,11 +52,11 @@ def test_a_parameter_change_reruns_only_what_is_downstream(small_chain):
     assert runs == Counter(QualityFilter=1)
     runs.clear()
 
-    radius = field_value(output(pipeline.biting), "Radius")
+    radius = plan_of(output(pipeline.biting))["Radius"]
     pipeline.biting.SetRadius(0.75 * radius)
     smaller = pipeline.quality.update().GetNumberOfCells()
     assert smaller > 1.5 * first  # (1 / 0.75)^3 = 2.4 times as many cells, roughly
-    assert field_value(output(pipeline.biting), "Radius") == 0.75 * radius
+    assert plan_of(output(pipeline.biting))["Radius"] == 0.75 * radius
     assert runs == Counter(BitingSampler=1, DelaunayTetra=1, SpuriousCellFilter=1, QualityFilter=1)
     runs.clear()
 

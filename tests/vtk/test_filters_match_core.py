@@ -11,7 +11,7 @@ from dataclasses import asdict
 import numpy as np
 import pytest
 from bitemesh.algorithms import SpuriousCellFilter
-from bitemesh.convert import cell_types, image_to_grid, point_coordinates, unstructured_to_mesh
+from bitemesh.convert import attach_plan, cell_types, image_to_grid, plan_of, point_coordinates, unstructured_to_mesh
 from bitemesh.core.steps.biting import bite
 from bitemesh.core.steps.delaunay import delaunay
 from bitemesh.core.steps.repair import carve_domain
@@ -51,8 +51,8 @@ def test_points_to_implicit_gives_the_core_grid_and_announces_it(sphere_chain, s
 def test_biting_sampler_gives_the_core_nodes(sphere_chain):
     grid = image_to_grid(output(sphere_chain.implicit))
     nodes = output(sphere_chain.biting)
-    radius = field_value(nodes, "Radius")
-    assert radius == field_value(output(sphere_chain.implicit), "Radius")   # the R the grid was laid out for
+    radius = plan_of(nodes)["Radius"]
+    assert radius == plan_of(output(sphere_chain.implicit))["Radius"]   # the R the grid was laid out for
     expected = bite(grid, radius, order="boundary", seed=0)
     np.testing.assert_array_equal(point_coordinates(nodes), expected)
     assert nodes.GetNumberOfVerts() == len(expected)  # one vertex cell per node, so that they render
@@ -80,14 +80,14 @@ def test_spurious_cell_filter_gives_the_core_domain(sphere_chain):
 def test_spurious_cell_filter_removes_thin_handles_when_asked_or_for_a_myocardium(handles, myocardium, euler):
     """A ball with a tunnel thinner than two cells: Handles "auto" fills it when the image says it is a myocardium
     (PointsToImplicit marks a biv-me heart's image so), "remove" always, "keep" never."""
-    from bitemesh.convert import field_array, grid_to_image, mesh_to_unstructured
+    from bitemesh.convert import grid_to_image, mesh_to_unstructured
     from bitemesh.core.grid.sampled import sample_function
     from tests.meshcheck import assert_valid_domain
     grid = sample_function(lambda x: np.minimum(1.5 - np.linalg.norm(x, axis=1), np.hypot(x[:, 0], x[:, 1]) - 0.2),
                            [-1.7] * 3, [1.7] * 3, 0.25 / 4, margin=0.25)
     image = grid_to_image(grid)
     if myocardium:
-        image.GetFieldData().AddArray(field_array("Myocardium", [1.0]))
+        attach_plan(image, Myocardium=1)
     nodes = bite(grid, 0.25)
     spurious = SpuriousCellFilter()
     spurious.SetInputData(0, mesh_to_unstructured(Mesh(nodes, delaunay(nodes))))

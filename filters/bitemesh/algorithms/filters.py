@@ -29,9 +29,9 @@ from ..core.progress import sub_progress
 from ..core.mesh.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
 from ..meshing import mesh as mesh_input, source as input_source
-from ..convert import (add_field_values, attach_samples, attached_samples, field_array, grid_to_image, image_to_grid,
-                       mesh_to_unstructured, nodes_to_polydata, planar_as_2d, point_coordinates, tags_to_polydata,
-                       unstructured_to_mesh)
+from ..convert import (add_field_values, attach_plan, attach_samples, attached_samples, field_array, grid_to_image,
+                       image_to_grid, mesh_to_unstructured, nodes_to_polydata, plan_of, planar_as_2d,
+                       point_coordinates, tags_to_polydata, unstructured_to_mesh)
 
 
 #: the parameters of BitingParameters that lay out the grid I (R); the others are the BitingSampler's alone.
@@ -53,7 +53,8 @@ class PointsToImplicit(BitemeshAlgorithm):
     ``Domain`` (a CSG expression) and cut by the base plane.  A vtkImageData input is a label map, turned into a
     signed distance by SimpleITK (``Label`` chooses the domain's label).  The grid I is laid out as MeshFromPoints
     lays it out (:func:`bitemesh.core.steps.spine.grid_for_source`): for R (``Radius``, or chosen for ``Cells``),
-    spacing ``GridSpacing`` or R / 4; the field data ``Radius`` holds R, which BitingSampler takes.
+    spacing ``GridSpacing`` or R / 4; the plan (field data ``BitemeshPlan``, :func:`bitemesh.convert.plan_of`)
+    holds R, which BitingSampler takes, whether the domain is a myocardium, and the samples' noise and gap.
     """
 
     def __init__(self):
@@ -107,21 +108,20 @@ class PointsToImplicit(BitemeshAlgorithm):
         grid, radius, source = self.grid_of(vtkDataSet.GetData(inInfo[0]))
         output = vtkImageData.GetData(outInfo)
         grid_to_image(grid, output)
-        output.GetFieldData().AddArray(field_array("Radius", [radius]))
+        # the plan: R, and for a myocardium SpuriousCellFilter's Handles "auto" removes handles
+        attach_plan(output, Radius=radius, Myocardium=float(source.handles == "remove"))
         frame = source.frame
         attach_samples(output, frame.to_user(source.samples), source.noise * frame.scale, source.gap * frame.scale,
                        source.unsampled_on(grid))
-        if source.handles == "remove":   # SpuriousCellFilter's Handles "auto" then removes handles
-            output.GetFieldData().AddArray(field_array("Myocardium", [1.0]))
 
 
 @with_parameters(BitingParameters)
 class BitingSampler(BitemeshAlgorithm):
     """f on the grid I -> mesh nodes about R apart (vtkPolyData with a vertex per node), the paper's Algorithm 1.
 
-    R is ``Radius``, else the R that PointsToImplicit laid the grid out for (its field data ``Radius``) unless
-    ``Cells`` is set here, else chosen for about ``Cells`` cells; the output's field data ``Radius`` holds the R
-    used.
+    R is ``Radius``, else the R that PointsToImplicit laid the grid out for (in its plan, field data
+    ``BitemeshPlan``) unless ``Cells`` is set here, else chosen for about ``Cells`` cells; the output carries the
+    plan on with the R used.
     """
 
     def __init__(self):
@@ -131,11 +131,11 @@ class BitingSampler(BitemeshAlgorithm):
         parameters = self.parameters(BitingParameters)
         image = vtkImageData.GetData(inInfo[0])
         grid = image_to_grid(image)
-        laid_out = image.GetFieldData().GetArray("Radius")   # the R PointsToImplicit laid the grid out for
+        plan = plan_of(image)   # with the R PointsToImplicit laid the grid out for
         if parameters.radius is not None:
             radius = parameters.radius
-        elif laid_out is not None and parameters.cells is None:
-            radius = laid_out.GetValue(0)
+        elif "Radius" in plan and parameters.cells is None:
+            radius = plan["Radius"]
         else:
             radius = radius_on_grid(grid, parameters.aimed_cells)
         spacing = float(np.max(grid.spacing))
@@ -149,7 +149,7 @@ class BitingSampler(BitemeshAlgorithm):
         nodes = bite(grid, radius, order=parameters.order, seed=parameters.seed, progress=self.progress)
         output = vtkPolyData.GetData(outInfo)
         output.ShallowCopy(nodes_to_polydata(nodes))
-        output.GetFieldData().AddArray(field_array("Radius", [radius]))
+        attach_plan(output, **{**plan, "Radius": radius})   # the plan goes on, with the R used
 
 
 class DelaunayTetra(BitemeshAlgorithm):
@@ -163,7 +163,7 @@ class DelaunayTetra(BitemeshAlgorithm):
         nodes = node_coordinates(source)
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(Mesh(nodes, delaunay(nodes)), output)
-        output.GetFieldData().PassData(source.GetFieldData())   # the Radius the BitingSampler used
+        output.GetFieldData().PassData(source.GetFieldData())   # the plan, with the R the BitingSampler used
 
 
 class MeshWithImplicitFilter(BitemeshAlgorithm):
@@ -201,14 +201,13 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
         mesh, grid = self.mesh_and_grid(inInfo)
         delaunay_mesh = vtkUnstructuredGrid.GetData(inInfo[0])
         parameters = self.parameters(SpuriousParameters)
-        if parameters.handles == "auto" and vtkImageData.GetData(inInfo[1]).GetFieldData().GetArray("Myocardium"):
+        if parameters.handles == "auto" and plan_of(vtkImageData.GetData(inInfo[1])).get("Myocardium"):
             parameters = replace(parameters, handles="remove")   # a myocardium is a ball, its cavities open
         domain = carve_domain(grid, mesh.points, mesh.cells, parameters, self.progress)
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(domain, output)
         output.GetFieldData().PassData(delaunay_mesh.GetFieldData())
-        radius = output.GetFieldData().GetArray("Radius")
-        radius = radius.GetValue(0) if radius is not None else mean_edge_length(domain.points, domain.cells)
+        radius = plan_of(output).get("Radius") or mean_edge_length(domain.points, domain.cells)
         bounds = self.parameters(FidelityParameters)
         attached = attached_samples(vtkImageData.GetData(inInfo[1]), domain.dim)
         if attached is not None:
@@ -286,7 +285,7 @@ class MeshFromPoints(BitemeshAlgorithm):
         result = mesh_input(vtkPointSet.GetData(inInfo[0]), self.options(), progress=self.progress)
         output = vtkUnstructuredGrid.GetData(outInfo, 0)
         mesh_to_unstructured(result.mesh, output)
-        output.GetFieldData().AddArray(field_array("Radius", [result.radius]))
+        attach_plan(output, Radius=result.radius)
         if result.fidelity is not None:
             add_field_values(output, asdict(result.fidelity), "Fidelity")
         tags_to_polydata(result.mesh, vtkPolyData.GetData(outInfo, 1))

@@ -299,8 +299,9 @@ def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: st
         opened = unsupported() if unsupported is not None else ""
         located = "; ".join(sentence for sentence in (located, opened) if sentence)
     if problems:
-        causes = located[:1].upper() + located[1:] if located else ("Likely causes: outliers, normals that do not point outward, a wrong column layout, or "
-                             "parts thinner than R; check the input, lower radius")
+        causes = located[:1].upper() + located[1:] if located else (
+            "Likely causes: outliers, normals that do not point outward, a wrong column layout, or parts thinner "
+            "than R; check the input, lower radius")
         text = ("the mesh does not follow the data: " + "; ".join(problems) + f". {causes}; or set "
                 "allow_unfaithful (--allow-unfaithful) to keep the mesh anyway")
         if not parameters.allow_unfaithful:
