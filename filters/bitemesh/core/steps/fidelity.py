@@ -151,9 +151,10 @@ def _nearer(points, corners, best, rows, facets) -> None:
         np.minimum.at(best, rows, distance)
 
 
-#: the neighbours that tell a sample on the rim of an open surface (all on one side) from one inside it, and the
-#: widest angle between them that a sample inside leaves (12 neighbours around: about 30 degrees; on a rim: 180).
-RIM_NEIGHBOURS, RIM_GAP = 12, 2 * np.pi / 3
+#: the neighbours that tell a sample on the rim of an open surface (all on one side) from one inside it, the
+#: widest angle between them that a sample inside leaves (12 neighbours around: about 30 degrees; on a rim: 180),
+#: and how much farther than the samples' median they may reach on a rim (a stray point's reach far farther).
+RIM_NEIGHBOURS, RIM_GAP, RIM_SPREAD = 12, 2 * np.pi / 3, 3.0
 
 
 def facet_measures(corners: np.ndarray) -> np.ndarray:
@@ -252,7 +253,10 @@ def opening(mesh: Mesh, samples: np.ndarray, bound: float):
     if not far.any() or neighbours < samples.shape[1] + 1:
         return None
     rim = samples[np.unique(nearest[far])]
-    one_sided = widest_gaps(rim, samples[tree.query(rim, neighbours + 1)[1][:, 1:]]) > RIM_GAP
+    reach, around = tree.query(rim, neighbours + 1)
+    typical = np.median(tree.query(samples[::max(1, len(samples) // 2000)], neighbours + 1)[0][:, -1])
+    # on a rim: the neighbours on one side, and as near as elsewhere (a stray point has them on one side too)
+    one_sided = (widest_gaps(rim, samples[around[:, 1:]]) > RIM_GAP) & (reach[:, -1] < RIM_SPREAD * typical)
     if one_sided.mean() < 0.5:
         return None
     area = facet_measures(corners[far])
