@@ -77,3 +77,38 @@ def test_the_same_input_and_seed_give_the_same_mesh(offset, seed):
     second = run(points + offset, normals, biting=BitingParameters(cells=1500, seed=seed)).mesh
     np.testing.assert_array_equal(first.points, second.points)
     np.testing.assert_array_equal(first.cells, second.cells)
+
+
+@settings(max_examples=3, deadline=None)
+@given(repeats=st.integers(2, 5), log_scale=st.floats(-4, 4), seed=st.integers(0, 2**32 - 1))
+def test_merged_scans_give_the_mesh_of_one_scan(repeats, log_scale, seed):
+    """Every sample repeated up to 5 times, each copy after the first moved by 1e-9 of the size (scans merged from
+    several passes), at any scale: the copies are merged into the first, and the mesh is that of one scan, bit for
+    bit."""
+    points, normals = SAMPLES
+    scale = 10.0 ** log_scale
+    jitter = np.random.default_rng(seed).normal(scale=1e-9 * scale, size=(len(points) * repeats, 3))
+    jitter[::repeats] = 0.0   # the first copy of each sample is the sample
+    merged = run(np.repeat(points * scale, repeats, axis=0) + jitter, np.repeat(normals, repeats, axis=0),
+                 biting=BitingParameters(cells=CELLS))
+    alone = run(points * scale, normals, biting=BitingParameters(cells=CELLS))
+    np.testing.assert_array_equal(merged.mesh.cells, alone.mesh.cells)
+    np.testing.assert_array_equal(merged.mesh.points, alone.mesh.points)
+    assert any("near-duplicate" in note for note in merged.notes)
+
+
+@settings(max_examples=3, deadline=None)
+@given(coarser=st.floats(1.0, 4.0), seed=st.integers(0, 2**16))
+def test_a_half_sampled_more_sparsely_meshes_the_whole_shape(coarser, seed):
+    """One half of the ellipsoid sampled up to 4 x more coarsely (16 x fewer points) than the other: no sample is
+    dropped as an outlier, and the mesh is the whole ellipsoid (valid, its volume that of the evenly sampled one
+    within 2 %, no far sample)."""
+    shape = Shape("ellipsoid", lambda p: ellipsoid_distance(p, np.zeros(3), AXES), -AXES, AXES, VOLUME, 2)
+    sparse, sparse_normals = sample_surface(shape, spacing=0.06 * coarser, seed=seed)
+    points, normals = SAMPLES
+    upper, lower = points[:, 2] > 0, sparse[:, 2] <= 0
+    result = run(np.vstack([points[upper], sparse[lower]]), np.vstack([normals[upper], sparse_normals[lower]]),
+                 biting=BitingParameters(cells=CELLS))
+    reference = float(REFERENCE.mesh.cell_data["Volume"].sum())
+    assert_valid_domain(result.mesh, euler=2, components=1, measure=reference, measure_tolerance=0.02)
+    assert not any("outliers" in note for note in result.notes) and result.fidelity.far_samples == 0
