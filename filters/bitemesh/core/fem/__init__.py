@@ -1,1 +1,1 @@
-"""Finite elements on the mesh: P1 assembly, the solver check, the myocardial fibres."""
+"""Finite elements on the mesh: P1 assembly, the solver check, the myocardial fibres, the elastic template."""

@@ -1,0 +1,79 @@
+"""The elastic template (core.fem.template): a mesh moved onto new data with the same cells, on analytic cases
+with a known answer: a rigid motion and scaling recovered exactly, a sphere sheared into an ellipsoid with its
+nodes on the ellipsoid, the same answer twice, bad arguments named."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.fem.template import fit_template
+from bitemesh.core.mesh.quality import quality_summary
+from bitemesh.core.mesh.simplicial import Mesh, signed_measures
+from bitemesh.core.mesh.topology import boundary_facets
+from bitemesh.core.parameters import BitingParameters
+from bitemesh.core.shapes import Shape, ellipsoid_distance, sample_surface, sphere
+from bitemesh.core.sources.points import run
+
+AXES = np.array([1.0, 0.7, 0.45])   # three different axes: no symmetry but the four half turns
+SHEAR = np.array([[1.3, 0.2, 0.0], [0.0, 0.9, 0.0], [0.0, 0.0, 0.7]])
+
+
+@pytest.fixture(scope="module")
+def ellipsoid_template():
+    shape = Shape("ellipsoid", lambda p: ellipsoid_distance(p, np.zeros(3), AXES), -AXES, AXES,
+                  4 / 3 * np.pi * AXES.prod(), 2)
+    return run(*sample_surface(shape, spacing=0.04, seed=3), biting=BitingParameters(cells=3000)).mesh
+
+
+@pytest.fixture(scope="module")
+def sphere_template():
+    points, normals = sample_surface(sphere(), 0.04, seed=1)
+    result = run(points, normals, biting=BitingParameters(cells=3000))
+    return result.mesh, result.radius, points
+
+
+def test_a_rigid_motion_and_scaling_is_recovered_exactly(ellipsoid_template):
+    """The template's own boundary turned 40 degrees, scaled 2.5 x and moved far: the fit is that motion, to
+    rounding, in one elastic round that moves nothing."""
+    turn = np.array([[np.cos(0.7), -np.sin(0.7), 0.0], [np.sin(0.7), np.cos(0.7), 0.0], [0.0, 0.0, 1.0]])
+    moved = 2.5 * ellipsoid_template.points @ turn.T + [10.0, 20.0, -30.0]
+    fit = fit_template(ellipsoid_template, moved[np.unique(boundary_facets(ellipsoid_template.cells))])
+    np.testing.assert_allclose(fit.mesh.points, moved, rtol=0, atol=1e-9)
+    assert fit.similarity[0] == pytest.approx(2.5, rel=1e-12) and fit.rounds == 1
+    np.testing.assert_array_equal(fit.mesh.cells, ellipsoid_template.cells)
+
+
+def test_a_sphere_sheared_into_an_ellipsoid_lands_on_it(sphere_template):
+    """Samples of the unit sphere sheared by a matrix with axes 1.3, 0.9, 0.7 and moved: every boundary node of the
+    fitted sphere mesh within 0.05 R of the sheared surface, no cell inverted, the cells still FEM-grade (smallest
+    dihedral angle >= 10 degrees), the data within R of the boundary."""
+    mesh, radius, samples = sphere_template
+    shift = np.array([5.0, -2.0, 1.0])
+    fit = fit_template(mesh, samples @ SHEAR.T + shift)
+    boundary = np.unique(boundary_facets(fit.mesh.cells))
+    back = np.linalg.solve(SHEAR, (fit.mesh.points[boundary] - shift).T).T
+    # |back| - 1 is a distance on the unit sphere; through the shear at most 1.3 x that on the ellipsoid
+    assert 1.3 * np.abs(np.linalg.norm(back, axis=1) - 1).max() < 0.05 * radius
+    assert signed_measures(fit.mesh.points, fit.mesh.cells).min() > 0
+    assert quality_summary(fit.mesh).angle_min >= 10.0
+    assert fit.distances.max() < radius
+    np.testing.assert_array_equal(fit.mesh.cells, mesh.cells)
+
+
+def test_the_same_template_and_data_give_the_same_mesh(sphere_template):
+    mesh, _, samples = sphere_template
+    first, second = (fit_template(mesh, samples * [1.2, 1.0, 0.8]) for _ in range(2))
+    np.testing.assert_array_equal(first.mesh.points, second.mesh.points)
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"pull": 0.0}, "pull must be in"),
+    ({"rounds": 0}, "rounds must be in"),
+    ({"data": np.zeros((3, 3))}, "at least 4 points"),
+    ({"template": Mesh(np.array([[0.0, 0], [1, 0], [0, 1]]), np.array([[0, 1, 2]]))}, "tetrahedral mesh"),
+])
+def test_bad_arguments_are_named(sphere_template, change, words):
+    mesh, _, samples = sphere_template
+    arguments = {"template": mesh, "data": samples, **change}
+    with pytest.raises(InvalidInputError, match=words):
+        fit_template(arguments.pop("template"), arguments.pop("data"), **arguments)
