@@ -77,3 +77,15 @@ def test_bad_arguments_are_named(sphere_template, change, words):
     arguments = {"template": mesh, "data": samples, **change}
     with pytest.raises(InvalidInputError, match=words):
         fit_template(arguments.pop("template"), arguments.pop("data"), **arguments)
+
+
+def test_data_by_surface_pulls_each_surface_to_its_own(sphere_template):
+    """Data given by the template's tag names: the sphere's one boundary tag with the sheared samples fits as the
+    whole-boundary array does; a name that is no tag is refused, listing the tags."""
+    mesh, _, samples = sphere_template
+    (name,) = [tag for tag, (_, dim) in mesh.tag_names.items() if dim == 2]
+    by_name = fit_template(mesh, {name: samples @ SHEAR.T})
+    whole = fit_template(mesh, samples @ SHEAR.T)
+    np.testing.assert_array_equal(by_name.mesh.points, whole.mesh.points)
+    with pytest.raises(InvalidInputError, match=rf"'LV_ENDO' is no surface of the template; its surfaces are .*{name}"):
+        fit_template(mesh, {"LV_ENDO": samples})
