@@ -147,3 +147,13 @@ def test_quality_of_a_truncated_file_says_why(capsys, tmp_path, unit_sphere_samp
     code = cli.main(["quality", str(path)])
     _, err = capsys.readouterr()
     assert_refused(code, err, "mesh.vtu", "truncated")
+
+
+@pytest.mark.parametrize("option, flag", [({"label": 2}, "--label 2"), ({"domain": "EPI - LV_ENDO"}, "--domain"),
+                                          ({"frame": 1}, "--frame")])
+def test_an_option_for_another_kind_of_input_is_refused_naming_it(unit_sphere_samples, option, flag):
+    """Options given for scattered points that apply to label maps or labelled contours are refused, not ignored."""
+    import bitemesh
+    points, normals = unit_sphere_samples
+    with pytest.raises(bitemesh.InvalidInputError, match=rf"^{flag} applies to (label maps|labelled contours)"):
+        bitemesh.mesh(bitemesh.Samples(points, normals), cells=1000, **option)

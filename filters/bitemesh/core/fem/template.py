@@ -13,7 +13,7 @@ rounds stop when the largest step is below ``tolerance`` x the template's mean e
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
@@ -25,6 +25,7 @@ from ..mesh.simplicial import Mesh, signed_measures
 from ..mesh.topology import boundary_facets
 from ..progress import ProgressCallback, report
 from ..steps.fidelity import distances_to_facets
+from ..optimize.measures import mean_edge_length
 from .assembly import elasticity_matrix
 
 #: the rounds of iterated closest points of the similarity pre-alignment.
@@ -54,7 +55,6 @@ class TemplateFit:
     rounds: int
     distances: np.ndarray
     seconds: float = 0.0
-    notes: tuple = field(default=())
 
 
 def similarity(source: np.ndarray, target: np.ndarray):
@@ -71,12 +71,12 @@ def similarity(source: np.ndarray, target: np.ndarray):
 
 
 def align(points: np.ndarray, groups: list):
-    """The similarity that takes the template's surfaces onto their data (``groups``: (node indices, data (n, 3))
-    pairs, each surface paired with its own data): the principal axes of both matched (each of the four proper
+    """The similarity that takes the template's surfaces onto their data (``groups``: (node indices, data (n, 3),
+    its cKDTree), each surface paired with its own data): the principal axes of both matched (each of the four proper
     ways to pair their directions tried), the RMS sizes and the centroids, then iterated closest points both ways
     within each surface; the start that ends closest wins."""
-    surface = points[np.concatenate([nodes for nodes, _ in groups])]
-    data = np.vstack([targets for _, targets in groups])
+    surface = points[np.concatenate([nodes for nodes, _, _ in groups])]
+    data = np.vstack([targets for _, targets, _ in groups])
     axes_from = np.linalg.eigh(np.cov(surface.T))[1]
     axes_to = np.linalg.eigh(np.cov(data.T))[1]
     size = np.sqrt(np.mean(np.sum((data - data.mean(axis=0)) ** 2, axis=1))
@@ -97,10 +97,10 @@ def pairs(points: np.ndarray, groups: list):
     """(template points (p, 3), data points (p, 3)): each surface's nodes with their nearest data of that surface,
     and each data point with its nearest node of that surface."""
     sources, targets = [], []
-    for nodes, data in groups:
+    for nodes, data, tree in groups:
         surface = points[nodes]
         sources += [surface, surface[cKDTree(surface).query(data)[1]]]
-        targets += [data[cKDTree(data).query(surface)[1]], data]
+        targets += [data[tree.query(surface)[1]], data]
     return np.vstack(sources), np.vstack(targets)
 
 
@@ -126,9 +126,9 @@ def pulled_to(points: np.ndarray, groups: list, reach: float):
     its surface and the mean of the data points whose nearest node of that surface it is (where there are such),
     pairs longer than ``reach`` left out (a part of a surface the data does not sample: no pull); other nodes stay."""
     targets, pulled = points.copy(), np.zeros(len(points), bool)
-    for nodes, data in groups:
+    for nodes, data, tree in groups:
         surface = points[nodes]
-        distance, nearest = cKDTree(data).query(surface)
+        distance, nearest = tree.query(surface)
         own = data[nearest]
         near = distance <= reach
         apart, claims = cKDTree(surface).query(data)
@@ -147,17 +147,17 @@ def pulled_to(points: np.ndarray, groups: list, reach: float):
 
 def median_gap(points: np.ndarray, groups: list) -> float:
     """The median distance from the data to the nearest node of its surface."""
-    return float(np.median(np.concatenate([cKDTree(points[nodes]).query(data)[0] for nodes, data in groups])))
+    return float(np.median(np.concatenate([cKDTree(points[nodes]).query(data)[0] for nodes, data, _ in groups])))
 
 
 def surface_groups(template: Mesh, data) -> list:
-    """(node indices, data points) per surface: ``data`` an (n, 3) array for the whole boundary, or a mapping of
-    the template's facet tag names to the points of that surface (a tag without data is left free)."""
+    """(node indices, data points, their cKDTree) per surface: ``data`` an (n, 3) array for the whole boundary, or a
+    mapping of the template's facet tag names to the points of that surface (a tag without data is left free)."""
     if not isinstance(data, dict):
         data = check_points(data, dims=(3,))
         if len(data) < 4:
             raise InvalidInputError(f"data: at least 4 points are needed, got {len(data)}")
-        return [(np.unique(boundary_facets(template.cells)), data)]
+        return [(np.unique(boundary_facets(template.cells)), data, cKDTree(data))]
     groups = []
     for name, points in data.items():
         if name not in template.tag_names or template.facets is None:
@@ -166,8 +166,8 @@ def surface_groups(template: Mesh, data) -> list:
         points = check_points(points, dims=(3,))
         nodes = np.unique(template.facets[template.facet_tags == template.tag_names[name][0]])
         if len(points) and len(nodes):
-            groups.append((nodes, points))
-    if sum(len(points) for _, points in groups) < 4:
+            groups.append((nodes, points, cKDTree(points)))
+    if sum(len(points) for _, points, _ in groups) < 4:
         raise InvalidInputError("data: at least 4 points on the template's surfaces are needed")
     return groups
 
@@ -198,10 +198,9 @@ def fit_template(template: Mesh, data, *, pull: float = 10.0, rounds: int = 40, 
     cells = template.cells
     scale, rotation, shift = align(template.points, groups)
     points = scale * template.points @ rotation.T + shift
-    edges = points[cells[:, [0, 0, 0, 1, 1, 2]]] - points[cells[:, [1, 2, 3, 2, 3, 3]]]
-    edge = float(np.linalg.norm(edges, axis=2).mean())
+    edge = mean_edge_length(points, cells)
     step_bound = tolerance * edge
-    surfaces = np.unique(np.concatenate([nodes for nodes, _ in groups]))
+    surfaces = np.unique(np.concatenate([nodes for nodes, _, _ in groups]))
     done = 0
     for done in range(1, rounds + 1):
         report(progress, done / (rounds + 1), f"elastic round {done}")
@@ -217,7 +216,7 @@ def fit_template(template: Mesh, data, *, pull: float = 10.0, rounds: int = 40, 
             break
     moved = Mesh(points, cells, dict(template.cell_data), template.facets, template.facet_tags,
                  dict(template.tag_names))
-    distances = distances_to_facets(np.vstack([data for _, data in groups]), points[boundary_facets(cells)])
+    distances = distances_to_facets(np.vstack([data for _, data, _ in groups]), points[boundary_facets(cells)])
     report(progress, 1.0, "fitted")
     return TemplateFit(moved, (scale, rotation, shift), done, distances, time.perf_counter() - start)
 
