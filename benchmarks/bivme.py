@@ -40,6 +40,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
+sys.path.insert(0, str(HERE.parent))
 
 from bitemesh.core.sources.contours.cardiac import BIVME_DEFAULT_DOMAIN
 from bitemesh.core.sources.contours.fit import labelled_implicit
@@ -61,8 +62,8 @@ from bitemesh.core.mesh.topology import connected_components
 from bitemesh.core.mesh.quality import dihedral_angles
 from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.io import read_labelled_points
-from heart_measures import read_surface
 from scipy.spatial import cKDTree
+from tests.cardiac_variants import read_surface
 
 REFERENCES = {"EPI": "patient1_EPICARDIAL_000.vtk", "LV_ENDO": "patient1_LV_ENDOCARDIAL_000.vtk",
               "RV_ENDO": "patient1_RV_ENDOCARDIAL_000.vtk"}
@@ -338,7 +339,6 @@ def seed_table(rows: list) -> str:
 def variant_table(folder: Path, shipped: Path, seed: int = 0) -> str:
     """One markdown line per variant of tests/cardiac_variants.py, meshed with the defaults (R = 2 mm, the
     MeshOptimizer on)."""
-    sys.path.insert(0, str(HERE.parent))
     from tests.cardiac_variants import VARIANTS, variant_file
     import tempfile
     lines = ["| variant | points | cells | fit + sampling (s) | meshing (s) | total (s) | guide -> boundary mean / "

@@ -34,9 +34,9 @@ from bitemesh.meshing import mesh
 from bitemesh.options import parse_option
 from bitemesh.core.errors import BitemeshError
 from bitemesh.io import read_labelled_points
-from heart_measures import read_surface, measure_heart
+from heart_measures import measure_heart
 
-from tests.cardiac_variants import CLASSES, class_file
+from tests.cardiac_variants import CLASSES, class_file, read_surface
 
 
 def cine_folder() -> Path:

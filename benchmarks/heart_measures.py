@@ -23,6 +23,8 @@ from bitemesh.core.steps.fidelity import distances_to_facets, facet_measures
 from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 from bitemesh.core.mesh.topology import connected_components
 from bitemesh.core.mesh.topology import boundary_facets
+from bitemesh.core.mesh.tags import enclosed_volume
+
 
 #: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.
 REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL": ("LV_ENDO",),
@@ -30,46 +32,6 @@ REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL
 #: the guide-point labels of the walls (every one measured), and the valves (mitral and tricuspid held to 3 mm).
 WALL_WORDS = ("ENDOCARDIAL", "EPICARDIAL", "FREEWALL", "SEPTUM")
 VALVES = ("MITRAL_VALVE", "TRICUSPID_VALVE", "AORTA_VALVE", "PULMONARY_VALVE")
-
-
-def read_surface(path: Path):
-    """Vertices (n, 3) and triangles (t, 3) of a legacy VTK polydata surface."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-    from vtkmodules.vtkFiltersCore import vtkTriangleFilter
-    from vtkmodules.vtkIOLegacy import vtkPolyDataReader
-
-    reader = vtkPolyDataReader()
-    reader.SetFileName(str(path))
-    triangulate = vtkTriangleFilter()
-    triangulate.SetInputConnection(reader.GetOutputPort())
-    triangulate.Update()
-    surface = triangulate.GetOutput()
-    vertices = vtk_to_numpy(surface.GetPoints().GetData()).astype(np.float64)
-    cells = vtk_to_numpy(surface.GetPolys().GetConnectivityArray()).astype(np.int64).reshape(-1, 3)
-    return vertices, cells
-
-
-def closed_volume(points: np.ndarray, triangles: np.ndarray) -> float:
-    """|volume| (mm^3) enclosed by a triangle patch closed across each hole by a fan from the hole rim's centroid.
-
-    The patch must be consistently oriented; the rims are its directed edges without a twin."""
-    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    keys = {tuple(edge) for edge in edges.tolist()}
-    rim = np.array([edge for edge in edges.tolist() if (edge[1], edge[0]) not in keys], dtype=np.int64)
-    corners = points[triangles]
-    volume = np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6
-    if len(rim):
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components as components
-        size = int(rim.max()) + 1
-        _, loop = components(coo_matrix((np.ones(len(rim)), (rim[:, 0], rim[:, 1])), shape=(size, size)),
-                             directed=False)
-        for number in np.unique(loop[rim[:, 0]]):
-            ring = rim[loop[rim[:, 0]] == number]
-            centre = points[np.unique(ring)].mean(axis=0)
-            a, b = points[ring[:, 1]], points[ring[:, 0]]   # reversed: the cap continues the patch's orientation
-            volume += np.einsum("ij,ij->i", a, np.cross(b, np.broadcast_to(centre, a.shape))).sum() / 6
-    return abs(float(volume))
 
 
 def tagged(mesh, names) -> np.ndarray:
@@ -111,7 +73,7 @@ def measure_heart(mesh, points, labels, reference: dict | None = None) -> dict:
             row[valve] = float(distance[labels == valve].max())
     for cavity in ("LV_ENDO", "RV_ENDO"):
         facets = tagged(mesh, (cavity,))
-        row[f"{cavity}_ml"] = closed_volume(mesh.points, facets) / 1000 if len(facets) else np.nan
+        row[f"{cavity}_ml"] = enclosed_volume(mesh.points, facets) / 1000 if len(facets) else np.nan
     row["surfaces"] = {}
     if reference:   # the peer: biv-me's own fit against the same guide points
         offsets = np.cumsum([0] + [len(vertices) for vertices, _ in reference.values()])
@@ -122,7 +84,7 @@ def measure_heart(mesh, points, labels, reference: dict | None = None) -> dict:
     for name, (vertices, triangles) in (reference or {}).items():
         row["surfaces"][name] = surface_distances(mesh, REFERENCE_SURFACES[name], vertices, triangles)
         if name != "EPICARDIAL":
-            row[f"bivme_{REFERENCE_SURFACES[name][0]}_ml"] = closed_volume(vertices, triangles) / 1000
+            row[f"bivme_{REFERENCE_SURFACES[name][0]}_ml"] = enclosed_volume(vertices, triangles) / 1000
     if row["surfaces"]:
         row["from_bivme"] = float(np.nanmean([means[0] for means in row["surfaces"].values()]))
         row["to_bivme"] = float(np.nanmean([means[1] for means in row["surfaces"].values()]))

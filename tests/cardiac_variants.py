@@ -28,6 +28,23 @@ def read_gpfile(path) -> dict:
             "frames": np.array([float(row[6]) for row in rows])}
 
 
+def read_surface(path: Path):
+    """Vertices (n, 3) and triangles (t, 3) of a legacy VTK polydata surface (biv-me's fitted surfaces)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkFiltersCore import vtkTriangleFilter
+    from vtkmodules.vtkIOLegacy import vtkPolyDataReader
+
+    reader = vtkPolyDataReader()
+    reader.SetFileName(str(path))
+    triangulate = vtkTriangleFilter()
+    triangulate.SetInputConnection(reader.GetOutputPort())
+    triangulate.Update()
+    surface = triangulate.GetOutput()
+    vertices = vtk_to_numpy(surface.GetPoints().GetData()).astype(np.float64)
+    cells = vtk_to_numpy(surface.GetPolys().GetConnectivityArray()).astype(np.int64).reshape(-1, 3)
+    return vertices, cells
+
+
 def write_gpfile(gp: dict, path, header=HEADER) -> Path:
     """Write ``gp`` as a GPFile with ``header`` (its names, tab-separated)."""
     lines = ["\t".join(header)] + [

@@ -48,13 +48,13 @@ def build_parser():
     import argparse
 
     from .. import __version__
-    from . import batch, demo, fem, mesh, quality
+    from . import batch, demo, fem, fit, mesh, quality
 
     parser = argparse.ArgumentParser(prog="bitemesh", description="Tetrahedral meshes from scattered points "
                                      "(implicit surface, biting node placement, Delaunay).")
     parser.add_argument("--version", action="version", version=f"bitemesh {__version__}")
     subcommands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in (mesh, batch, quality, fem, demo):
+    for command in (mesh, fit, batch, quality, fem, demo):
         command.add_parser(subcommands)
     return parser
 

@@ -89,3 +89,30 @@ def test_data_by_surface_pulls_each_surface_to_its_own(sphere_template):
     np.testing.assert_array_equal(by_name.mesh.points, whole.mesh.points)
     with pytest.raises(InvalidInputError, match=rf"'LV_ENDO' is no surface of the template; its surfaces are .*{name}"):
         fit_template(mesh, {"LV_ENDO": samples})
+
+
+def test_fibres_of_a_rotated_template_rotate_with_it(ellipsoid_template):
+    """Orthonormal Fibre / Sheet / SheetNormal on every cell, the template turned and moved: each cell's vectors are
+    the turned ones, to rounding (the deformation gradient of a rotation is the rotation)."""
+    rng = np.random.default_rng(5)
+    fibre = rng.normal(size=(len(ellipsoid_template.cells), 3))
+    fibre /= np.linalg.norm(fibre, axis=1, keepdims=True)
+    sheet = np.cross(fibre, rng.normal(size=fibre.shape))
+    sheet /= np.linalg.norm(sheet, axis=1, keepdims=True)
+    template = Mesh(ellipsoid_template.points, ellipsoid_template.cells,
+                    {"Fibre": fibre, "Sheet": sheet, "SheetNormal": np.cross(fibre, sheet)})
+    turn = np.array([[np.cos(1.1), 0.0, np.sin(1.1)], [0.0, 1.0, 0.0], [-np.sin(1.1), 0.0, np.cos(1.1)]])
+    moved = template.points @ turn.T + [1.0, 2.0, 3.0]
+    fit = fit_template(template, moved[np.unique(boundary_facets(template.cells))])
+    for name, vectors in (("Fibre", fibre), ("Sheet", sheet), ("SheetNormal", np.cross(fibre, sheet))):
+        np.testing.assert_allclose(fit.mesh.cell_data[name], vectors @ turn.T, rtol=0, atol=1e-9)
+
+
+def test_the_moved_cells_carry_their_own_quality_arrays(sphere_template):
+    """Volume and the angles of the cell data are the moved cells', not the template's: the volumes sum to the
+    mesh's and scale by 1.2 x 1.0 x 0.8 (the data's stretch) within the fit's 3 %."""
+    mesh, _, samples = sphere_template
+    template = Mesh(mesh.points, mesh.cells, {"Volume": signed_measures(mesh.points, mesh.cells)})
+    fit = fit_template(template, samples * [1.2, 1.0, 0.8])
+    np.testing.assert_allclose(fit.mesh.cell_data["Volume"], signed_measures(fit.mesh.points, fit.mesh.cells))
+    assert fit.mesh.cell_data["Volume"].sum() == pytest.approx(0.96 * template.cell_data["Volume"].sum(), rel=0.03)

@@ -13,13 +13,14 @@ from bitemesh.core import shapes
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.grid.sampled import sample_function
 from bitemesh.core.mesh.interfaces import LabelRegions, label_regions
+from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.sources.contours.run import run_labelled
 from bitemesh.core.mesh.simplicial import signed_measures
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.steps.spine import mesh_from_grid
 from bitemesh.core.sources.points import run
 from bitemesh.core.mesh.quality import radius_ratio
-from bitemesh.core.mesh.tags import component_tags, facet_measures, region_tags
+from bitemesh.core.mesh.tags import component_tags, enclosed_volume, facet_measures, region_tags
 from bitemesh.io import read_labelled_points
 from scipy.spatial import cKDTree
 
@@ -258,3 +259,17 @@ def test_a_label_map_of_two_labels_meshes_two_regions_and_their_interface():
     assert (volumes < 1000).all() and (1000 - volumes).max() < 8 * 10 * radius**2 / 2, volumes
     assert abs(volumes[0] - volumes[1]) / 2 < 100 * radius / 10, volumes
     assert (mesh.cell_data["Volume"] > 0).all()
+
+
+def test_a_cavity_open_at_its_base_is_closed_across_its_rim():
+    """The unit cube's surface without its top (two triangles): the fan from the rim's centroid closes it flat, so
+    the enclosed volume is the cube's, 1, exactly; the closed surface gives 1 too."""
+    corners = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], dtype=np.float64)
+    cells = np.array([[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]])
+    negative = signed_measures(corners, cells) < 0
+    cells[negative] = cells[negative][:, [1, 0, 2, 3]]
+    facets = boundary_facets(cells)
+    top = (corners[facets][:, :, 2] == 1).all(axis=1)
+    assert top.sum() == 2
+    assert enclosed_volume(corners, facets) == pytest.approx(1.0, abs=1e-12)
+    assert enclosed_volume(corners, facets[~top]) == pytest.approx(1.0, abs=1e-12)

@@ -1,14 +1,17 @@
 """The deformable elastic template of the paper (section 2): a tetrahedral mesh moved onto new data by minimising
 E = E_elastic + E_data, discretised as K U = F, with the same cells.
 
-Scheme.  First a similarity (rotation, uniform scale, translation) takes the template's boundary onto the data:
-iterated closest points with Umeyama's closed form, so that a pure rigid motion or scaling is recovered exactly and
-the elastic part only has to bend.  Then rounds of the elastic fit on the updated geometry: each boundary node is
-pulled towards the nearest data point by a spring of stiffness ``pull`` (relative to the mean diagonal of the
-stiffness at the boundary), the template's own P1 linear-elasticity stiffness K (assembled on the current points:
-an updated Lagrangian, so that large deformations are taken in small linear steps) holds the rest, and
-(K + P) U = P (targets - points) gives the step.  A step that would invert a cell is halved until none does; the
-rounds stop when the largest step is below ``tolerance`` x the template's mean edge length.
+Scheme.  First a similarity (rotation, uniform scale, translation) takes the template's surfaces onto their data:
+iterated closest points from the data to its surface with Umeyama's closed form (the data may sample a surface in
+part, as contours do), so that a pure rigid motion or scaling is recovered exactly and the elastic part only has to
+bend.  Then stages (load steps) of the elastic fit, each the paper's K U = F on the stage's start geometry: K the
+template's own P1 linear elasticity, F the pulls of the data (:func:`springs`: point to plane on the nodes the data
+claim, harmonic in between, so that a surface sampled by contours 10 mm apart moves as a whole), the correspondences
+recomputed each round.  A cell whose shape degrades from the template's stiffens (Jacobian-based stiffening, as in
+mesh moving: Stein, Tezduyar and Benney 2003); a step that would invert or flatten a cell is halved.  The rounds of a
+stage end when the RMS step is below ``tolerance`` mean edge lengths; the stages, when one moves the nodes less than
+:data:`STAGE_END` edge lengths (RMS).  Each cell's Fibre, Sheet and SheetNormal are carried by its deformation
+gradient and made orthonormal again; its quality arrays are those of the moved cell.
 """
 from __future__ import annotations
 
@@ -21,12 +24,13 @@ from scipy.sparse import linalg as splinalg
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError, MeshingError, check_number, check_points
+from ..mesh.quality import cell_quality
 from ..mesh.simplicial import Mesh, signed_measures
 from ..mesh.topology import boundary_facets
 from ..progress import ProgressCallback, report
 from ..steps.fidelity import distances_to_facets
-from ..optimize.measures import mean_edge_length
-from .assembly import elasticity_matrix
+from ..optimize.measures import inverse_mean_ratio, mean_edge_length
+from .assembly import assemble, basis_gradients, elasticity_elements, element_dofs
 
 #: the rounds of iterated closest points of the similarity pre-alignment.
 ALIGN_ROUNDS = 50
@@ -36,6 +40,13 @@ REACH = 3.0
 #: the most halvings of a step that would invert a cell, and the smallest share of its volume a cell may keep in
 #: one step (a step that flattens a cell is halved too).
 HALVINGS, SHRINK = 12, 0.05
+#: a pulled node's spring along its surface, as a share of the one across it (point to plane, mostly).
+SLIDE = 0.1
+#: a cell whose inverse mean ratio grew by a factor g from the template's stiffens by g ** STIFFENING, so that the
+#: pulls cannot flatten it.
+STIFFENING = 4.0
+#: the stages (load steps) end when one moves no node farther than this many mean edge lengths.
+STAGE_END = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,22 +82,25 @@ def similarity(source: np.ndarray, target: np.ndarray):
 
 
 def align(points: np.ndarray, groups: list):
-    """The similarity that takes the template's surfaces onto their data (``groups``: (node indices, data (n, 3),
-    its cKDTree), each surface paired with its own data): the principal axes of both matched (each of the four proper
-    ways to pair their directions tried), the RMS sizes and the centroids, then iterated closest points both ways
-    within each surface; the start that ends closest wins."""
-    surface = points[np.concatenate([nodes for nodes, _, _ in groups])]
-    data = np.vstack([targets for _, targets, _ in groups])
+    """The similarity that takes the template's surfaces onto their data (``groups``: see
+    :func:`surface_groups`).  Starts: the template where it is, and the principal
+    axes of both matched (each of the four proper ways to pair their directions), with the RMS sizes and the
+    centroids; each refined by iterated closest points from the data to its surface (the data may sample a surface in
+    part: contours); the start that ends closest wins."""
+    surface = points[np.concatenate([nodes for nodes, _, _, _ in groups])]
+    data = np.vstack([targets for _, _, targets, _ in groups])
     axes_from = np.linalg.eigh(np.cov(surface.T))[1]
     axes_to = np.linalg.eigh(np.cov(data.T))[1]
     size = np.sqrt(np.mean(np.sum((data - data.mean(axis=0)) ** 2, axis=1))
                    / np.mean(np.sum((surface - surface.mean(axis=0)) ** 2, axis=1)))
-    best = None
+    starts = [(1.0, np.eye(3), np.zeros(3))]
     for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
         turn = axes_to @ np.diag(signs) @ axes_from.T
         if np.linalg.det(turn) < 0:
             turn = axes_to @ np.diag(signs) @ np.diag([1, 1, -1]) @ axes_from.T
-        start = (float(size), turn, data.mean(axis=0) - size * turn @ surface.mean(axis=0))
+        starts.append((float(size), turn, data.mean(axis=0) - size * turn @ surface.mean(axis=0)))
+    best = None
+    for start in starts:
         found, residual = iterate_closest_points(points, groups, start)
         if best is None or residual < best[1]:
             best = (found, residual)
@@ -94,18 +108,17 @@ def align(points: np.ndarray, groups: list):
 
 
 def pairs(points: np.ndarray, groups: list):
-    """(template points (p, 3), data points (p, 3)): each surface's nodes with their nearest data of that surface,
-    and each data point with its nearest node of that surface."""
+    """(template points (p, 3), data points (p, 3)): each data point with its nearest node of its surface."""
     sources, targets = [], []
-    for nodes, data, tree in groups:
+    for nodes, _, data, _ in groups:
         surface = points[nodes]
-        sources += [surface, surface[cKDTree(surface).query(data)[1]]]
-        targets += [data[tree.query(surface)[1]], data]
+        sources.append(surface[cKDTree(surface).query(data)[1]])
+        targets.append(data)
     return np.vstack(sources), np.vstack(targets)
 
 
 def iterate_closest_points(points: np.ndarray, groups: list, current: tuple):
-    """The similarity from ``current`` on, refined by closest points both ways within each surface until it stops
+    """The similarity from ``current`` on, refined by closest points within each surface until it stops
     changing, and the mean distance between the pairs it leaves."""
     for _ in range(ALIGN_ROUNDS):
         moved = current[0] * points @ current[1].T + current[2]
@@ -121,58 +134,98 @@ def iterate_closest_points(points: np.ndarray, groups: list, current: tuple):
     return current, float(np.linalg.norm(paired[0] - paired[1], axis=1).mean())
 
 
-def pulled_to(points: np.ndarray, groups: list, reach: float):
-    """(targets (n, 3), pulled (n,) bool): each node of a surface pulled halfway between the nearest data point of
-    its surface and the mean of the data points whose nearest node of that surface it is (where there are such),
-    pairs longer than ``reach`` left out (a part of a surface the data does not sample: no pull); other nodes stay."""
-    targets, pulled = points.copy(), np.zeros(len(points), bool)
-    for nodes, data, tree in groups:
+def node_normals(points: np.ndarray, facets: np.ndarray) -> np.ndarray:
+    """(n, 3) unit normals at the points of a triangulated surface ``facets`` (f, 3), area-weighted."""
+    a, b, c = (points[facets[:, k]] for k in range(3))
+    sums = np.zeros_like(points)
+    cross = np.cross(b - a, c - a)
+    for k in range(3):
+        np.add.at(sums, facets[:, k], cross)
+    return sums / np.maximum(np.linalg.norm(sums, axis=1, keepdims=True), 1e-300)
+
+
+def springs(points: np.ndarray, groups: list, reach: float, weight: float):
+    """(P sparse (3n, 3n), F (3n,)): the pulls of the data on the surfaces.  Each data point claims the nearest node
+    of its surface (pairs longer than ``reach`` left out); a claimed node is to move across its surface onto its
+    nearest data point (not the mean of a curved patch, which lies inside it); the nodes between sampled contours
+    move as the harmonic interpolation of those moves over the surface (:func:`spread`).  Each node of a sampled
+    surface is held to its move by a spring of stiffness ``weight`` across the surface and :data:`SLIDE` x that
+    along it."""
+    rows, columns, values, force = [], [], [], np.zeros(points.shape)
+    for nodes, facets, data, tree in groups:
         surface = points[nodes]
-        distance, nearest = tree.query(surface)
-        own = data[nearest]
-        near = distance <= reach
-        apart, claims = cKDTree(surface).query(data)
-        claims = claims[apart <= reach]
-        counts = np.bincount(claims, minlength=len(nodes))
-        sums = np.zeros_like(surface)
-        np.add.at(sums, claims, data[apart <= reach])
-        claimed = counts > 0
-        mean = sums[claimed] / counts[claimed, None]
-        own[claimed] = np.where(near[claimed, None], 0.5 * own[claimed] + 0.5 * mean, mean)
-        pull = near | claimed
-        targets[nodes[pull]] = own[pull]
-        pulled[nodes[pull]] = True
-    return targets, pulled
+        apart, nearest = cKDTree(surface).query(data)
+        claimed = np.unique(nearest[apart <= reach])
+        if not len(claimed):
+            continue
+        normal = node_normals(surface, facets)
+        across = np.einsum("pi,pi->p", data[tree.query(surface[claimed])[1]] - surface[claimed], normal[claimed])
+        offset = spread(facets, len(nodes), claimed, across[:, None] * normal[claimed])
+        blocks = weight * ((1 - SLIDE) * normal[:, :, None] * normal[:, None, :] + SLIDE * np.eye(3))
+        index = 3 * nodes[:, None] + np.arange(3)
+        rows.append(np.repeat(index, 3, axis=1).ravel())
+        columns.append(np.tile(index, 3).ravel())
+        values.append(blocks.ravel())
+        np.add.at(force, nodes, np.einsum("pij,pj->pi", blocks, offset))
+    size = 3 * len(points)
+    matrix = sparse.coo_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(columns))),
+                               shape=(size, size))
+    return matrix.tocsr(), force.ravel()
+
+
+def spread(facets: np.ndarray, count: int, known: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(count, k) ``values`` (len(known), k) given at the nodes ``known`` of the triangulation ``facets`` (f, 3),
+    harmonic elsewhere (the graph Laplacian's solution; a part without a known node decays to 0)."""
+    edges = np.unique(np.sort(np.concatenate([facets[:, [0, 1]], facets[:, [1, 2]], facets[:, [2, 0]]]), axis=1),
+                      axis=0)
+    adjacency = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(count, count))
+    adjacency = (adjacency + adjacency.T).tocsr()
+    laplacian = (sparse.diags(np.asarray(adjacency.sum(axis=1)).ravel() + 1e-9) - adjacency).tocsr()
+    unknown = np.setdiff1d(np.arange(count), known)
+    result = np.zeros((count, values.shape[1]))
+    result[known] = values
+    if len(unknown):
+        result[unknown] = splinalg.spsolve(laplacian[unknown][:, unknown].tocsc(),
+                                           -(laplacian[unknown][:, known] @ values)).reshape(len(unknown), -1)
+    return result
 
 
 def median_gap(points: np.ndarray, groups: list) -> float:
     """The median distance from the data to the nearest node of its surface."""
-    return float(np.median(np.concatenate([cKDTree(points[nodes]).query(data)[0] for nodes, data, _ in groups])))
+    return float(np.median(np.concatenate([cKDTree(points[nodes]).query(data)[0] for nodes, _, data, _ in groups])))
 
 
 def surface_groups(template: Mesh, data) -> list:
-    """(node indices, data points, their cKDTree) per surface: ``data`` an (n, 3) array for the whole boundary, or a
-    mapping of the template's facet tag names to the points of that surface (a tag without data is left free)."""
+    """(node indices, facets over them (f, 3), data points, their cKDTree) per surface: ``data`` an (n, 3) array
+    for the whole boundary, or a mapping of the template's facet tag names to the points of that surface (a tag
+    without data is left free)."""
     if not isinstance(data, dict):
         data = check_points(data, dims=(3,))
         if len(data) < 4:
             raise InvalidInputError(f"data: at least 4 points are needed, got {len(data)}")
-        return [(np.unique(boundary_facets(template.cells)), data, cKDTree(data))]
+        return [local(boundary_facets(template.cells), data)]
     groups = []
     for name, points in data.items():
         if name not in template.tag_names or template.facets is None:
             raise InvalidInputError(f"data: {name!r} is no surface of the template; its surfaces are "
                                     f"{', '.join(sorted(template.tag_names)) or 'none (untagged)'}")
         points = check_points(points, dims=(3,))
-        nodes = np.unique(template.facets[template.facet_tags == template.tag_names[name][0]])
-        if len(points) and len(nodes):
-            groups.append((nodes, points, cKDTree(points)))
-    if sum(len(points) for _, points, _ in groups) < 4:
+        facets = template.facets[template.facet_tags == template.tag_names[name][0]]
+        if len(points) and len(facets):
+            groups.append(local(facets, points))
+    if sum(len(points) for _, _, points, _ in groups) < 4:
         raise InvalidInputError("data: at least 4 points on the template's surfaces are needed")
     return groups
 
 
-def fit_template(template: Mesh, data, *, pull: float = 10.0, rounds: int = 40, tolerance: float = 1e-3,
+def local(facets: np.ndarray, data: np.ndarray) -> tuple:
+    """(node indices (n,), the facets over them (f, 3), data, its cKDTree): a surface as its own triangulation."""
+    nodes, inverse = np.unique(facets, return_inverse=True)
+    return nodes, inverse.reshape(facets.shape), data, cKDTree(data)
+
+
+def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, rounds: int = 40,
+                 tolerance: float = 1e-2, rest: Mesh | None = None,
                  progress: ProgressCallback = None) -> TemplateFit:
     """Move a tetrahedral ``template`` onto ``data`` keeping its cells (see the module docstring).
 
@@ -181,8 +234,12 @@ def fit_template(template: Mesh, data, *, pull: float = 10.0, rounds: int = 40, 
     template : Mesh of tetrahedra (its tags and cell data are kept)
     data : (n, 3) float64, points on the surface to fit (input units), n >= 4; or a mapping of the template's
         surface (facet tag) names to the points of each (EPI, LV_ENDO, ...): each surface is pulled to its own
-    pull : the springs' stiffness relative to the template's (larger: closer to the data, less smooth), > 0
-    rounds : the most elastic rounds, >= 1; tolerance : the step, in mean edge lengths, that ends them
+    pull : the springs' stiffness relative to the template's at its surface (larger: closer to the data, less
+        smooth, poorer cells at thin walls), > 0
+    stages : the most load steps, >= 1; rounds : the most rounds a stage, >= 1; tolerance : the RMS step, in mean
+        edge lengths, that ends a stage
+    rest : the template as built (the same cells), whose cells' shapes the stiffening keeps: the first frame's
+        template when a cycle fits each frame from the last; default ``template``
     progress : callable(fraction, message), optional
 
     Returns
@@ -193,32 +250,78 @@ def fit_template(template: Mesh, data, *, pull: float = 10.0, rounds: int = 40, 
     if template.dim != 3:
         raise InvalidInputError(f"template: a tetrahedral mesh is needed, got a {template.dim}D mesh")
     groups = surface_groups(template, data)
-    pull = check_number(pull, "pull", low=0, low_open=True, hint="10 pulls the surface close to the data")
+    pull = check_number(pull, "pull", low=0, low_open=True,
+                        hint="3 pulls the surfaces within a tenth of an edge of contours")
     rounds = int(check_number(rounds, "rounds", low=1, high=10000))
+    stages = int(check_number(stages, "stages", low=1, high=100))
     cells = template.cells
     scale, rotation, shift = align(template.points, groups)
     points = scale * template.points @ rotation.T + shift
     edge = mean_edge_length(points, cells)
-    step_bound = tolerance * edge
-    surfaces = np.unique(np.concatenate([nodes for nodes, _, _ in groups]))
+    original = inverse_mean_ratio((rest or template).points, cells)
     done = 0
-    for done in range(1, rounds + 1):
-        report(progress, done / (rounds + 1), f"elastic round {done}")
-        stiffness = elasticity_matrix(points, cells)
-        weight = pull * float(stiffness.diagonal().reshape(-1, 3)[surfaces].mean())
-        reach = max(REACH * median_gap(points, groups), 2 * edge)
-        targets, pulled = pulled_to(points, groups, reach)
-        springs = np.repeat(np.where(pulled, weight, 0.0), 3)
-        system = (stiffness + sparse.diags(springs)).tocsc()
-        step = splinalg.spsolve(system, springs * (targets - points).ravel()).reshape(-1, 3)
-        points, taken = positive_step(points, cells, step)
-        if taken * np.abs(step).max() < step_bound:
+    for stage in range(stages):
+        report(progress, stage / stages, f"elastic stage {stage + 1}")
+        start_points = points
+        points, taken = elastic_stage(points, cells, groups, pull, original, rounds, tolerance * edge)
+        done += taken
+        if np.sqrt(np.mean((points - start_points) ** 2)) < STAGE_END * edge:
             break
-    moved = Mesh(points, cells, dict(template.cell_data), template.facets, template.facet_tags,
-                 dict(template.tag_names))
-    distances = distances_to_facets(np.vstack([data for _, data, _ in groups]), points[boundary_facets(cells)])
+    cell_data = dict(template.cell_data)
+    cell_data.update(carried_fibres(template.points, points, cells, cell_data))
+    moved = Mesh(points, cells, cell_data, template.facets, template.facet_tags, dict(template.tag_names))
+    moved.cell_data.update({name: values for name, values in cell_quality(moved).items() if name in cell_data})
+    distances = distances_to_facets(np.vstack([data for _, _, data, _ in groups]), points[boundary_facets(cells)])
     report(progress, 1.0, "fitted")
     return TemplateFit(moved, (scale, rotation, shift), done, distances, time.perf_counter() - start)
+
+
+def elastic_stage(points: np.ndarray, cells: np.ndarray, groups: list, pull: float, original: np.ndarray,
+                  rounds: int, step_bound: float):
+    """(points, rounds run): one load step, the paper's K U = F with K the elasticity of ``points`` (the stage's
+    start) and F the springs to the data, the correspondences recomputed each round until the largest step is below
+    ``step_bound``; a cell whose inverse mean ratio exceeds its ``original`` (m,) stiffens (:data:`STIFFENING`)."""
+    reference = points
+    gradients, volumes = basis_gradients(reference, cells)
+    elements, dofs = elasticity_elements(gradients, volumes), element_dofs(cells, 3)
+    squeeze = np.maximum(inverse_mean_ratio(points, cells) / original, 1.0) ** STIFFENING
+    stiffness = assemble(elements * squeeze[:, None, None], dofs, points.size)
+    surfaces = np.unique(np.concatenate([nodes for nodes, _, _, _ in groups]))
+    weight = pull * float(assemble(elements, dofs, points.size).diagonal().reshape(-1, 3)[surfaces].mean())
+    edge = mean_edge_length(points, cells)
+    total = np.zeros(points.size)
+    done = 0
+    while done < rounds:
+        done += 1
+        reach = max(REACH * median_gap(points, groups), 2 * edge)
+        pulls, force = springs(points, groups, reach, weight)
+        system = (stiffness + pulls).tocsr()
+        total, _ = splinalg.cg(system, force + pulls @ total, x0=total, rtol=1e-8,
+                               M=sparse.diags(1.0 / system.diagonal()))
+        step = reference + total.reshape(-1, 3) - points
+        points, taken = positive_step(points, cells, step)
+        total = (points - reference).ravel()
+        if taken * np.sqrt(np.mean(step ** 2)) < step_bound:
+            break
+        squeeze = np.maximum(inverse_mean_ratio(points, cells) / original, 1.0) ** STIFFENING
+        stiffness = assemble(elements * squeeze[:, None, None], dofs, points.size)
+    return points, done
+
+
+def carried_fibres(before: np.ndarray, after: np.ndarray, cells: np.ndarray, cell_data: dict) -> dict:
+    """The cell arrays Fibre, Sheet, SheetNormal ((m, 3) unit vectors) of the cells on ``before`` (n, 3), carried to
+    ``after``: f' = F f / |F f|, s' the part of F s across f', made unit, n' = f' x s' (F = d after / d before, the
+    cell's deformation gradient).  Empty without a Fibre array."""
+    if "Fibre" not in cell_data or "Sheet" not in cell_data:
+        return {}
+    gradients, _ = basis_gradients(before, cells)
+    deformation = np.einsum("mai,maj->mij", after[cells], gradients)        # F_ij = sum_a x_a,i d_j lambda_a
+    fibre = np.einsum("mij,mj->mi", deformation, cell_data["Fibre"])
+    fibre /= np.linalg.norm(fibre, axis=1, keepdims=True)
+    sheet = np.einsum("mij,mj->mi", deformation, cell_data["Sheet"])
+    sheet -= np.einsum("mi,mi->m", sheet, fibre)[:, None] * fibre
+    sheet /= np.linalg.norm(sheet, axis=1, keepdims=True)
+    return {"Fibre": fibre, "Sheet": sheet, "SheetNormal": np.cross(fibre, sheet)}
 
 
 def positive_step(points: np.ndarray, cells: np.ndarray, step: np.ndarray):

@@ -192,3 +192,34 @@ def region_tags(mesh: Mesh, regions: np.ndarray, labels) -> Mesh:
     tag_names = _names(mesh, tags[keep], names, region_values, {int(label): f"REGION_{label}" for label in labels})
     return mesh.with_tags(facets[keep], tags[keep], tag_names, region_values)
 
+
+
+def enclosed_volume(points: np.ndarray, triangles: np.ndarray) -> float:
+    """|volume| (input units^3) enclosed by a consistently oriented triangle patch (t, 3), each hole closed by a fan
+    from its rim's centroid (a cavity's endocardium closed across its valves at the base)."""
+    corners = points[triangles]
+    volume = np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6
+    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    keys = directed[:, 0] * len(points) + directed[:, 1]
+    rim = directed[~np.isin(keys, directed[:, 1] * len(points) + directed[:, 0])]
+    if len(rim):
+        graph = sparse.coo_matrix((np.ones(len(rim)), (rim[:, 0], rim[:, 1])), shape=(len(points),) * 2)
+        loop = csgraph.connected_components(graph, directed=False)[1][rim[:, 0]]
+        for number in np.unique(loop):
+            ring = rim[loop == number]
+            centre = points[np.unique(ring)].mean(axis=0)
+            a, b = points[ring[:, 1]], points[ring[:, 0]]   # reversed: the cap continues the patch's orientation
+            volume += np.einsum("ij,ij->i", a, np.cross(b, np.broadcast_to(centre, a.shape))).sum() / 6
+    return abs(float(volume))
+
+
+def cavity_volumes(mesh: Mesh, names=("LV_ENDO", "RV_ENDO")) -> dict:
+    """name -> the volume (input units^3) of the cavity its tagged facets bound, closed across its openings
+    (:func:`enclosed_volume`), for each of ``names`` the mesh tags."""
+    volumes = {}
+    for name in names:
+        if name in mesh.tag_names and mesh.facets is not None:
+            facets = mesh.facets[mesh.facet_tags == mesh.tag_names[name][0]]
+            if len(facets):
+                volumes[name] = enclosed_volume(mesh.points, facets)
+    return volumes

@@ -1,0 +1,126 @@
+"""The elastic template's front door: a tagged bitemesh mesh moved onto new data with the same cells
+(:mod:`bitemesh.core.fem.template`), one frame or a cycle.
+
+The data are read as :func:`bitemesh.mesh` reads an input (:func:`~bitemesh.meshing.read_input`): labelled guide
+points pull each of the template's surfaces to their own contours (EPI to the epicardial, LV_ENDO and RV_ENDO to the
+endocardial, BASE to the valve points), scattered points pull the whole boundary, a label map its boundary voxels.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .core.errors import InvalidInputError
+from .core.fem.template import TemplateFit, fit_template
+from .core.mesh.simplicial import Mesh
+from .core.mesh.tags import cavity_volumes
+from .core.progress import ProgressCallback, sub_progress
+from .core.sources.contours.cardiac import BIVME_SURFACES, BIVME_VALVES, canonical_labels
+from .io import read_mesh
+from .meshing import Samples, Voxels, read_input
+from .options import as_options
+
+#: the template's surfaces and the guide-point labels that pull each (BASE: the valve annuli).
+SURFACE_LABELS = {**BIVME_SURFACES, "BASE": BIVME_VALVES}
+
+
+@dataclass(frozen=True)
+class CycleFit:
+    """Frames of a cycle fitted one after the other: ``fits`` (a TemplateFit each, the same cells), ``volumes``
+    (f, 2) the LV and RV cavity volumes (ml, closed across the base; NaN without that cavity)."""
+
+    fits: list
+    volumes: np.ndarray
+
+    @property
+    def end_diastole(self) -> int:
+        """The frame of the largest LV volume."""
+        return int(np.nanargmax(self.volumes[:, 0]))
+
+    @property
+    def end_systole(self) -> int:
+        """The frame of the smallest LV volume."""
+        return int(np.nanargmin(self.volumes[:, 0]))
+
+    @property
+    def ejection_fraction(self) -> float:
+        """(EDV - ESV) / EDV of the LV in percent, EDV and ESV the largest and smallest volume of the cycle."""
+        lv = self.volumes[:, 0]
+        return float(100 * (lv[self.end_diastole] - lv[self.end_systole]) / lv[self.end_diastole])
+
+
+def template_mesh(template) -> Mesh:
+    """A path to a bitemesh mesh, a Mesh, or a MeshingResult -> the tetrahedral Mesh with its tags."""
+    if isinstance(template, Mesh):
+        return template
+    if hasattr(template, "mesh"):
+        return template.mesh
+    return read_mesh(template)
+
+
+def fit_data(template: Mesh, data, frame=None):
+    """The points that pull the template: a mapping of its surface names to points for labelled data, an (n, 3)
+    array for scattered points or a label map's boundary voxels."""
+    samples = read_input(data, as_options(None if frame is None else {"frame": frame}))
+    if isinstance(samples, Voxels):
+        return boundary_voxels(samples)
+    if samples.labels is None:
+        return samples.points
+    labels = canonical_labels(samples.labels)[0]
+    pulled = {name: samples.points[np.isin(labels, SURFACE_LABELS[name])]
+              for name in template.tag_names if name in SURFACE_LABELS}
+    if not any(len(points) for points in pulled.values()):
+        raise InvalidInputError(f"data: none of its labels ({', '.join(sorted(set(labels))[:6])}, ...) samples a "
+                                f"surface of the template ({', '.join(sorted(template.tag_names))}); give biv-me "
+                                "labels (SAX_LV_ENDOCARDIAL, ...) or scattered points of the whole boundary")
+    return pulled
+
+
+def boundary_voxels(voxels: Voxels) -> np.ndarray:
+    """(n, 3) physical centres of the labelled voxels with an unlabelled face neighbour (mm)."""
+    inside = np.pad(voxels.labels != 0, 1)
+    core = inside[1:-1, 1:-1, 1:-1]
+    edge = core & ~(inside[:-2, 1:-1, 1:-1] & inside[2:, 1:-1, 1:-1] & inside[1:-1, :-2, 1:-1]
+                    & inside[1:-1, 2:, 1:-1] & inside[1:-1, 1:-1, :-2] & inside[1:-1, 1:-1, 2:])
+    ijk = np.argwhere(edge).astype(np.float64)
+    return ijk @ voxels.ijk_to_physical[:3, :3].T + voxels.ijk_to_physical[:3, 3]
+
+
+def fit(template, data, *, frame=None, pull: float = 3.0, rest=None,
+        progress: ProgressCallback = None) -> TemplateFit:
+    """Move ``template`` (a bitemesh mesh: a path, a Mesh or a MeshingResult) onto ``data`` (anything
+    :func:`bitemesh.mesh` reads; ``frame`` picks a frame of a GPFile holding several) keeping its cells.
+
+    Returns the :class:`~bitemesh.core.fem.template.TemplateFit`: ``mesh`` (the moved points, the same cells and
+    tags, the fibres carried), ``distances`` (each data point to the boundary, mm), ``similarity``, ``rounds``."""
+    template = template_mesh(template)
+    return fit_template(template, fit_data(template, data, frame), pull=pull,
+                        rest=None if rest is None else template_mesh(rest), progress=progress)
+
+
+def fit_cycle(template, frames, *, pull: float = 3.0, progress: ProgressCallback = None) -> CycleFit:
+    """Fit ``template`` to each of ``frames`` (data as :func:`fit` takes them, in the cycle's order), each frame
+    starting from the last one's fit, the cells' shapes held to the template's."""
+    template = template_mesh(template)
+    if isinstance(frames, (str, Samples)) or not len(frames):
+        raise InvalidInputError("frames: a list of the cycle's data (GPFile paths, ...) is needed, one per frame")
+    fits, current = [], template
+    for number, data in enumerate(frames):
+        step = sub_progress(progress, number / len(frames), (number + 1) / len(frames))
+        fitted = fit(current, data, pull=pull, rest=template, progress=step)
+        fits.append(fitted)
+        current = fitted.mesh
+    volumes = np.array([[cavity_volumes(fitted.mesh).get(name, np.nan) / 1000 for name in ("LV_ENDO", "RV_ENDO")]
+                        for fitted in fits])
+    return CycleFit(fits, volumes)
+
+
+def frame_fit_row(fitted: TemplateFit) -> dict:
+    """The figures of one fit a report lists: distances (mm), cells, the worst cell, rounds, seconds."""
+    from .core.mesh.quality import quality_summary
+    summary = quality_summary(fitted.mesh)
+    return {"data_mean": float(fitted.distances.mean()), "data_p95": float(np.percentile(fitted.distances, 95)),
+            "min_dihedral": summary.angle_min, "min_radius_ratio": summary.q_min, "rounds": fitted.rounds,
+            "seconds": fitted.seconds}
+
