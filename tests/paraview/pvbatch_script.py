@@ -50,7 +50,8 @@ from vtkmodules.vtkCommonDataModel import vtkImageData
 #: bitemesh class name -> the plugin's filter in paraview.simple
 FILTERS = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
            "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
-           "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter", "FibreField": "FibreField"}
+           "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter", "FibreField": "FibreField",
+           "TemplateFit": "TemplateFit"}
 #: the Programmable Filter script of docs/vtk-paraview-slicer.md (Output Data Set Type: vtkUnstructuredGrid);
 #: CELLS is substituted.
 PROGRAMMABLE_SCRIPT = """
@@ -273,6 +274,18 @@ def gpfile(args, out: Path) -> None:
           arrays.GetVectors() is not None and arrays.GetVectors().GetName() == "Fibre", f"error {error!r}")
     SaveData(str(out / "fibres.vtu"), proxy=fibres)
     facts["fibres"] = {"file": "fibres.vtu"}
+
+    # the elastic template: Template Fit of the fibred mesh and the mesher's surfaces onto the same guide points
+    fit = getattr(simple, FILTERS["TemplateFit"])(Mesh=fibres, Surfaces=simple.OutputPort(proxy, 1), Data=points)
+    moved = updated(fit)
+    error = fit.GetClientSideObject().last_error
+    shift = np.linalg.norm(numpy_support.vtk_to_numpy(moved.GetPoints().GetData())
+                           - numpy_support.vtk_to_numpy(grid.GetPoints().GetData()), axis=1) if error is None else []
+    fibre = moved.GetCellData().GetArray("Fibre")
+    check("gpfile: Template Fit of the mesh onto its own guide points keeps its cells and fibres and moves its nodes "
+          "less than R", error is None and moved.GetNumberOfCells() == grid.GetNumberOfCells() and fibre is not None
+          and np.allclose(np.linalg.norm(numpy_support.vtk_to_numpy(fibre), axis=1), 1.0, atol=1e-6)
+          and float(np.max(shift)) < plan_of(grid)["Radius"], f"error {error!r}")
 
 
 @guarded("programmable filter")

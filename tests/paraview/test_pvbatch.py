@@ -206,6 +206,12 @@ def test_a_gpfile_read_as_a_table_gives_the_myocardium_of_run_labelled(pvbatch_r
     assert_valid_domain(mesh, components=1)
 
 
+def test_template_fit_in_paraview_fits_the_mesh_to_its_own_guide_points(pvbatch_run):
+    """Template Fit on Fibre Field's mesh, the mesher's surfaces and the GPFile's points (three inputs): the same
+    cells, unit fibres carried, no node moved by R or more (the data the mesh was made from)."""
+    assert_checks(pvbatch_run, "gpfile: Template Fit")
+
+
 def test_fibre_field_in_paraview_gives_the_fibres_of_the_core_on_the_same_mesh(pvbatch_run):
     """Fibre Field on Volume Mesh From Points' two outputs (the GPFile's mesh and its tagged surfaces) gives the
     fibres that bitemesh.core.fem.fibres computes here on run_labelled's mesh of the same file (the same cells, points

@@ -1,7 +1,8 @@
 """The bitemesh VTK filters (VTKPythonAlgorithmBase subclasses); they import only ``vtkmodules``."""
 from .fibres import FibreField
+from .fit import TemplateFit
 from .filters import (BitingSampler, DelaunayTetra, MeshFromPoints, MeshOptimizer, PointsToImplicit,
                       QualityFilter, SpuriousCellFilter)
 
 __all__ = ["BitingSampler", "DelaunayTetra", "FibreField", "MeshFromPoints", "MeshOptimizer", "PointsToImplicit",
-           "QualityFilter", "SpuriousCellFilter"]
+           "QualityFilter", "SpuriousCellFilter", "TemplateFit"]

@@ -4,11 +4,13 @@ E = E_elastic + E_data, discretised as K U = F, with the same cells.
 Scheme.  First a similarity (rotation, uniform scale, translation) takes the template's surfaces onto their data:
 iterated closest points from the data to its surface with Umeyama's closed form (the data may sample a surface in
 part, as contours do), so that a pure rigid motion or scaling is recovered exactly and the elastic part only has to
-bend.  Then stages (load steps) of the elastic fit, each the paper's K U = F on the stage's start geometry: K the
-template's own P1 linear elasticity, F the pulls of the data (:func:`springs`: point to plane on the nodes the data
+bend.  Then stages (load steps) of the elastic fit, each the paper's K U = F: K the template's own P1 linear
+elasticity measured from the stage's start (the first stage's from the template at rest, ``rest``, when a cycle
+starts each frame from the last), F the pulls of the data (:func:`springs`: point to plane on the nodes the data
 claim, harmonic in between, so that a surface sampled by contours 10 mm apart moves as a whole), the correspondences
 recomputed each round.  A cell whose shape degrades from the template's stiffens (Jacobian-based stiffening, as in
-mesh moving: Stein, Tezduyar and Benney 2003); a step that would invert or flatten a cell is halved.  The rounds of a
+mesh moving: Stein, Tezduyar and Benney 2003); where a step would invert or flatten a cell, or take its smallest
+dihedral angle below ANGLE_FLOOR (10 degrees), the step of its nodes is halved.  The rounds of a
 stage end when the RMS step is below ``tolerance`` mean edge lengths; the stages, when one moves the nodes less than
 :data:`STAGE_END` edge lengths (RMS).  Each cell's Fibre, Sheet and SheetNormal are carried by its deformation
 gradient and made orthonormal again; its quality arrays are those of the moved cell.
@@ -23,13 +25,14 @@ from scipy import sparse
 from scipy.sparse import linalg as splinalg
 from scipy.spatial import cKDTree
 
-from ..errors import InvalidInputError, MeshingError, check_number, check_points
+from ..errors import InvalidInputError, check_number, check_points
 from ..mesh.quality import cell_quality
 from ..mesh.simplicial import Mesh, signed_measures
 from ..mesh.topology import boundary_facets
+from ..parameters import Parameters, parameter
 from ..progress import ProgressCallback, report
 from ..steps.fidelity import distances_to_facets
-from ..optimize.measures import inverse_mean_ratio, mean_edge_length
+from ..optimize.measures import inverse_mean_ratio, mean_edge_length, smallest_angles
 from .assembly import assemble, basis_gradients, elasticity_elements, element_dofs
 
 #: the rounds of iterated closest points of the similarity pre-alignment.
@@ -37,16 +40,30 @@ ALIGN_ROUNDS = 50
 #: a node is pulled only by data within this many times the median distance between the surfaces and their data
 #: (and two edge lengths): a part of a surface that the data does not sample follows the rest, not a far point.
 REACH = 3.0
-#: the most halvings of a step that would invert a cell, and the smallest share of its volume a cell may keep in
-#: one step (a step that flattens a cell is halved too).
+#: the most halvings of the step of a cell's nodes when it would invert the cell, and the smallest share of its
+#: volume a cell may keep in one step (a step that flattens a cell is halved too).
 HALVINGS, SHRINK = 12, 0.05
+#: a cell's nodes' step is halved while it would take the cell's smallest dihedral angle below this (degrees; a
+#: cell already below it may not lose more than ANGLE_SLACK a step): FEM-grade cells whatever the data ask.
+ANGLE_FLOOR, ANGLE_SLACK = 10.0, 0.1
 #: a pulled node's spring along its surface, as a share of the one across it (point to plane, mostly).
 SLIDE = 0.1
 #: a cell whose inverse mean ratio grew by a factor g from the template's stiffens by g ** STIFFENING, so that the
 #: pulls cannot flatten it.
 STIFFENING = 4.0
+#: the rounds of a stage end when one brings the data closer to the surfaces by less than this share (median).
+ROUND_GAIN = 0.01
 #: the stages (load steps) end when one moves no node farther than this many mean edge lengths.
 STAGE_END = 0.1
+
+
+@dataclass(frozen=True)
+class FitParameters(Parameters):
+    """TemplateFit: the elastic template's one choice (the VTK filter, ParaView, ``bitemesh fit --pull``)."""
+
+    pull: float = parameter(3.0, "the data's pull on the template's surfaces relative to its stiffness there (3: "
+                            "within a tenth of an edge of contours; lower: smoother surfaces and better cells at "
+                            "thin walls, farther from the data)", low=0, low_open=True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -238,32 +255,34 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
         smooth, poorer cells at thin walls), > 0
     stages : the most load steps, >= 1; rounds : the most rounds a stage, >= 1; tolerance : the RMS step, in mean
         edge lengths, that ends a stage
-    rest : the template as built (the same cells), whose cells' shapes the stiffening keeps: the first frame's
-        template when a cycle fits each frame from the last; default ``template``
+    rest : the template at rest (the same cells): the first stage's elastic energy is measured from it (moved
+        by the similarity), and the stiffening keeps its cells' shapes; a cycle fits each frame from the last with
+        the first frame's template at rest, so that errors do not add up over the frames; default ``template``
     progress : callable(fraction, message), optional
 
     Returns
     -------
-    TemplateFit; raises MeshingError when no step keeps every cell positive
+    TemplateFit
     """
     start = time.perf_counter()
     if template.dim != 3:
         raise InvalidInputError(f"template: a tetrahedral mesh is needed, got a {template.dim}D mesh")
     groups = surface_groups(template, data)
-    pull = check_number(pull, "pull", low=0, low_open=True,
-                        hint="3 pulls the surfaces within a tenth of an edge of contours")
+    pull = FitParameters(pull=pull).pull
     rounds = int(check_number(rounds, "rounds", low=1, high=10000))
     stages = int(check_number(stages, "stages", low=1, high=100))
     cells = template.cells
     scale, rotation, shift = align(template.points, groups)
     points = scale * template.points @ rotation.T + shift
+    reference = points if rest is None else scale * rest.points @ rotation.T + shift
     edge = mean_edge_length(points, cells)
-    original = inverse_mean_ratio((rest or template).points, cells)
+    original = inverse_mean_ratio(reference, cells)
     done = 0
     for stage in range(stages):
         report(progress, stage / stages, f"elastic stage {stage + 1}")
         start_points = points
-        points, taken = elastic_stage(points, cells, groups, pull, original, rounds, tolerance * edge)
+        points, taken = elastic_stage(points, reference, cells, groups, pull, original, rounds, tolerance * edge)
+        reference = points
         done += taken
         if np.sqrt(np.mean((points - start_points) ** 2)) < STAGE_END * edge:
             break
@@ -276,12 +295,13 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     return TemplateFit(moved, (scale, rotation, shift), done, distances, time.perf_counter() - start)
 
 
-def elastic_stage(points: np.ndarray, cells: np.ndarray, groups: list, pull: float, original: np.ndarray,
-                  rounds: int, step_bound: float):
-    """(points, rounds run): one load step, the paper's K U = F with K the elasticity of ``points`` (the stage's
-    start) and F the springs to the data, the correspondences recomputed each round until the largest step is below
-    ``step_bound``; a cell whose inverse mean ratio exceeds its ``original`` (m,) stiffens (:data:`STIFFENING`)."""
-    reference = points
+def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, groups: list, pull: float,
+                  original: np.ndarray, rounds: int, step_bound: float):
+    """(points, rounds run): one load step from ``points``, the paper's K U = F with K the elasticity of
+    ``reference`` (the template at rest, or the stage's start) and F the springs to the data, the correspondences
+    recomputed each round until the RMS step is below ``step_bound`` or a round brings the data no closer
+    (:data:`ROUND_GAIN`); a cell whose inverse mean ratio exceeds its
+    ``original`` (m,) stiffens (:data:`STIFFENING`)."""
     gradients, volumes = basis_gradients(reference, cells)
     elements, dofs = elasticity_elements(gradients, volumes), element_dofs(cells, 3)
     squeeze = np.maximum(inverse_mean_ratio(points, cells) / original, 1.0) ** STIFFENING
@@ -289,19 +309,22 @@ def elastic_stage(points: np.ndarray, cells: np.ndarray, groups: list, pull: flo
     surfaces = np.unique(np.concatenate([nodes for nodes, _, _, _ in groups]))
     weight = pull * float(assemble(elements, dofs, points.size).diagonal().reshape(-1, 3)[surfaces].mean())
     edge = mean_edge_length(points, cells)
-    total = np.zeros(points.size)
-    done = 0
+    total = (points - reference).ravel()
+    done, gap = 0, np.inf
     while done < rounds:
+        previous, gap = gap, median_gap(points, groups)
+        if gap > (1 - ROUND_GAIN) * previous:
+            break
         done += 1
-        reach = max(REACH * median_gap(points, groups), 2 * edge)
+        reach = max(REACH * gap, 2 * edge)
         pulls, force = springs(points, groups, reach, weight)
         system = (stiffness + pulls).tocsr()
         total, _ = splinalg.cg(system, force + pulls @ total, x0=total, rtol=1e-8,
                                M=sparse.diags(1.0 / system.diagonal()))
-        step = reference + total.reshape(-1, 3) - points
-        points, taken = positive_step(points, cells, step)
+        moved = damped_step(points, cells, reference + total.reshape(-1, 3) - points)
+        step, points = moved - points, moved
         total = (points - reference).ravel()
-        if taken * np.sqrt(np.mean(step ** 2)) < step_bound:
+        if np.sqrt(np.mean(step ** 2)) < step_bound:
             break
         squeeze = np.maximum(inverse_mean_ratio(points, cells) / original, 1.0) ** STIFFENING
         stiffness = assemble(elements * squeeze[:, None, None], dofs, points.size)
@@ -324,15 +347,18 @@ def carried_fibres(before: np.ndarray, after: np.ndarray, cells: np.ndarray, cel
     return {"Fibre": fibre, "Sheet": sheet, "SheetNormal": np.cross(fibre, sheet)}
 
 
-def positive_step(points: np.ndarray, cells: np.ndarray, step: np.ndarray):
-    """(points + t step, t) for the largest t in 1, 1/2, 1/4, ... that keeps every cell positive and no smaller
-    than :data:`SHRINK` of its volume before the step."""
-    before = signed_measures(points, cells)
-    fraction = 1.0
-    for _ in range(HALVINGS):
-        moved = points + fraction * step
-        if (signed_measures(moved, cells) > SHRINK * before).all():
-            return moved, fraction
-        fraction /= 2
-    raise MeshingError("the fit would invert cells at every step size; lower pull, or pre-align the template "
-                       "with the data (a far smaller or far larger template needs a similar size first)")
+def damped_step(points: np.ndarray, cells: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """``points`` moved by ``step`` (n, 3), damped where a cell would suffer: the nodes of every cell that the move
+    would invert, shrink below :data:`SHRINK` of its volume, or take below the lesser of its smallest dihedral angle
+    before the move and :data:`ANGLE_FLOOR` take half their step, again and again (:data:`HALVINGS` times, then
+    none), so that the rest of the mesh moves in full."""
+    volumes = signed_measures(points, cells)
+    floor = np.minimum(smallest_angles(points, cells), ANGLE_FLOOR) - ANGLE_SLACK
+    fraction = np.ones(len(points))
+    for halving in range(HALVINGS + len(points)):
+        moved = points + fraction[:, None] * step
+        suffer = (signed_measures(moved, cells) <= SHRINK * volumes) | (smallest_angles(moved, cells) < floor)
+        if not suffer.any():
+            return moved
+        fraction[cells[suffer]] = 0.5 * fraction[cells[suffer]] if halving < HALVINGS else 0.0
+    return points
