@@ -93,9 +93,32 @@ def test_the_template_fitted_twice_gives_the_same_mesh(cine):
     np.testing.assert_array_equal(first, second)
 
 
+@pytest.mark.parametrize("scale", [0.8, 1.3])
+def test_another_patient_sized_turned_and_placed_elsewhere(cine, scale):
+    """A stand-in for another patient's end-systole: frame 8 turned 29 degrees, stretched 1.15 / 1.0 / 0.9, scaled
+    by 0.8 or 1.3 and moved 95 mm (scanner coordinates): the issue's accuracy bounds, a valid domain, and the
+    smallest dihedral angle no lower than the template's (or the 10-degree floor) less 1 degree (the floor lets a
+    cell already under it lose 0.1 degree a step)."""
+    from bitemesh import Samples, fit
+    from bitemesh.core.mesh.quality import quality_summary
+    folder, template_path = cine
+    template = read_mesh(template_path)
+    points, labels, slices = read_labelled_points(gpfile(folder, 8))
+    turn = np.array([[np.cos(0.5), -np.sin(0.5), 0.0], [np.sin(0.5), np.cos(0.5), 0.0], [0.0, 0.0, 1.0]])
+    centre = points.mean(axis=0)
+    moved = scale * (points - centre) @ np.diag([1.15, 1.0, 0.9]) @ turn.T + centre + [80.0, -40.0, 25.0]
+    fitted = fit(template, Samples(moved, labels=labels, slices=slices)).mesh
+    assert_valid_domain(fitted)
+    wall = np.array([any(word in label for word in WALL_WORDS) for label in labels])
+    distance = distances_to_facets(moved[wall], fitted.points[boundary_facets(fitted.cells)])
+    assert distance.mean() <= 1.0 and np.percentile(distance, 95) <= 3.0
+    assert quality_summary(fitted).angle_min >= min(quality_summary(template).angle_min, 10.0) - 1.0
+
+
 @pytest.mark.parametrize("output, extra, words", [
     ("cycle.pvd", ["--frame", "0"], "--frame picks a frame of one GPFile"),
     ("cycle.vtu", [], "name a .pvd file"),
+    ("cycle.pvd", ["--pull", "0"], "pull must be in (0, inf]"),
 ])
 def test_a_cycle_refuses_what_does_not_apply(cine, tmp_path, capsys, output, extra, words):
     folder, template_path = cine

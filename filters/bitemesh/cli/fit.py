@@ -6,10 +6,11 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from ..core.errors import InvalidInputError
+from ..core.fem.template import FitParameters
 from ..fitting import fit, fit_cycle, frame_fit_row
 from ..io import atomic_output
 from ..meshing import check_output, write
-from .options import ProgressBar
+from .options import ProgressBar, add_parameter_options, parameters_from_args
 
 
 def add_parser(subcommands) -> None:
@@ -27,18 +28,17 @@ def add_parser(subcommands) -> None:
     parser.add_argument("-o", "--output", required=True, help="the fitted mesh (.vtu, .xdmf, ...), or the .pvd "
                                                               "time series for several frames")
     parser.add_argument("--frame", type=float, help="the frame of a GPFile that holds several (one DATA)")
-    parser.add_argument("--pull", type=float, default=3.0,
-                        help="the data's pull relative to the template's stiffness (default 3: within a tenth of "
-                             "an edge of the contours; lower for smoother surfaces and better cells at thin walls)")
+    add_parameter_options(parser, (FitParameters,))
     parser.set_defaults(run=run)
 
 
 def run(args) -> None:
+    pull = parameters_from_args(args, (FitParameters,))[0].pull
     if len(args.data) == 1:
         check_output(args.output)
         bar = ProgressBar()
         try:
-            fitted = fit(args.template, args.data[0], frame=args.frame, pull=args.pull, progress=bar)
+            fitted = fit(args.template, args.data[0], frame=args.frame, pull=pull, progress=bar)
         finally:
             bar.close()
         write(fitted, args.output)
@@ -53,7 +53,7 @@ def run(args) -> None:
     check_output(output.with_suffix(".vtu"))
     bar = ProgressBar()
     try:
-        cycle = fit_cycle(args.template, args.data, pull=args.pull, progress=bar)
+        cycle = fit_cycle(args.template, args.data, pull=pull, progress=bar)
     finally:
         bar.close()
     names = []
