@@ -28,6 +28,7 @@ from dataclasses import asdict, fields
 import numpy as np
 
 from .contours import labelledPoints, loadLabelledPoints, modelLabels
+from .fitting import fitSamples, templateMesh
 from .outputs import BiteMeshResult, writeFibres, writeOutputs, writeSurfaces
 from .parameters import coreParameters, coreSettings, parameterSpecs
 from .points import scatteredPoints
@@ -184,6 +185,31 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             pass
         return BiteMeshResult(mesh, radius, summary, table, series, chart, seconds, result.fidelity, result.notes,
                               surfaces)
+
+    def fitTemplate(self, templateNode, dataNode, outputModelNode, pull: float = 3.0, progress=None):
+        """Move the template (``templateNode``: a BiteMesh output model node and its surface models) onto the data
+        of ``dataNode`` (labelled contours as :meth:`loadLabelledPoints` makes them, a point list, a model, or a
+        list of them) with the same cells (bitemesh.fit: each surface pulled to its own contours, the fibres
+        carried as cell arrays), into ``outputModelNode`` with its surface models and histogram, as :meth:`process`
+        writes them (its "Radius" field: the mean edge length).
+
+        Returns the bitemesh TemplateFit (``mesh``, ``distances`` of the data to the boundary in mm, ``rounds``,
+        ``seconds``).  Raises bitemesh.InvalidInputError naming the bad node or ``pull``."""
+        bitemesh = requireBitemesh()
+        from bitemesh.core.mesh.quality import quality_summary
+        from bitemesh.core.optimize.measures import mean_edge_length
+        from bitemesh.core.parameters import QualityParameters
+
+        nodes = self._inputNodes(dataNode)
+        self._checkOutput(outputModelNode, nodes + [templateNode])
+        fitted = bitemesh.fit(templateMesh(templateNode), fitSamples(nodes), pull=pull, progress=progress)
+        summary = quality_summary(fitted.mesh)
+        writeOutputs(fitted.mesh, mean_edge_length(fitted.mesh.points, fitted.mesh.cells), summary, None,
+                     outputModelNode, QualityParameters().bins)
+        writeSurfaces(fitted.mesh, outputModelNode)
+        logger.info("BiteMesh fit: %d tetrahedra, data to the boundary %.2f mm on average, %d rounds, %.1f s",
+                    summary.n_cells, float(fitted.distances.mean()), fitted.rounds, fitted.seconds)
+        return fitted
 
     @staticmethod
     def _inputNodes(inputNode) -> list:
