@@ -33,7 +33,7 @@ from ..parameters import Parameters, parameter
 from ..progress import ProgressCallback, report
 from ..steps.fidelity import distances_to_facets
 from ..optimize.measures import inverse_mean_ratio, mean_edge_length, smallest_angles
-from .assembly import assemble, basis_gradients, elasticity_elements, element_dofs
+from .assembly import assemble, basis_gradients, elasticity_elements, element_dofs, solve
 
 #: the rounds of iterated closest points of the similarity pre-alignment.
 ALIGN_ROUNDS = 50
@@ -319,8 +319,7 @@ def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, 
         reach = max(REACH * gap, 2 * edge)
         pulls, force = springs(points, groups, reach, weight)
         system = (stiffness + pulls).tocsr()
-        total, _ = splinalg.cg(system, force + pulls @ total, x0=total, rtol=1e-8,
-                               M=sparse.diags(1.0 / system.diagonal()))
+        total = total + solve(system, force + pulls @ total - system @ total, rtol=1e-6).solution
         moved = damped_step(points, cells, reference + total.reshape(-1, 3) - points)
         step, points = moved - points, moved
         total = (points - reference).ravel()
