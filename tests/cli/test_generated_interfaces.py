@@ -17,6 +17,7 @@ from bitemesh.core import parameters as core
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.fem.check import FemParameters
 from bitemesh.core.fem.fibres import FibreParameters
+from bitemesh.core.fem.template import FitParameters
 from bitemesh.core.parameters import AUTOMATIC, is_optional
 
 #: command -> the dataclasses whose every field is a flag of it
@@ -44,6 +45,7 @@ FILTERS = {
                        core.OptimizeParameters, core.LabelledParameters,
                        core.FidelityParameters),
     "FibreField": ((FibreParameters, ("alpha_endo", "alpha_epi", "beta_endo", "beta_epi")),),   # runs always
+    "TemplateFit": (FitParameters,),
 }
 #: the arguments a command needs before its flags parse.
 REQUIRED = {"mesh": ("in.csv", "-o", "out.vtu"), "batch": ("in.csv", "-o", "out"), "quality": ("m.vtu",),

@@ -53,7 +53,7 @@ SLIDE = 0.1
 STIFFENING = 4.0
 #: the rounds of a stage end when one brings the data closer to the surfaces by less than this share (median).
 ROUND_GAIN = 0.01
-#: the stages (load steps) end when one moves no node farther than this many mean edge lengths.
+#: the stages (load steps) end when one moves the nodes less than this many mean edge lengths (RMS).
 STAGE_END = 0.1
 
 
