@@ -25,7 +25,6 @@ from bitemesh.core.mesh.topology import connected_components
 from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.mesh.tags import enclosed_volume
 
-
 #: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.
 REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL": ("LV_ENDO",),
                       "RV_ENDOCARDIAL": ("RV_ENDO",)}

@@ -13,6 +13,7 @@ import numpy as np
 
 from .core.errors import InvalidInputError
 from .core.fem.template import TemplateFit, fit_template
+from .core.mesh.quality import quality_summary
 from .core.mesh.simplicial import Mesh
 from .core.mesh.tags import cavity_volumes
 from .core.progress import ProgressCallback, sub_progress
@@ -78,12 +79,17 @@ def fit_data(template: Mesh, data, frame=None):
 
 
 def boundary_voxels(voxels: Voxels) -> np.ndarray:
-    """(n, 3) physical centres of the labelled voxels with an unlabelled face neighbour (mm)."""
+    """(n, 3) physical centres of the voxel faces between a labelled and an unlabelled voxel (mm): the label
+    region's boundary, not half a voxel inside it."""
     inside = np.pad(voxels.labels != 0, 1)
-    core = inside[1:-1, 1:-1, 1:-1]
-    edge = core & ~(inside[:-2, 1:-1, 1:-1] & inside[2:, 1:-1, 1:-1] & inside[1:-1, :-2, 1:-1]
-                    & inside[1:-1, 2:, 1:-1] & inside[1:-1, 1:-1, :-2] & inside[1:-1, 1:-1, 2:])
-    ijk = np.argwhere(edge).astype(np.float64)
+    faces = []
+    for axis in range(3):
+        for side in (-1, 1):
+            outside = ~np.roll(inside, -side, axis=axis)
+            ijk = np.argwhere(inside & outside).astype(np.float64) - 1.0   # the padding's offset
+            ijk[:, axis] += 0.5 * side
+            faces.append(ijk)
+    ijk = np.vstack(faces)
     return ijk @ voxels.ijk_to_physical[:3, :3].T + voxels.ijk_to_physical[:3, 3]
 
 
@@ -118,7 +124,6 @@ def fit_cycle(template, frames, *, pull: float = 3.0, progress: ProgressCallback
 
 def frame_fit_row(fitted: TemplateFit) -> dict:
     """The figures of one fit a report lists: distances (mm), cells, the worst cell, rounds, seconds."""
-    from .core.mesh.quality import quality_summary
     summary = quality_summary(fitted.mesh)
     return {"data_mean": float(fitted.distances.mean()), "data_p95": float(np.percentile(fitted.distances, 95)),
             "min_dihedral": summary.angle_min, "min_radius_ratio": summary.q_min, "rounds": fitted.rounds,

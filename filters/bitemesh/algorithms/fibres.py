@@ -12,6 +12,16 @@ from ..core.fem.fibres import FIBRE_ARRAYS, LAPLACE_ARRAYS, FibreParameters, fib
 from .base import BitemeshAlgorithm, with_parameters
 
 
+def tetrahedra(grid: vtkUnstructuredGrid):
+    """The bitemesh Mesh of a vtkUnstructuredGrid that holds tetrahedra only; else InvalidInputError saying how many
+    cells are not."""
+    mesh = unstructured_to_mesh(grid)
+    if mesh.dim != 3 or len(mesh.cells) != grid.GetNumberOfCells():
+        raise InvalidInputError(f"the mesh must hold tetrahedra only; {grid.GetNumberOfCells() - len(mesh.cells)}"
+                                f" of its {grid.GetNumberOfCells()} cells are not")
+    return mesh
+
+
 def vtk_array(name: str, values: np.ndarray):
     """A named VTK array of ``values`` (m,) or (m, c), copied."""
     array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values), deep=True)
@@ -41,10 +51,7 @@ class FibreField(BitemeshAlgorithm):
 
     def execute(self, request, inInfo, outInfo):
         source = vtkUnstructuredGrid.GetData(inInfo[0])
-        mesh = unstructured_to_mesh(source)
-        if mesh.dim != 3 or len(mesh.cells) != source.GetNumberOfCells():
-            raise InvalidInputError(f"the mesh must hold tetrahedra only; {source.GetNumberOfCells() - len(mesh.cells)}"
-                                    f" of its {source.GetNumberOfCells()} cells are not")
+        mesh = tetrahedra(source)
         field = fibre_field(with_polydata_tags(mesh, vtkPolyData.GetData(inInfo[1])),
                             self.parameters(FibreParameters), self.progress)
         output = vtkUnstructuredGrid.GetData(outInfo)

@@ -4,10 +4,11 @@ from __future__ import annotations
 from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkPolyData, vtkUnstructuredGrid
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
 
-from ..convert import mesh_to_unstructured, tags_to_polydata, unstructured_to_mesh, with_polydata_tags
+from ..convert import mesh_to_unstructured, tags_to_polydata, with_polydata_tags
 from ..core.fem.template import FitParameters
 from ..fitting import fit
 from .base import BitemeshAlgorithm, with_parameters
+from .fibres import tetrahedra
 
 
 @with_parameters(FitParameters)
@@ -32,7 +33,7 @@ class TemplateFit(BitemeshAlgorithm):
         return 1
 
     def execute(self, request, inInfo, outInfo):
-        template = with_polydata_tags(unstructured_to_mesh(vtkUnstructuredGrid.GetData(inInfo[0])),
+        template = with_polydata_tags(tetrahedra(vtkUnstructuredGrid.GetData(inInfo[0])),
                                       vtkPolyData.GetData(inInfo[1]))
         fitted = fit(template, vtkDataObject.GetData(inInfo[2]), pull=self.parameters(FitParameters).pull,
                      progress=self.progress)

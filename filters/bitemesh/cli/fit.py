@@ -42,7 +42,7 @@ def run(args) -> None:
         finally:
             bar.close()
         write(fitted, args.output)
-        print(f"wrote {args.output}: {describe(frame_fit_row(fitted))}")
+        print(f"wrote {args.output}: {fit_summary(frame_fit_row(fitted))}")
         return
     output = Path(args.output)
     if output.suffix.lower() != ".pvd":
@@ -61,7 +61,7 @@ def run(args) -> None:
         name = f"{output.stem}_{number:03d}.vtu"
         write(fitted, output.with_name(name))
         names.append(name)
-        print(f"frame {number}: LV {volumes[0]:.1f} ml, RV {volumes[1]:.1f} ml; {describe(frame_fit_row(fitted))}")
+        print(f"frame {number}: LV {volumes[0]:.1f} ml, RV {volumes[1]:.1f} ml; {fit_summary(frame_fit_row(fitted))}")
     write_collection(output, names)
     print(f"end-diastole: frame {cycle.end_diastole} (LV {cycle.volumes[cycle.end_diastole, 0]:.1f} ml), "
           f"end-systole: frame {cycle.end_systole} (LV {cycle.volumes[cycle.end_systole, 0]:.1f} ml), "
@@ -69,7 +69,7 @@ def run(args) -> None:
     print(f"wrote {output} ({len(names)} frames)")
 
 
-def describe(row: dict) -> str:
+def fit_summary(row: dict) -> str:
     return (f"data to the boundary mean {row['data_mean']:.2f}, 95 % {row['data_p95']:.2f}; smallest dihedral "
             f"angle {row['min_dihedral']:.1f} deg, radius ratio {row['min_radius_ratio']:.3f}; {row['rounds']} "
             f"rounds, {row['seconds']:.1f} s")

@@ -133,6 +133,11 @@ def modelLabels(node):
     return point_labels(polydata, f"inputNode: the model '{node.GetName()}'")
 
 
+def hasLabelledModel(nodes) -> bool:
+    """Whether any of ``nodes`` is a model with a ``Label`` point array (labelled contour points)."""
+    return any(node.IsA("vtkMRMLModelNode") and modelLabels(node)[0] is not None for node in nodes)
+
+
 def contourLabel(node) -> str:
     """The label of a closed curve or point list: its attribute :data:`LABEL_ATTRIBUTE`, else its name without a
     trailing copy number ("LV_ENDO_2" -> "LV_ENDO")."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contours import labelledPoints, modelLabels
+from .contours import hasLabelledModel, labelledPoints
 from .outputs import SURFACE_ROLE
 from .points import scatteredPoints
 
@@ -38,7 +38,7 @@ def fitSamples(nodes):
     """bitemesh.Samples of the data nodes: labelled (a model with a ``Label`` array) or scattered points."""
     import bitemesh
 
-    if any(node.IsA("vtkMRMLModelNode") and modelLabels(node)[0] is not None for node in nodes):
+    if hasLabelledModel(nodes):
         points, labels, slices = labelledPoints(nodes)
         return bitemesh.Samples(points, labels=labels, slices=slices)
     points, _, slices = scatteredPoints(nodes, "mpu")

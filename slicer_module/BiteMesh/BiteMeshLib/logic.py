@@ -27,7 +27,7 @@ from dataclasses import asdict, fields
 
 import numpy as np
 
-from .contours import labelledPoints, loadLabelledPoints, modelLabels
+from .contours import hasLabelledModel, labelledPoints, loadLabelledPoints
 from .fitting import fitSamples, templateMesh
 from .outputs import BiteMeshResult, writeFibres, writeOutputs, writeSurfaces
 from .parameters import coreParameters, coreSettings, parameterSpecs
@@ -155,7 +155,7 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
             mesh, result = meshSegment(nodes[0], segmentId, withoutContourOptions(options),
                                        sub_progress(progress, 0.0, 0.95))
         else:
-            if domain or any(node.IsA("vtkMRMLModelNode") and modelLabels(node)[0] is not None for node in nodes):
+            if domain or hasLabelledModel(nodes):
                 points, labels, slices = labelledPoints(nodes)
                 samples = bitemesh.Samples(points, labels=labels, slices=slices)
                 report(progress, 0.02, f"meshing {len(points)} labelled points ({len(np.unique(labels))} labels)")

@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 from ..errors import InvalidInputError, check_number, check_points
 from ..mesh.quality import cell_quality
 from ..mesh.simplicial import Mesh, signed_measures
-from ..mesh.topology import boundary_facets
+from ..mesh.topology import boundary_facets, distinct_faces
 from ..parameters import Parameters, parameter
 from ..progress import ProgressCallback, report
 from ..steps.fidelity import distances_to_facets
@@ -193,8 +193,7 @@ def springs(points: np.ndarray, groups: list, reach: float, weight: float):
 def spread(facets: np.ndarray, count: int, known: np.ndarray, values: np.ndarray) -> np.ndarray:
     """(count, k) ``values`` (len(known), k) given at the nodes ``known`` of the triangulation ``facets`` (f, 3),
     harmonic elsewhere (the graph Laplacian's solution; a part without a known node decays to 0)."""
-    edges = np.unique(np.sort(np.concatenate([facets[:, [0, 1]], facets[:, [1, 2]], facets[:, [2, 0]]]), axis=1),
-                      axis=0)
+    edges = distinct_faces(facets, 2)
     adjacency = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(count, count))
     adjacency = (adjacency + adjacency.T).tocsr()
     laplacian = (sparse.diags(np.asarray(adjacency.sum(axis=1)).ravel() + 1e-9) - adjacency).tocsr()
@@ -288,8 +287,8 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
             break
     cell_data = dict(template.cell_data)
     cell_data.update(carried_fibres(template.points, points, cells, cell_data))
+    cell_data.update({name: values for name, values in cell_quality(Mesh(points, cells)).items() if name in cell_data})
     moved = Mesh(points, cells, cell_data, template.facets, template.facet_tags, dict(template.tag_names))
-    moved.cell_data.update({name: values for name, values in cell_quality(moved).items() if name in cell_data})
     distances = distances_to_facets(np.vstack([data for _, _, data, _ in groups]), points[boundary_facets(cells)])
     report(progress, 1.0, "fitted")
     return TemplateFit(moved, (scale, rotation, shift), done, distances, time.perf_counter() - start)

@@ -193,7 +193,6 @@ def region_tags(mesh: Mesh, regions: np.ndarray, labels) -> Mesh:
     return mesh.with_tags(facets[keep], tags[keep], tag_names, region_values)
 
 
-
 def enclosed_volume(points: np.ndarray, triangles: np.ndarray) -> float:
     """|volume| (input units^3) enclosed by a consistently oriented triangle patch (t, 3), each hole closed by a fan
     from its rim's centroid (a cavity's endocardium closed across its valves at the base)."""
