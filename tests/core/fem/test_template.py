@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.errors import InvalidInputError, MeshingError
 from bitemesh.core.fem.template import fit_template
 from bitemesh.core.mesh.quality import quality_summary
 from bitemesh.core.mesh.simplicial import Mesh, signed_measures
@@ -116,3 +116,12 @@ def test_the_moved_cells_carry_their_own_quality_arrays(sphere_template):
     fit = fit_template(template, samples * [1.2, 1.0, 0.8])
     np.testing.assert_allclose(fit.mesh.cell_data["Volume"], signed_measures(fit.mesh.points, fit.mesh.cells))
     assert fit.mesh.cell_data["Volume"].sum() == pytest.approx(0.96 * template.cell_data["Volume"].sum(), rel=0.03)
+
+
+def test_data_of_another_shape_are_refused_naming_the_share_left_far(sphere_template):
+    """Two spheres 6 radii apart as the data of one ball: the fit cannot take their shape; about 12 % of the points
+    stay farther than a mean edge from its boundary (5 % allowed), and the refusal says so, with the hint."""
+    mesh, _, samples = sphere_template
+    with pytest.raises(MeshingError, match=r"does not follow the data: .*% of the data points lie farther than a "
+                                           r"mean edge .*another shape.*raise pull \(now 3, allowed \(0, inf\]\)"):
+        fit_template(mesh, np.vstack([samples + [3.0, 0.0, 0.0], samples - [3.0, 0.0, 0.0]]))

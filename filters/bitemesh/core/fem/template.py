@@ -13,7 +13,8 @@ mesh moving: Stein, Tezduyar and Benney 2003); where a step would invert or flat
 dihedral angle below ANGLE_FLOOR (10 degrees), the step of its nodes is halved.  The rounds of a
 stage end when the RMS step is below ``tolerance`` mean edge lengths; the stages, when one moves the nodes less than
 :data:`STAGE_END` edge lengths (RMS).  Each cell's Fibre, Sheet and SheetNormal are carried by its deformation
-gradient and made orthonormal again; its quality arrays are those of the moved cell.
+gradient and made orthonormal again; its quality arrays are those of the moved cell.  A fit that leaves more than
+FAR_SHARE of the data farther than a mean edge from its boundary is refused, not returned.
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ from scipy import sparse
 from scipy.sparse import linalg as splinalg
 from scipy.spatial import cKDTree
 
-from ..errors import InvalidInputError, check_number, check_points
+from ..errors import InvalidInputError, MeshingError, check_number, check_points
 from ..mesh.quality import cell_quality
 from ..mesh.simplicial import Mesh, signed_measures
 from ..mesh.topology import boundary_facets, distinct_faces
@@ -53,6 +54,9 @@ SLIDE = 0.1
 STIFFENING = 4.0
 #: the rounds of a stage end when one brings the data closer to the surfaces by less than this share (median).
 ROUND_GAIN = 0.01
+#: a fit is refused when more than this share of the data lie farther than a mean edge from its boundary (the
+#: mesher's fidelity rule, in the fit's terms): the template did not take the data's shape.
+FAR_SHARE = 0.05
 #: the stages (load steps) end when one moves the nodes less than this many mean edge lengths (RMS).
 STAGE_END = 0.1
 
@@ -261,7 +265,8 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
 
     Returns
     -------
-    TemplateFit
+    TemplateFit; raises MeshingError when more than FAR_SHARE of the data lie farther than a mean edge from the
+    fitted boundary
     """
     start = time.perf_counter()
     if template.dim != 3:
@@ -290,8 +295,21 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     cell_data.update({name: values for name, values in cell_quality(Mesh(points, cells)).items() if name in cell_data})
     moved = Mesh(points, cells, cell_data, template.facets, template.facet_tags, dict(template.tag_names))
     distances = distances_to_facets(np.vstack([data for _, _, data, _ in groups]), points[boundary_facets(cells)])
+    check_follows(distances, mean_edge_length(points, cells), pull)
     report(progress, 1.0, "fitted")
     return TemplateFit(moved, (scale, rotation, shift), done, distances, time.perf_counter() - start)
+
+
+def check_follows(distances: np.ndarray, edge: float, pull: float) -> None:
+    """Refuse a fit that leaves more than :data:`FAR_SHARE` of the data (distances (n,)) farther than ``edge``."""
+    far = float(np.mean(distances > edge))
+    if far > FAR_SHARE:
+        raise MeshingError(
+            f"the fitted template does not follow the data: {100 * far:.1f}% of the data points lie farther than a "
+            f"mean edge ({edge:.3g}) from its boundary (allowed {100 * FAR_SHARE:g}%; the farthest "
+            f"{distances.max():.3g}); the data may sample another shape than the template's (other parts, another "
+            f"topology, points of another surface), or be labelled for other surfaces; if they are the template's "
+            f"shape, raise pull (now {pull:g}, allowed (0, inf]) so that the surfaces follow them closer")
 
 
 def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, groups: list, pull: float,
