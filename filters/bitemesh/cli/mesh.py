@@ -17,8 +17,10 @@ def add_parser(subcommands) -> None:
                     "or labelled contour points (a biv-me GPFile, a table with a label column, a VTP with a Label "
                     "array), meshed as the domain their surfaces bound (--domain); or the labels of a label map "
                     "(.nrrd/.nhdr/.nii/.nii.gz/.mha/.mhd, meshed in its physical LPS space). Writes .vtu/.vtk, "
-                    ".msh (gmsh), .xdmf (XDMF + HDF5, for dolfinx), .inp (Abaqus) or .mesh (MEDIT). --fibres adds "
-                    "the myocardial fibres of a biventricular heart (labelled contours) as cell vectors (.vtu/.vtk).")
+                    ".msh (gmsh), .xdmf (XDMF + HDF5, for dolfinx), .inp (Abaqus), .mesh (MEDIT) or .pts (openCARP, "
+                    "with .elem, .lon and a .surf and .vtx a surface). --fibres adds the myocardial fibres of a "
+                    "biventricular heart (labelled contours) as cell vectors (.vtu/.vtk/.xdmf; .pts: Fibre and "
+                    "Sheet).")
     parser.add_argument("input", help="the scattered points, labelled contours or a label map")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_mesh_options(parser)

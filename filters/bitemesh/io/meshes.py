@@ -15,6 +15,8 @@ facets; the tag names; in 2D the cells are triangles and the facets edges):
 - ``.mesh``, MEDIT ASCII: the cells with reference = region (1 without regions), the facets with reference = facet
   tag.  The format has no place for names: they are not written, and the file reads back without them.
 - ``.vtk``, legacy VTK 4.2 binary: the cells with every cell array; no facets and no names (use ``.vtu``).
+- ``.pts``, openCARP (``carp_txt``): ``m.pts`` in micrometres (the mesh in mm), ``m.elem`` with the regions,
+  ``m.lon`` with Fibre and Sheet, ``m_NAME.surf`` and ``m_NAME.vtx`` a surface, ``m_tags.json`` (:mod:`.opencarp`).
 
 Reading joins what writing split (``m.vtu`` with ``m_facets.vtu``) and gives the regions back as ``Region``.
 """
@@ -28,11 +30,13 @@ import numpy as np
 from ..core.errors import InvalidInputError, check_points
 from ..core.mesh.simplicial import Mesh, signed_measures
 from .abaqus import abaqus_sets, read_abaqus_tags
+from .opencarp import opencarp_files, read_opencarp, write_opencarp
 from .files import atomic_outputs, existing_file, meshio_warnings, native, supported
 from .xdmf import write_grid
 
-MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf")
-#: the mesh formats that keep no cell arrays but the regions: the fibres (or any cell vector) cannot go there.
+MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf", ".pts")
+#: the mesh formats that keep no cell arrays but the regions (openCARP: the fibres only): the fibres (or any cell
+#: vector) cannot go there.
 NO_CELL_ARRAYS = (".msh", ".inp", ".mesh")
 
 #: meshio file format written for each extension meshio writes (``.msh`` is gmsh 2.2 ASCII, ``.vtk`` legacy 4.2
@@ -51,9 +55,12 @@ _TAG_ARRAYS = {".msh": "gmsh:physical", ".mesh": "medit:ref"}
 
 def mesh_files(path, with_facets: bool = True) -> list:
     """The files :func:`write_mesh` writes for ``path``, ``path`` first: ``m.xdmf`` adds ``m.h5``; with facets,
-    ``m.vtu`` adds ``m_facets.vtu`` and ``m.xdmf`` adds ``m_facets.xdmf`` and ``m_facets.h5``."""
+    ``m.vtu`` adds ``m_facets.vtu`` and ``m.xdmf`` adds ``m_facets.xdmf`` and ``m_facets.h5``; ``m.pts`` adds
+    ``m.elem``, ``m.lon`` and ``m_tags.json`` (and the surfaces: :func:`~.opencarp.opencarp_files`)."""
     path = Path(path)
     suffix = path.suffix.lower()
+    if suffix == ".pts":   # and a .surf and .vtx file a tagged surface, named by the mesh's tags
+        return opencarp_files(path, {}, 3)
     files = [path, path.with_suffix(".h5")] if suffix == ".xdmf" else [path]
     if with_facets and suffix in (".vtu", ".xdmf"):
         files += [_facet_file(file) for file in files]
@@ -100,6 +107,11 @@ def write_mesh(mesh: Mesh, path) -> None:
         raise InvalidInputError(f"cannot write a mesh to '{path}': an XDMF file names its HDF5 file as 'file:path', "
                                 "so the file name cannot hold ':'; choose another name")
     mesh, regions = _checked_mesh(mesh)
+    if suffix == ".pts":
+        files = opencarp_files(path, mesh.tag_names, mesh.dim)
+        with atomic_outputs(files) as temporaries:
+            write_opencarp(mesh, regions, temporaries, files)
+        return
     files = mesh_files(path, with_facets=len(mesh.facets) > 0)
     writer = _write_xdmf if suffix == ".xdmf" else _write_with_meshio
     with atomic_outputs(files, stale=mesh_files(path)[len(files):]) as temporaries, meshio_warnings():
@@ -263,6 +275,10 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
     """
     path = existing_file(path, "a mesh", MESH_EXTENSIONS)
     suffix = path.suffix.lower()
+    if suffix == ".pts":
+        points, cells, cell_data, facets, tags, names = read_opencarp(path)
+        return _read_mesh(path, check_points(points, f"points of '{path}'"), cells, cell_data, facets, tags, names,
+                          orient)
     data = _read_file(path)
     points = np.array(native(data.points), dtype=np.float64)
     if points.ndim != 2 or len(points) == 0:
@@ -290,8 +306,6 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         except (IndexError, TypeError, ValueError):
             continue  # this array is missing on some of the chosen blocks
     points = check_points(points, f"points of '{path}'")
-    if cells.size and (cells.min() < 0 or cells.max() >= len(points)):
-        raise InvalidInputError(f"cannot read a mesh from '{path}': cells index points that do not exist")
     region_array = _TAG_ARRAYS.get(suffix, "Region")
     if region_array in cell_data:
         cell_data["Region"] = cell_data.pop(region_array).astype(np.int32)
@@ -304,12 +318,19 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         facets, tags, names = _tagged_facets(data, facet_type, _TAG_ARRAYS.get(suffix, FACET_ARRAY))
     if suffix in (".vtu", ".xdmf") and _facet_file(path).is_file():
         facets, tags, names = _joined(path, _facet_file(path), len(points), facet_type, (facets, tags, names))
-    if facets.size and (facets.min() < 0 or facets.max() >= len(points)):
-        raise InvalidInputError(f"cannot read a mesh from '{path}': facets index points that do not exist")
+    return _read_mesh(path, points, cells, cell_data, facets, tags, names, orient)
+
+
+def _read_mesh(path, points, cells, cell_data, facets, tags, names, orient: bool) -> Mesh:
+    """The Mesh of what a file gave, its indices checked, its cells positively oriented with ``orient``."""
+    for what, table in (("cells", cells), ("facets", facets)):
+        if table is not None and table.size and (table.min() < 0 or table.max() >= len(points)):
+            raise InvalidInputError(f"cannot read a mesh from '{path}': {what} index points that do not exist")
     if orient and len(cells):
         negative = signed_measures(points, cells) < 0
         cells[negative, :2] = cells[negative, 1::-1]
-    return Mesh(points, cells, cell_data, facets if len(facets) else None, tags if len(facets) else None, names)
+    found = facets is not None and len(facets)
+    return Mesh(points, cells, cell_data, facets if found else None, tags if found else None, names)
 
 
 def _read_file(path: Path):
