@@ -1,5 +1,5 @@
-"""The fixtures shared by the test folders: where the real data lives, the biv-me patient's GPFile in it, and a small
-sphere's samples.  (The builders they use: tests/builders.py.)"""
+"""The fixtures shared by the test folders: where the real data lives, the biv-me patient's GPFile in it, the elastic
+template of its cine cycle, and a small sphere's samples.  (The builders they use: tests/builders.py.)"""
 from __future__ import annotations
 
 import os
@@ -31,3 +31,17 @@ def unit_sphere_samples():
     """(points, unit outward normals) on the unit sphere, about 0.1 apart (1,500 points): the awkward inputs'
     sphere, each test making its own variant of it.  Built once per test folder; the tests only read it."""
     return builders.sphere_samples(0.1)
+
+
+@pytest.fixture(scope="session")
+def cine(tmp_path_factory):
+    """(the folder of biv-me patient1's cine cycle, the template: its frame 0 meshed by ``bitemesh mesh --cells
+    20000``), meshed once per session; skip where the data is absent."""
+    from tests.cli.commands import run_quietly
+    folder = DATA / "bivme_patient1_cine"
+    if not folder.is_dir():
+        pytest.skip(f"{folder} is absent")
+    template = tmp_path_factory.mktemp("cine_template") / "template.vtu"
+    assert run_quietly(["mesh", str(folder / "guidepoints" / "GPFile_000.txt"), "--cells", "20000",
+                        "-o", str(template)]) == 0
+    return folder, template

@@ -57,7 +57,11 @@ def template_mesh(template) -> Mesh:
         return template
     if hasattr(template, "mesh"):
         return template.mesh
-    return read_mesh(template)
+    try:
+        return read_mesh(template)
+    except InvalidInputError as error:
+        raise InvalidInputError(f"template: {error} (the template is a bitemesh mesh with its tags, e.g. "
+                                "from bitemesh mesh)") from None
 
 
 def fit_data(template: Mesh, data, frame=None):

@@ -16,23 +16,10 @@ from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.io import read_labelled_points, read_mesh
 
 from tests.cardiac_variants import read_surface
-from tests.cli.commands import run_quietly
 from tests.meshcheck import assert_valid_domain
 from bitemesh import cli
 
 WALL_WORDS = ("ENDOCARDIAL", "EPICARDIAL", "FREEWALL", "SEPTUM")
-
-
-@pytest.fixture(scope="module")
-def cine(tmp_path_factory):
-    from tests.conftest import DATA
-    folder = DATA / "bivme_patient1_cine"
-    if not folder.is_dir():
-        pytest.skip(f"{folder} is absent")
-    template = tmp_path_factory.mktemp("fit") / "template.vtu"
-    assert run_quietly(["mesh", str(folder / "guidepoints" / "GPFile_000.txt"), "--cells", "20000",
-                        "-o", str(template)]) == 0
-    return folder, template
 
 
 def gpfile(folder, frame: int):

@@ -5,9 +5,10 @@ from __future__ import annotations
 import sys
 
 from ..core.errors import MeshingError
+from ..core.fem.template import FitParameters
 from ..io import MESH_EXTENSIONS
 from .mesh import add_mesh_options, options_of
-from .options import ProgressBar
+from .options import ProgressBar, add_parameter_options, parameters_from_args
 
 
 def add_parser(subcommands) -> None:
@@ -17,7 +18,9 @@ def add_parser(subcommands) -> None:
                     "this machine's cores (--workers), or on a running Dask scheduler (--scheduler). A case that "
                     "fails is its row of OUTDIR/summary.csv and the others go on; a case whose output and record "
                     "match its input and options is skipped, so that rerunning an interrupted command meshes only "
-                    "what is missing. Writes OUTDIR/summary.csv and OUTDIR/report.html.")
+                    "what is missing. Writes OUTDIR/summary.csv and OUTDIR/report.html. With --template every case "
+                    "is that mesh fitted to the case's data as 'bitemesh fit' fits it (one connectivity for the "
+                    "cohort), and OUTDIR/shape/ holds the cohort's mean shape and main modes of variation.")
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
                         help="files, folders (their point, contour and label map files), glob patterns (quoted), "
                              "or a manifest CSV: a header 'input,output,...', one row per case, any other column "
@@ -37,6 +40,11 @@ def add_parser(subcommands) -> None:
     dask.add_argument("--scheduler", metavar="ADDRESS",
                       help="a running Dask scheduler (tcp://host:8786, e.g. from dask-jobqueue) to send the cases "
                            "to; default $DASK_SCHEDULER_ADDRESS, else the embedded cluster")
+    fitting = parser.add_argument_group("a cohort fitted with one template")
+    fitting.add_argument("--template", metavar="MESH",
+                         help="a tagged bitemesh mesh (e.g. from bitemesh mesh) fitted to every case instead of "
+                              "meshing it: every output has its cells; the mesh options below do not apply")
+    add_parameter_options(parser, (FitParameters,))
     add_mesh_options(parser)
     parser.set_defaults(run=run)
 
@@ -51,9 +59,10 @@ def run(args) -> None:
 
     bar = ProgressBar()
     try:
-        rows = batch(args.inputs, options_of(args).as_dict(), output_dir=args.output_dir,
-                     workers=args.workers, worker_memory=args.worker_memory, retries=args.retries,
-                     scheduler=args.scheduler, extension=args.format, progress=bar, on_client=connected)
+        rows = batch(args.inputs, options_of(args).as_dict(), output_dir=args.output_dir, template=args.template,
+                     pull=parameters_from_args(args, (FitParameters,))[0].pull, workers=args.workers,
+                     worker_memory=args.worker_memory, retries=args.retries, scheduler=args.scheduler,
+                     extension=args.format, progress=bar, on_client=connected)
     except KeyboardInterrupt:
         bar.close()
         print(f"bitemesh: interrupted; the summary of the finished cases is in {args.output_dir}/summary.csv "
@@ -65,7 +74,8 @@ def run(args) -> None:
     for row in rows:
         if row["status"] == "failed":
             print(f"  {row['case']}: {row['message']}")
-    print(f"wrote {args.output_dir}/summary.csv and {args.output_dir}/report.html")
+    print(f"wrote {args.output_dir}/summary.csv and {args.output_dir}/report.html"
+          + (f", the shape model in {args.output_dir}/shape/" if args.template else ""))
     if counts["failed"]:
         raise MeshingError(f"{counts['failed']} of {len(rows)} cases failed (their messages are in "
                            f"{args.output_dir}/summary.csv)")

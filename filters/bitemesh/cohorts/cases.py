@@ -132,9 +132,10 @@ def file_digest(path, digest) -> None:
             digest.update(block)
 
 
-def case_hash(case: Case, options: dict) -> str:
-    """sha256 of the input file, the config file if any, every option's value (defaults filled) and the bitemesh
-    version: the same hash means the same mesh."""
+def case_hash(case: Case, options: dict, fitting: dict | None = None) -> str:
+    """sha256 of the input file, the config file if any, every option's value (defaults filled), the template file
+    and the pull of a fitted cohort (``fitting``: ``{"template": path, "pull": float}``) and the bitemesh version:
+    the same hash means the same mesh."""
     digest = hashlib.sha256(f"bitemesh {__version__}\n".encode())
     full = as_options({**options, **case.options}).as_dict()
     digest.update(json.dumps(full, sort_keys=True, default=str).encode())
@@ -142,6 +143,9 @@ def case_hash(case: Case, options: dict) -> str:
     file_digest(case.input, digest)
     if full["config"]:
         file_digest(full["config"], digest)
+    if fitting is not None:
+        digest.update(f"fitted with pull {fitting['pull']!r}\n".encode())
+        file_digest(fitting["template"], digest)
     return digest.hexdigest()
 
 

@@ -135,9 +135,29 @@ HEADINGS = (("case", "case"), ("status", "status"), ("message", "message"), ("ce
             ("seconds", "seconds"))
 
 
-def write_report(rows, output_dir) -> Path:
+def modes_section(modes: list) -> list:
+    """The report's lines on a fitted cohort's shape model (:func:`~bitemesh.cohorts.shapes.write_shape_model`'s
+    rows)."""
+    if not modes:
+        return ["<h2>Shape model</h2><p>None: fewer than two cases were fitted, or their shapes differ by a rigid "
+                "motion only.</p>"]
+    lines = ["<h2>Shape model</h2><p>Every case is the template fitted to its data (one connectivity). In "
+             "<code>shape/</code>: <code>mean.vtu</code>, the mean after aligning the cases by rotations and "
+             "translations, and the first modes at -2 and +2 standard deviations; <code>modes.csv</code> lists "
+             "every mode.</p>",
+             "<table><thead><tr><th>mode</th><th>node movement at 1 SD (RMS)</th><th>variance explained</th>"
+             "<th>cumulative</th><th>meshes</th></tr></thead><tbody>"]
+    for row in modes:
+        lines.append(f"<tr><td>{row['mode']}</td><td>{row['node_rms']:.4g}</td><td>{row['explained']:.1%}</td>"
+                     f"<td>{row['cumulative']:.1%}</td><td>{html.escape(row['files'])}</td></tr>")
+    lines.append("</tbody></table>")
+    return lines
+
+
+def write_report(rows, output_dir, modes: list | None = None) -> Path:
     """``output_dir/report.html``: the rows (failed, cancelled, done, skipped, each by name), a picture of each
-    mesh's cut, the columns sorted by a click on their heading; no file outside the page."""
+    mesh's cut, the columns sorted by a click on their heading, and for a fitted cohort (``modes``, a list, maybe
+    empty) its shape model; no file outside the page."""
     output_dir = Path(output_dir)
     ordered = sorted(rows, key=lambda row: (STATUS_ORDER.get(row["status"], 9), row["case"]))
     counts = {status: sum(row["status"] == status for row in rows) for status in STATUS_ORDER}
@@ -161,7 +181,9 @@ def write_report(rows, output_dir) -> Path:
             kind = row["status"] if column == "status" else column
             cells.append(f"<td class='{kind}'>{value}</td>")
         lines.append("<tr>" + "".join(cells) + "</tr>")
-    lines.append("</tbody></table></body></html>")
+    lines.append("</tbody></table>")
+    lines += [] if modes is None else modes_section(modes)
+    lines.append("</body></html>")
     path = output_dir / "report.html"
     with atomic_output(path, "the report") as temporary:
         temporary.write_text("\n".join(lines), encoding="utf-8")

@@ -16,13 +16,16 @@ import warnings
 from pathlib import Path
 
 from ..core.errors import BitemeshError, InvalidInputError
+from ..core.fem.template import FitParameters
 from ..core.mesh.quality import quality_summary
 from ..core.progress import ProgressCallback
+from ..fitting import fit, template_mesh
 from ..io import remove_stale_partials
 from ..meshing import check_output, mesh, write
-from ..options import as_options
+from ..options import Options, as_options
 from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
 from .report import picture_path, render_cut, save_picture, write_report, write_summary
+from .shapes import write_shape_model
 
 #: the columns of summary.csv (R, fidelity and volume in input units; seconds of wall clock on the worker)
 COLUMNS = ("case", "status", "message", "cells", "points", "R", "mean_Q", "min_Q", "min_dihedral", "fidelity",
@@ -67,11 +70,23 @@ def remove_partials(output_dir: Path, case: Case) -> None:
         remove_stale_partials(path)
 
 
-def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:
+def made(case: Case, options: dict, fitting: dict | None):
+    """The case's mesh (a MeshingResult, or a TemplateFit when ``fitting`` names a template) and its summary
+    values: R and the fidelity (the data's mean distance to the boundary, input units)."""
+    if fitting is None:
+        result = mesh(case.input, {**options, **case.options})
+        return result, {"R": result.radius,
+                        "fidelity": "" if result.fidelity is None else result.fidelity.to_boundary_mean}
+    fitted = fit(fitting["template"], case.input, frame=case.options.get("frame"), pull=fitting["pull"])
+    return fitted, {"fidelity": float(fitted.distances.mean())}
+
+
+def run_case(case: Case, options: dict, output_dir: str, digest: str, fitting: dict | None = None) -> dict:
     """The task of one case, run on a worker: mesh ``case.input`` as ``bitemesh mesh`` would with ``options`` under
-    the case's own, write the mesh (atomically), its picture and its record; return its summary row.  Every
-    error of the case is its row ("failed", the one-line message); a case already recorded with ``digest`` (its
-    task run again after a worker died) is returned as recorded, not meshed twice."""
+    the case's own (or fit the template of ``fitting``, ``{"template": path, "pull": float}``, as ``bitemesh fit``
+    would), write the mesh (atomically), its picture and its record; return its summary row.  Every error of the
+    case is its row ("failed", the one-line message); a case already recorded with ``digest`` (its task run again
+    after a worker died) is returned as recorded, not meshed twice."""
     output_dir = Path(output_dir)
     row = recorded_row(output_dir, case, digest)
     if row is not None:
@@ -83,7 +98,7 @@ def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            result = mesh(case.input, {**options, **case.options})
+            result, values = made(case, options, fitting)
             write(result, output_dir / case.output_name)
     except Exception as error:   # noqa: BLE001 (one case's failure, whatever it is, is its row)
         message = str(error) if isinstance(error, BitemeshError) else f"{type(error).__name__}: {error}"
@@ -93,9 +108,8 @@ def run_case(case: Case, options: dict, output_dir: str, digest: str) -> dict:
     summary = quality_summary(result.mesh)
     notes = captured.messages + [str(warning.message) for warning in caught]
     row = row_of(case, "done", "; ".join(dict.fromkeys(notes)), cells=summary.n_cells, points=summary.n_points,
-                 R=result.radius, mean_Q=summary.q_mean, min_Q=summary.q_min, min_dihedral=summary.angle_min,
-                 fidelity="" if result.fidelity is None else result.fidelity.to_boundary_mean,
-                 volume=summary.total_volume, seconds=round(time.perf_counter() - start, 3))
+                 mean_Q=summary.q_mean, min_Q=summary.q_min, min_dihedral=summary.angle_min,
+                 volume=summary.total_volume, seconds=round(time.perf_counter() - start, 3), **values)
     save_picture(output_dir, case.name, render_cut(result.mesh))
     write_record(output_dir, case, digest, row)
     return row
@@ -186,15 +200,21 @@ def collected(future, case: Case) -> dict:
         return row_of(case, "failed", f"{type(error).__name__}: {error}")
 
 
-def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_memory=None, retries=RETRIES,
-          scheduler=None, extension=".vtu", progress: ProgressCallback = None, on_client=None) -> list:
-    """Mesh every case as ``bitemesh mesh`` would, one Dask task each, into ``output_dir``; write its summary.csv
-    and report.html; return the summary rows (dicts of :data:`COLUMNS`), in the order of the cases.
+def batch(cases, options=None, client=None, *, output_dir, template=None, pull: float = 3.0, workers=None,
+          worker_memory=None, retries=RETRIES, scheduler=None, extension=".vtu", progress: ProgressCallback = None,
+          on_client=None) -> list:
+    """Mesh every case as ``bitemesh mesh`` would (or, with ``template``, fit it to each case as ``bitemesh fit``
+    would), one Dask task each, into ``output_dir``; write its summary.csv and report.html; return the summary rows
+    (dicts of :data:`COLUMNS`), in the order of the cases.
 
     Parameters
     ----------
     cases : files, folders, glob patterns, manifest CSVs or :class:`Case` objects
     options : mapping of ``bitemesh mesh`` option names to values (``cells=1500``), under each case's own
+    template : a bitemesh mesh file with its tags: every case is this template fitted to its data (the same cells),
+        the report adds the cohort's mean shape and modes (``output_dir/shape/``); no mesh option applies then but
+        ``frame`` (a manifest column)
+    pull : the fit's pull (:class:`~bitemesh.core.fem.template.FitParameters`)
     client : a dask.distributed Client to use (left open); default: ``scheduler`` or an embedded LocalCluster of
         ``workers`` processes, ``worker_memory`` each, closed at the end
     retries : how many times a case runs again after its worker died (embedded cluster only)
@@ -213,6 +233,7 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
     cases = find_cases(cases, extension)
     options = dict(options or {})
     as_options(options)
+    fitting = fitted_cohort(template, pull, options)
     if not cases:
         raise InvalidInputError("no cases: the inputs hold no file bitemesh can mesh")
     output_dir = Path(output_dir)
@@ -221,7 +242,9 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
     for case in cases:
         try:
             check_output(output_dir / case.output_name, {**options, **case.options})   # refused before any work
-            digests[case.name] = case_hash(case, options)
+            digests[case.name] = case_hash(case, options, fitting)
+            if fitting is not None:
+                check_fitted_case(case)
         except OSError as error:
             rows[case.name] = row_of(case, "failed", f"cannot read '{case.input}': {error.strerror or error}")
             continue
@@ -235,13 +258,13 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
                                "message": f"up to date (input and options unchanged){notes}"}
     todo = [case for case in cases if case.name not in rows]
     if not todo:   # nothing left to mesh: no cluster started
-        return finished(rows, cases, output_dir)
+        return finished(rows, cases, output_dir, fitting)
     report = progress or (lambda fraction, message="": None)
     try:
         with quiet_cancel_race(), cluster_client(client, scheduler, workers, worker_memory, retries) as connected:
             if on_client is not None:
                 on_client(connected)
-            futures = {connected.submit(run_case, case, options, str(output_dir), digests[case.name],
+            futures = {connected.submit(run_case, case, options, str(output_dir), digests[case.name], fitting,
                                         key=f"bitemesh-{case.name}-{secrets.token_hex(4)}", pure=False):
                        case for case in todo}
             report(len(rows) / len(cases), f"{len(rows)}/{len(cases)} cases")
@@ -259,9 +282,9 @@ def batch(cases, options=None, client=None, *, output_dir, workers=None, worker_
             if case.name not in rows:
                 rows[case.name] = recorded_row(output_dir, case, digests[case.name]) or row_of(
                     case, "cancelled", "not finished: the run was interrupted; run the same command again to mesh it")
-        finished(rows, cases, output_dir)
+        finished(rows, cases, output_dir, fitting)
         raise
-    return finished(rows, cases, output_dir)
+    return finished(rows, cases, output_dir, fitting)
 
 
 def check_cluster(client, scheduler, workers, worker_memory, retries) -> None:
@@ -286,9 +309,35 @@ def check_cluster(client, scheduler, workers, worker_memory, retries) -> None:
                                 "(whose workers are set where the cluster is started); leave it out")
 
 
-def finished(rows: dict, cases, output_dir: Path) -> list:
-    """The rows in the cases' order, written to summary.csv and report.html."""
+def fitted_cohort(template, pull: float, options: dict):
+    """``{"template": path, "pull": pull}`` for a cohort fitted with ``template`` (read now: a bad template is
+    refused before any case), None without one; refuses mesh options, which a fit does not use."""
+    if template is None:
+        return None
+    FitParameters(pull)
+    template_mesh(template)
+    defaults = Options().as_dict()
+    changed = [name for name, value in as_options(options).as_dict().items() if value != defaults[name]]
+    if changed:
+        raise InvalidInputError(f"{changed[0]} (--{changed[0].replace('_', '-')}) is an option of meshing; with a "
+                                "template each case is the template fitted to its data, so no mesh option "
+                                "applies: leave it out, or mesh the template itself with it")
+    return {"template": str(template), "pull": float(pull)}
+
+
+def check_fitted_case(case: Case) -> None:
+    """A case of a fitted cohort may pick only its frame (a manifest's ``frame`` column)."""
+    other = [name for name in case.options if name != "frame"]
+    if other:
+        raise InvalidInputError(f"manifest column {other[0]!r} is an option of meshing; with a template a case "
+                                "may only pick its frame: leave the column out")
+
+
+def finished(rows: dict, cases, output_dir: Path, fitting: dict | None = None) -> list:
+    """The rows in the cases' order, written to summary.csv and report.html (with the shape model of a fitted
+    cohort)."""
     ordered = [rows[case.name] for case in cases]
+    modes = None if fitting is None else write_shape_model(ordered, output_dir, template_mesh(fitting["template"]))
     write_summary(ordered, output_dir, COLUMNS)
-    write_report(ordered, output_dir)
+    write_report(ordered, output_dir, modes)
     return ordered

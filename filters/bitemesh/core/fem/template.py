@@ -10,7 +10,8 @@ starts each frame from the last), F the pulls of the data (:func:`springs`: poin
 claim, harmonic in between, so that a surface sampled by contours 10 mm apart moves as a whole), the correspondences
 recomputed each round.  A cell whose shape degrades from the template's stiffens (Jacobian-based stiffening, as in
 mesh moving: Stein, Tezduyar and Benney 2003); where a step would invert or flatten a cell, or take its smallest
-dihedral angle below ANGLE_FLOOR (10 degrees), the step of its nodes is halved.  The rounds of a
+dihedral angle below ANGLE_FLOOR (10 degrees) or its radius ratio below RATIO_FLOOR (0.2), the step of its nodes is
+halved.  The rounds of a
 stage end when the RMS step is below ``tolerance`` mean edge lengths; the stages, when one moves the nodes less than
 :data:`STAGE_END` edge lengths (RMS).  Each cell's Fibre, Sheet and SheetNormal are carried by its deformation
 gradient and made orthonormal again; its quality arrays are those of the moved cell.  A fit that leaves more than
@@ -27,7 +28,7 @@ from scipy.sparse import linalg as splinalg
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError, MeshingError, check_number, check_points
-from ..mesh.quality import cell_quality
+from ..mesh.quality import cell_quality, radius_ratio
 from ..mesh.simplicial import Mesh, signed_measures
 from ..mesh.topology import boundary_facets, distinct_faces
 from ..parameters import Parameters, parameter
@@ -44,9 +45,10 @@ REACH = 3.0
 #: the most halvings of the step of a cell's nodes when it would invert the cell, and the smallest share of its
 #: volume a cell may keep in one step (a step that flattens a cell is halved too).
 HALVINGS, SHRINK = 12, 0.05
-#: a cell's nodes' step is halved while it would take the cell's smallest dihedral angle below this (degrees; a
-#: cell already below it may not lose more than ANGLE_SLACK a step): FEM-grade cells whatever the data ask.
-ANGLE_FLOOR, ANGLE_SLACK = 10.0, 0.1
+#: a cell's nodes' step is halved while it would take the cell's smallest dihedral angle below this (degrees) or its
+#: radius ratio below RATIO_FLOOR (a cap can keep its angles and still go flat); a cell already below may not lose
+#: more: FEM-grade cells whatever the data ask, with no erosion over the rounds.
+ANGLE_FLOOR, RATIO_FLOOR = 10.0, 0.2
 #: a pulled node's spring along its surface, as a share of the one across it (point to plane, mostly).
 SLIDE = 0.1
 #: a cell whose inverse mean ratio grew by a factor g from the template's stiffens by g ** STIFFENING, so that the
@@ -365,15 +367,18 @@ def carried_fibres(before: np.ndarray, after: np.ndarray, cells: np.ndarray, cel
 
 def damped_step(points: np.ndarray, cells: np.ndarray, step: np.ndarray) -> np.ndarray:
     """``points`` moved by ``step`` (n, 3), damped where a cell would suffer: the nodes of every cell that the move
-    would invert, shrink below :data:`SHRINK` of its volume, or take below the lesser of its smallest dihedral angle
-    before the move and :data:`ANGLE_FLOOR` take half their step, again and again (:data:`HALVINGS` times, then
+    would invert, shrink below :data:`SHRINK` of its volume, take below the lesser of its smallest dihedral angle
+    before the move and :data:`ANGLE_FLOOR`, or below the lesser of its radius ratio and :data:`RATIO_FLOOR` take
+    half their step, again and again (:data:`HALVINGS` times, then
     none), so that the rest of the mesh moves in full."""
     volumes = signed_measures(points, cells)
-    floor = np.minimum(smallest_angles(points, cells), ANGLE_FLOOR) - ANGLE_SLACK
+    floor = np.minimum(smallest_angles(points, cells), ANGLE_FLOOR)
+    ratio_floor = np.minimum(radius_ratio(points, cells), RATIO_FLOOR)
     fraction = np.ones(len(points))
     for halving in range(HALVINGS + len(points)):
         moved = points + fraction[:, None] * step
-        suffer = (signed_measures(moved, cells) <= SHRINK * volumes) | (smallest_angles(moved, cells) < floor)
+        suffer = (signed_measures(moved, cells) <= SHRINK * volumes) | (smallest_angles(moved, cells) < floor) \
+            | (radius_ratio(moved, cells) < ratio_floor)
         if not suffer.any():
             return moved
         fraction[cells[suffer]] = 0.5 * fraction[cells[suffer]] if halving < HALVINGS else 0.0
