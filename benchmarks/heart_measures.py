@@ -26,7 +26,7 @@ from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.mesh.tags import enclosed_volume
 
 #: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.
-REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL": ("LV_ENDO",),
+REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL": ("LV_ENDO", "ENDO"),
                       "RV_ENDOCARDIAL": ("RV_ENDO",)}
 #: the guide-point labels of the walls (every one measured), and the valves (mitral and tricuspid held to 3 mm).
 WALL_WORDS = ("ENDOCARDIAL", "EPICARDIAL", "FREEWALL", "SEPTUM")

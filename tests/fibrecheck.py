@@ -49,16 +49,22 @@ def containing_cells(mesh, points, candidates=48) -> np.ndarray:
     return np.where(inside.any(axis=1), near[np.arange(len(points)), np.argmax(inside, axis=1)], -1)
 
 
+def lv_endocardium(mesh) -> str:
+    """The LV endocardium's tag name: LV_ENDO, or ENDO in a left ventricle (cardiac-geometries' name)."""
+    return "LV_ENDO" if "LV_ENDO" in mesh.tag_names else "ENDO"
+
+
 def long_axis(mesh):
     """The apex (the EPI node farthest below the plane of the BASE triangles) and the unit LV long axis (3,) from
-    it to the centre of the LV's basal ring (the LV_ENDO nodes on BASE); also the apex's depth below the base."""
+    it to the centre of the LV's basal ring (the LV endocardium's nodes on BASE); also the apex's depth below the
+    base."""
     points, base = mesh.points, tagged_facets(mesh, "BASE")
     normal = doubled_normals(points, base).sum(axis=0)
     normal /= np.linalg.norm(normal)
     epi = tagged_nodes(mesh, "EPI")
     depth = (points[base].mean(axis=(0, 1)) - points[epi]) @ normal
     apex = points[epi[np.argmax(depth)]]
-    axis = points[np.intersect1d(tagged_nodes(mesh, "LV_ENDO"), np.unique(base))].mean(axis=0) - apex
+    axis = points[np.intersect1d(tagged_nodes(mesh, lv_endocardium(mesh)), np.unique(base))].mean(axis=0) - apex
     return apex, axis / np.linalg.norm(axis)
 
 
@@ -68,7 +74,8 @@ def free_wall_lines(mesh, lines=6, heights=(0.3, 0.65), facing=0.9, smoothing=10
     The lines start at LV_ENDO triangles between ``heights`` (fractions of the way from the apex to the base along
     the long axis) whose smoothed normal into the wall (the mean over the LV_ENDO triangles within ``smoothing``
     mm) points away from the RV (cosine > ``facing`` with the direction from the RV cavity's nodes' centre to the
-    LV's, across the long axis), ``lines`` of them evenly spread in height; each is sampled every ``step`` mm up
+    LV's, across the long axis; in a left ventricle every direction), ``lines`` of them evenly spread in height;
+    each is sampled every ``step`` mm up
     to ``reach`` mm (finely: a line that leaves the mesh near a node crosses the last cell, the one on the surface,
     for a short way only).
 
@@ -80,20 +87,23 @@ def free_wall_lines(mesh, lines=6, heights=(0.3, 0.65), facing=0.9, smoothing=10
     """
     points = mesh.points
     apex, axis = long_axis(mesh)
-    lv, rv = points[tagged_nodes(mesh, "LV_ENDO")], points[tagged_nodes(mesh, "RV_ENDO")]
-    away = lv.mean(axis=0) - rv.mean(axis=0)
-    away -= (away @ axis) * axis
-    away /= np.linalg.norm(away)
-    endo = tagged_facets(mesh, "LV_ENDO")
+    lv = points[tagged_nodes(mesh, lv_endocardium(mesh))]
+    endo = tagged_facets(mesh, lv_endocardium(mesh))
     centroids, weighted = points[endo].mean(axis=1), -doubled_normals(points, endo)    # into the wall
     inward = np.stack([weighted[near].sum(axis=0) for near in cKDTree(centroids).query_ball_point(centroids,
                                                                                                    smoothing)])
     inward /= np.linalg.norm(inward, axis=1, keepdims=True)
     height = (centroids - apex) @ axis / ((lv - apex) @ axis).max()
-    chosen = np.flatnonzero((inward @ away > facing) & (height > heights[0]) & (height < heights[1]))
+    free = np.ones(len(endo), dtype=bool)
+    if "RV_ENDO" in mesh.tag_names:
+        away = lv.mean(axis=0) - points[tagged_nodes(mesh, "RV_ENDO")].mean(axis=0)
+        away -= (away @ axis) * axis
+        free = inward @ (away / np.linalg.norm(away)) > facing
+    chosen = np.flatnonzero(free & (height > heights[0]) & (height < heights[1]))
     chosen = chosen[np.argsort(height[chosen], kind="stable")]
     chosen = chosen[np.linspace(0, len(chosen) - 1, lines).round().astype(int)]
-    surfaces = {name: cKDTree(points[tagged_nodes(mesh, name)]) for name in ("EPI", "RV_ENDO", "BASE")}
+    surfaces = {name: cKDTree(points[tagged_nodes(mesh, name)]) for name in ("EPI", "RV_ENDO", "BASE")
+                if name in mesh.tag_names}
     found = []
     for facet in chosen:
         samples = centroids[facet] + np.arange(1, round(reach / step))[:, None] * step * inward[facet]

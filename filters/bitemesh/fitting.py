@@ -3,7 +3,8 @@
 
 The data are read as :func:`bitemesh.mesh` reads an input (:func:`~bitemesh.meshing.read_input`): labelled guide
 points pull each of the template's surfaces to their own contours (EPI to the epicardial, LV_ENDO and RV_ENDO to the
-endocardial, BASE to the valve points), scattered points pull the whole boundary, a label map its boundary voxels.
+endocardial, BASE to the valve points; a left ventricle's EPI, ENDO and BASE to the LV's own), scattered points
+pull the whole boundary, a label map its boundary voxels.
 """
 from __future__ import annotations
 
@@ -17,13 +18,16 @@ from .core.mesh.quality import quality_summary
 from .core.mesh.simplicial import Mesh
 from .core.mesh.tags import cavity_volumes
 from .core.progress import ProgressCallback, sub_progress
-from .core.sources.contours.cardiac import BIVME_SURFACES, BIVME_VALVES, canonical_labels
+from .core.sources.contours.cardiac import BIVME_OUTLETS, BIVME_SURFACES, BIVME_VALVES, canonical_labels
 from .io import read_mesh
 from .meshing import Samples, Voxels, read_input
 from .options import as_options
 
-#: the template's surfaces and the guide-point labels that pull each (BASE: the valve annuli).
+#: the template's surfaces and the guide-point labels that pull each (BASE: the valve annuli); a left ventricle's
+#: (tagged EPI, ENDO, BASE as cardiac-geometries tags an LV): its epicardium and septum, its endocardium, its valves.
 SURFACE_LABELS = {**BIVME_SURFACES, "BASE": BIVME_VALVES}
+LV_SURFACE_LABELS = {"EPI": BIVME_SURFACES["LV_EPI"], "ENDO": BIVME_SURFACES["LV_ENDO"],
+                     "BASE": BIVME_OUTLETS["LV_ENDO"]}
 
 
 @dataclass(frozen=True)
@@ -73,13 +77,19 @@ def fit_data(template: Mesh, data, frame=None):
     if samples.labels is None:
         return samples.points
     labels = canonical_labels(samples.labels)[0]
-    pulled = {name: samples.points[np.isin(labels, SURFACE_LABELS[name])]
-              for name in template.tag_names if name in SURFACE_LABELS}
+    surfaces = LV_SURFACE_LABELS if is_left_ventricle(template) else SURFACE_LABELS
+    pulled = {name: samples.points[np.isin(labels, surfaces[name])] for name in template.tag_names
+              if name in surfaces}
     if not any(len(points) for points in pulled.values()):
         raise InvalidInputError(f"data: none of its labels ({', '.join(sorted(set(labels))[:6])}, ...) samples a "
                                 f"surface of the template ({', '.join(sorted(template.tag_names))}); give biv-me "
                                 "labels (SAX_LV_ENDOCARDIAL, ...) or scattered points of the whole boundary")
     return pulled
+
+
+def is_left_ventricle(mesh: Mesh) -> bool:
+    """Tagged as an LV alone: ENDO (cardiac-geometries' name), no RV_ENDO."""
+    return "ENDO" in mesh.tag_names and "RV_ENDO" not in mesh.tag_names
 
 
 def boundary_voxels(voxels: Voxels) -> np.ndarray:
@@ -121,7 +131,8 @@ def fit_cycle(template, frames, *, pull: float = 3.0, progress: ProgressCallback
         fitted = fit(current, data, pull=pull, rest=template, progress=step)
         fits.append(fitted)
         current = fitted.mesh
-    volumes = np.array([[cavity_volumes(fitted.mesh).get(name, np.nan) / 1000 for name in ("LV_ENDO", "RV_ENDO")]
+    cavities = ("ENDO", "RV_ENDO") if is_left_ventricle(template) else ("LV_ENDO", "RV_ENDO")
+    volumes = np.array([[cavity_volumes(fitted.mesh, cavities).get(name, np.nan) / 1000 for name in cavities]
                         for fitted in fits])
     return CycleFit(fits, volumes)
 

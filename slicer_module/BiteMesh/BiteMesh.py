@@ -60,9 +60,9 @@ closed by the base plane.<br>
 <b>Output</b>: a model node holding the tetrahedra (an unstructured grid) coloured by radius ratio
 (1 = regular tetrahedron), one model per tagged boundary surface, and the radius-ratio histogram as a table and a
 plot.<br>
-<b>Fibres</b>: for labelled biventricular contours (a biv-me GPFile), <i>Add fibres</i> adds the rule-based
-myocardial fibres (Bayer et al. 2012) as cell arrays Fibre, Sheet, SheetNormal and HelixAngle, and colours the
-mesh by helix angle.<br>
+<b>Fibres</b>: for labelled heart contours (a biv-me GPFile; both ventricles or the LV), <i>Add fibres</i> adds the
+rule-based myocardial fibres (Bayer et al. 2012) as cell arrays Fibre, Sheet, SheetNormal and HelixAngle, and
+colours the mesh by helix angle.<br>
 <b>Radius R</b> sets the element size; leave it automatic to aim for <b>Cells</b> cells. The mesh is in RAS
 (world) coordinates, where the input is.
 """)

@@ -66,7 +66,7 @@ def test_fibres_of_scattered_points_are_refused_naming_the_missing_surfaces(inpu
     assert_no_traceback(err)
     last = err.strip().splitlines()[-1]   # after the notes and the progress bar of the meshing
     assert code == 1 and last.startswith("bitemesh: error: fibres (--fibres): "), err
-    assert "has no EPI, LV_ENDO, RV_ENDO, BASE" in last and "mesh labelled biventricular contours" in last
+    assert "has no EPI, LV_ENDO, RV_ENDO, BASE" in last and "mesh labelled heart contours" in last
     assert not output.exists()
 
 

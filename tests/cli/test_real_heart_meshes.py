@@ -25,19 +25,21 @@ CINE = DATA / "bivme_patient1_cine" / "guidepoints"
 WALL = ("ENDOCARDIAL", "EPICARDIAL", "FREEWALL", "SEPTUM")
 
 
-@pytest.fixture(autouse=True)
-def cine_data():
+@pytest.fixture(scope="module")
+def meshed(tmp_path_factory):
+    """meshed(frame, variant=""): the mesh of a frame (or its variant), the guide points as meshed (short-axis slices
+    where the registration moved them) and their labels, each meshed once for the module; the variants' files in
+    the module's temporary folder."""
     if not (CINE / "GPFile_000.txt").is_file():
         pytest.skip(f"no biv-me cine in {CINE}")
+    folder = tmp_path_factory.mktemp("variants")
+    once = cache(lambda frame, variant: meshed_in(folder, frame, variant))
+    return lambda frame, variant="": once(frame, variant)
 
 
-@cache
-def meshed(frame: int, variant: str = ""):
-    """The mesh of a frame (or its variant), the guide points as meshed (short-axis slices where the registration
-    moved them) and their labels; the variants' files live in a temporary folder of their own."""
-    import tempfile
+def meshed_in(folder, frame: int, variant: str):
     path, time_frame = (CINE / f"GPFile_{frame:03d}.txt", None) if not variant else \
-        class_file(CINE, frame, variant, tempfile.mkdtemp(prefix="bitemesh-heart-"))
+        class_file(CINE, frame, variant, folder)
     result = mesh(path, {"optimize": 0, **({} if time_frame is None else {"frame": time_frame})})
     points, labels, slices = read_labelled_points(path, frame=time_frame)
     for number, shift in result.function.shifts.items():
@@ -61,7 +63,7 @@ def wall_distances(result, points, labels) -> np.ndarray:
     (0, "frames merged"),               # two frames in one file, --frame 0
     # no RV epicardium: tests/cli/test_cardiac_variants.py
 ])
-def test_every_class_meshes_as_one_closed_myocardium_that_follows_the_guide_points(frame, variant):
+def test_every_class_meshes_as_one_closed_myocardium_that_follows_the_guide_points(meshed, frame, variant):
     result, points, labels = meshed(frame, variant)
     assert_valid_domain(result.mesh, euler=2, components=1)
     assert count_boundary_components(result.mesh) == 1
@@ -70,7 +72,7 @@ def test_every_class_meshes_as_one_closed_myocardium_that_follows_the_guide_poin
                                                                                                           95))
 
 
-def test_shifted_slices_mesh_as_the_unshifted_frame():
+def test_shifted_slices_mesh_as_the_unshifted_frame(meshed):
     """Slices shifted by up to 5 mm: the shifts found undo them (within 1 mm, tests/core/sources/test_real_hearts.py),
     so the mesh has the unshifted frame's figures: its volume within 1 %, its guide points as near."""
     plain, points, labels = meshed(0)
@@ -84,7 +86,7 @@ def test_shifted_slices_mesh_as_the_unshifted_frame():
 
 
 @pytest.mark.parametrize("frame", [0, 23])
-def test_the_mitral_and_tricuspid_points_lie_on_the_mesh(frame):
+def test_the_mitral_and_tricuspid_points_lie_on_the_mesh(meshed, frame):
     """The base follows the annuli: every mitral and tricuspid point within 3 mm of the boundary (10-16 mm with the
     plane through the valves' centres; 4.2 mm on frame 23 before the mitral points had their normals: its
     3-chamber view has no LV endocardial contour)."""

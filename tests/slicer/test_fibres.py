@@ -202,8 +202,9 @@ def test_a_mesh_without_the_hearts_surfaces_is_refused_and_the_output_left_as_it
     logic.process(node, model, cells=2000, optimize=0)
     before = snapshot(scene, model)
     with pytest.raises(InvalidInputError, match=r"^fibres \(--fibres\): fibres need the boundary "
-                       r"surfaces EPI, LV_ENDO, RV_ENDO, BASE tagged on the mesh, and it has no EPI, LV_ENDO, "
-                       r"RV_ENDO, BASE \(its facet tags: BOUNDARY_1\); mesh labelled biventricular contours"):
+                       r"surfaces EPI, LV_ENDO, RV_ENDO, BASE \(a biventricular heart\) or EPI, ENDO and BASE \(a "
+                       r"left ventricle\) tagged on the mesh, and it has no EPI, LV_ENDO, RV_ENDO, BASE \(its facet "
+                       r"tags: BOUNDARY_1\); mesh labelled heart contours"):
         logic.process(node, model, cells=2000, optimize=0, fibres=1)
     assert snapshot(scene, model) == before
 

@@ -114,7 +114,8 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
         et al. 2012, with ``alpha_endo``, ``alpha_epi``, ``beta_endo`` and ``beta_epi`` in degrees) to the mesh:
         the cell vectors Fibre (the active vectors), Sheet and SheetNormal and the cell scalar HelixAngle, by which
         the model is then coloured.  They need a mesh whose boundary is tagged EPI, LV_ENDO, RV_ENDO and BASE, as
-        that of labelled biventricular contours (a biv-me GPFile) is; any other mesh is refused (InvalidInputError
+        that of labelled biventricular contours (a biv-me GPFile) is, or EPI, ENDO and BASE (the LV's alone); any
+        other mesh is refused (InvalidInputError
         naming the surfaces it lacks) after meshing, and nothing is written.  The angles are checked (range
         [-90, 90]) before anything runs, also when ``fibres`` is 0.
 

@@ -16,6 +16,7 @@ from bitemesh.core.parameters import BitingParameters
 from bitemesh.io import read_labelled_points
 
 from tests.builders import cube_mesh
+from tests.cardiac_variants import LEFT_VENTRICLE
 from tests.fibrecheck import check_free_wall, tagged_nodes, tagged_shell
 
 #: the unit length and mutual orthogonality asked of every frame (they are rotations to round-off, ~1e-15)
@@ -151,9 +152,10 @@ def test_with_fibres_adds_the_cell_arrays_and_keeps_the_tags(shell):
 # --- refusals -------------------------------------------------------------------------------------------------------
 
 def test_a_mesh_without_the_heart_surfaces_is_refused_naming_them(shell):
-    with pytest.raises(InvalidInputError, match=r"needs? the boundary surfaces EPI, LV_ENDO, RV_ENDO, BASE .* it "
-                                                r"has no EPI, LV_ENDO, RV_ENDO, BASE \(its facet tags: none\); mesh "
-                                                r"labelled biventricular contours"):
+    with pytest.raises(InvalidInputError, match=r"needs? the boundary surfaces EPI, LV_ENDO, RV_ENDO, BASE \(a "
+                                                r"biventricular heart\) or EPI, ENDO and BASE \(a left ventricle\) "
+                                                r".* it has no EPI, LV_ENDO, RV_ENDO, BASE \(its facet tags: none\); "
+                                                r"mesh labelled heart contours"):
         fibre_field(cube_mesh())
     keep = shell.facet_tags != shell.tag_names["RV_ENDO"][0]
     names = {name: value for name, value in shell.tag_names.items() if name != "RV_ENDO"}
@@ -170,6 +172,23 @@ def test_an_angle_beyond_a_quarter_turn_is_refused_naming_it(name):
 
 
 # --- the real heart -------------------------------------------------------------------------------------------------
+
+def test_a_left_ventricle_is_tagged_as_cardiac_geometries_tags_it_and_gets_fibres(gpfile):
+    """biv-me patient 1's LV contours alone (about 6,000 cells): cardiac-geometries' LV names and numbers (what
+    ldrb and fenicsx-pulse read: EPI 7, ENDO 6, BASE 5, MYOCARDIUM 8), three Laplace problems (phi_rv = 0), and
+    across the free wall all around the LV the helix angle falls from endo to epi as the rule says (the shell's
+    bounds: the geometry's frame)."""
+    points, labels, slices = read_labelled_points(gpfile)
+    lv = np.isin(labels, LEFT_VENTRICLE)
+    mesh = run_labelled(points[lv], labels[lv], slices=slices[lv], biting=BitingParameters(cells=8000)).mesh
+    assert mesh.tag_names == {"EPI": (7, 2), "ENDO": (6, 2), "BASE": (5, 2), "MYOCARDIUM": (8, 3)}
+    assert sorted(np.unique(mesh.facet_tags)) == [5, 6, 7] and (mesh.cell_data["Region"] == 8).all()
+    field = fibre_field(mesh)
+    assert len(field.solves) == 3 and not field.laplace["PhiRV"].any()
+    check_frames(field.fibre, field.sheet, field.sheet_normal)
+    profiles = check_free_wall(mesh, field, FibreParameters(), depth=0.35)
+    assert len(profiles) == 6 and all(len(depths) >= 3 for depths, _ in profiles)
+
 
 @pytest.mark.slow
 def test_the_real_heart_at_the_papers_size_has_monotonic_helix_angles_across_its_lv_free_wall(gpfile):

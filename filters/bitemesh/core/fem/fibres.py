@@ -3,7 +3,8 @@ Trayanova (2012, Ann. Biomed. Eng. 40: 2243-2254): fibre, sheet and sheet-normal
 
 The steps of the paper, on the P1 elements of :mod:`bitemesh.core.fem.assembly`:
 
-1. Four Laplace problems on the mesh, whose boundary is tagged EPI, LV_ENDO, RV_ENDO and BASE (facet tags):
+1. Four Laplace problems on the mesh, whose boundary is tagged EPI, LV_ENDO, RV_ENDO and BASE (facet tags; a left
+   ventricle, tagged EPI, ENDO and BASE, has no RV problem: phi_rv = 0, d = 0, Q_endo = Q_lv):
    psi (apex to base): 0 at the apex node, 1 on BASE; phi_epi, phi_lv, phi_rv (transmural): 1 on their own surface
    (EPI, LV_ENDO, RV_ENDO), 0 on the other two.  Every other boundary is natural (zero flux): BASE for the
    transmural problems, all but BASE and the apex for psi.  The apex is the EPI node farthest below the base plane
@@ -70,9 +71,10 @@ class FibreParameters(Parameters):
     """
 
     fibres: int = parameter(0, "1 adds the rule-based myocardial fibres (Bayer et al. 2012) as the cell vectors "
-                            "Fibre, Sheet and SheetNormal and the cell scalar HelixAngle (.vtu and .vtk keep them; "
-                            ".msh, .inp and .mesh cannot); needs a heart mesh whose boundary is tagged EPI, "
-                            "LV_ENDO, RV_ENDO and BASE; 0 adds none", low=0, high=1, integer=True)
+                            "Fibre, Sheet and SheetNormal and the cell scalar HelixAngle (.vtu, .vtk and .xdmf keep "
+                            "them, .pts Fibre and Sheet; .msh, .inp and .mesh cannot); needs a heart mesh whose "
+                            "boundary is tagged EPI, LV_ENDO, RV_ENDO and BASE (or EPI, ENDO and BASE: a left "
+                            "ventricle); 0 adds none", low=0, high=1, integer=True)
     alpha_endo: float = parameter(40.0, "the fibres' helix angle on the endocardia (against the circumferential "
                                   "direction, towards the base)", unit="degrees", low=-90, high=90)
     alpha_epi: float = parameter(-50.0, "the fibres' helix angle on the epicardium", unit="degrees", low=-90,
@@ -110,7 +112,8 @@ class Fibres:
 
 
 def surface_facets(mesh: Mesh) -> dict:
-    """The tagged boundary triangles of each of :data:`SURFACES`: name -> (b, 3) int64.
+    """The tagged boundary triangles of each of :data:`SURFACES`: name -> (b, 3) int64.  An LV-only mesh (EPI, ENDO
+    and BASE, as cardiac-geometries tags an LV) gives ENDO as LV_ENDO and no RV_ENDO triangle.
 
     Raises :class:`InvalidInputError` naming the surfaces the mesh lacks (no facet tag of that name, or no facet
     with its tag).
@@ -118,16 +121,21 @@ def surface_facets(mesh: Mesh) -> dict:
     if mesh.dim != 3:
         raise InvalidInputError(f"fibres need a tetrahedral mesh; this mesh is {mesh.dim}D")
     tags = {name: tag for name, (tag, dimension) in mesh.tag_names.items() if dimension == 2}
+    left_ventricle = "ENDO" in tags and "LV_ENDO" not in tags and "RV_ENDO" not in tags
+    source = {"LV_ENDO": "ENDO"} if left_ventricle else {}
     facets = {}
     if mesh.facets is not None:
-        facets = {name: mesh.facets[mesh.facet_tags == tags[name]] for name in SURFACES if name in tags}
-    missing = [name for name in SURFACES if len(facets.get(name, ())) == 0]
+        facets = {name: mesh.facets[mesh.facet_tags == tags[source.get(name, name)]] for name in SURFACES
+                  if source.get(name, name) in tags}
+    needed = ("EPI", "LV_ENDO", "BASE") if left_ventricle else SURFACES
+    missing = [source.get(name, name) for name in needed if len(facets.get(name, ())) == 0]
     if missing:
         present = ", ".join(sorted(tags)) if tags else "none"
         raise InvalidInputError(
-            f"fibres need the boundary surfaces {', '.join(SURFACES)} tagged on the mesh, and it has no "
-            f"{', '.join(missing)} (its facet tags: {present}); mesh labelled biventricular contours (a biv-me "
-            "GPFile), whose mesh carries these tags")
+            f"fibres need the boundary surfaces {', '.join(SURFACES)} (a biventricular heart) or EPI, ENDO and BASE "
+            f"(a left ventricle) tagged on the mesh, and it has no {', '.join(missing)} (its facet tags: "
+            f"{present}); mesh labelled heart contours (a biv-me GPFile), whose mesh carries these tags")
+    facets.setdefault("RV_ENDO", np.zeros((0, 3), np.int64))
     return facets
 
 
@@ -145,13 +153,14 @@ def base_plane(points: np.ndarray, base: np.ndarray):
 
 def laplace_solutions(points: np.ndarray, cells: np.ndarray, facets: dict, gradients: np.ndarray,
                       volumes: np.ndarray, progress: ProgressCallback = None):
-    """Step 1: the four Laplace problems (see the module's docstring), by Jacobi-CG to a relative residual of 1e-10.
+    """Step 1: the four Laplace problems (see the module's docstring; three in a left ventricle, phi_rv = 0), by
+    Jacobi-CG to a relative residual of 1e-10.
 
     Returns
     -------
     solutions : (4, n) float64, psi, phi_epi, phi_lv, phi_rv at the nodes (no unit, in [0, 1])
     apex : int, the node where psi = 0
-    solves : tuple of four :class:`~bitemesh.core.fem.assembly.Solve`
+    solves : tuple of four (three) :class:`~bitemesh.core.fem.assembly.Solve`
     """
     n = len(points)
     matrix = fem.assemble(fem.laplace_elements(gradients, volumes), cells, n)
@@ -164,15 +173,16 @@ def laplace_solutions(points: np.ndarray, cells: np.ndarray, facets: dict, gradi
     on_base = np.zeros(n, dtype=bool)
     on_base[facets["BASE"].ravel()] = True
     problems = [(on_base | (np.arange(n) == apex), on_base.astype(np.float64))]
-    problems += [(owner >= 0, (owner == number).astype(np.float64)) for number in range(3)]
-    solutions, solves = np.empty((4, n)), []
+    problems += [(owner >= 0, (owner == number).astype(np.float64)) for number in range(3 if len(facets["RV_ENDO"])
+                                                                                       else 2)]
+    solutions, solves = np.zeros((4, n)), []   # phi_rv = 0 in a left ventricle
     for number, (fixed, values) in enumerate(problems):
         reduced, rhs, full = fem.eliminate(matrix, np.zeros(n), fixed, values)
         solve = fem.solve(reduced, rhs, method="cg", rtol=1e-10)
         full[~fixed] = solve.solution
         solutions[number] = full
         solves.append(solve)
-        report(progress, 0.2 * (number + 1), f"fibres: Laplace problem {number + 1} of 4")
+        report(progress, 0.2 * (number + 1), f"fibres: Laplace problem {number + 1} of {len(problems)}")
     return solutions, apex, tuple(solves)
 
 
@@ -189,7 +199,7 @@ def recovered_gradients(cells: np.ndarray, gradients: np.ndarray, volumes: np.nd
 
 def fibre_field(mesh: Mesh, parameters: FibreParameters = FibreParameters(),
                 progress: ProgressCallback = None) -> Fibres:
-    """The rule-based fibres of a biventricular tetrahedral mesh (the method in the module's docstring).
+    """The rule-based fibres of a biventricular (or left-ventricular) tetrahedral mesh (the module's docstring).
 
     Parameters
     ----------
@@ -209,14 +219,16 @@ def fibre_field(mesh: Mesh, parameters: FibreParameters = FibreParameters(),
     grad_psi, grad_epi, grad_lv, grad_rv = recovered_gradients(cells, gradients, volumes, solutions)
     phi_epi, phi_lv, phi_rv = np.clip(solutions[1:, cells].mean(axis=2), 0.0, 1.0)
     endo = phi_lv + phi_rv
-    d = np.divide(phi_rv, endo, out=np.full_like(endo, 0.5), where=endo > 1e-12)
+    right_ventricle = len(facets["RV_ENDO"]) > 0
+    d = np.divide(phi_rv, endo, out=np.full_like(endo, 0.5 if right_ventricle else 0.0), where=endo > 1e-12)
     p = parameters
     septum = (p.alpha_endo * (1 - 2 * d), p.beta_endo * (1 - 2 * d))
     wall = (p.alpha_endo + (p.alpha_epi - p.alpha_endo) * phi_epi, p.beta_endo + (p.beta_epi - p.beta_endo) * phi_epi)
     q_lv = quaternions(orient(axis(grad_psi, -grad_lv), *septum))
     q_rv = quaternions(orient(axis(grad_psi, grad_rv), *septum))
     q_epi = quaternions(orient(axis(grad_psi, grad_epi), *wall))
-    fibre, sheet, sheet_normal = np.ascontiguousarray(rotations(bislerp(bislerp(q_lv, q_rv, d), q_epi, phi_epi))
+    q_endo = bislerp(q_lv, q_rv, d) if right_ventricle else q_lv
+    fibre, sheet, sheet_normal = np.ascontiguousarray(rotations(bislerp(q_endo, q_epi, phi_epi))
                                                       .transpose(2, 0, 1))     # the columns of each frame
     report(progress, 1.0, "fibres")
     return Fibres(fibre=fibre, sheet=sheet, sheet_normal=sheet_normal,

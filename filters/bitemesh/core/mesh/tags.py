@@ -8,7 +8,8 @@ Three ways to tag, one per kind of source:
   ``BOUNDARY_2``, ... by decreasing area (length in 2D), ties by the first facet; one region, ``DOMAIN``.
 - **labelled contours** (:func:`surface_tags`): the surface whose implicit gives f at the facet's centroid, tag =
   its position in the source's names + 1 (biv-me: EPI 1, LV_ENDO 2, RV_ENDO 3, BASE 4); one region, ``MYOCARDIUM``
-  for a heart's myocardium, else ``DOMAIN``.
+  for a heart's myocardium, else ``DOMAIN``; an LV-only myocardium renamed as cardiac-geometries' LV (EPI 7, ENDO 6,
+  BASE 5, MYOCARDIUM 8: :func:`renamed_tags`).
 - **label maps** (:func:`region_tags`): each cell in the region of the label whose f is largest at its centroid
   (Region = the label value, ``REGION_<label>``); boundary facets by the region they bound (``BOUNDARY_<label>``),
   facets between two regions by the pair (``INTERFACE_<a>_<b>``, a < b).  The mesh is the union's, so the regions
@@ -118,6 +119,20 @@ def surface_tags(mesh: Mesh, active_surface, names, region: str = DOMAIN) -> Mes
                                 f"{tuple(names)}; it must index the names, 0 to {len(names) - 1}")
     return _one_region(mesh, facets, (surface + 1).astype(np.int32),
                        {i + 1: name for i, name in enumerate(names)}, region)
+
+
+def renamed_tags(mesh: Mesh, facet_names: dict, region: int) -> Mesh:
+    """``mesh`` (one region, tagged by :func:`surface_tags`) with its facet tags renamed and renumbered by
+    ``facet_names`` (old name -> (new name, new tag)) and its region numbered ``region``."""
+    old = {name: tag for name, (tag, dimension) in mesh.tag_names.items() if dimension == mesh.dim - 1}
+    table = np.zeros(max(old.values(), default=0) + 1, np.int32)
+    names = {}
+    for name, tag in old.items():
+        new_name, new_tag = facet_names.get(name, (name, tag))
+        table[tag], names[new_name] = new_tag, (new_tag, mesh.dim - 1)
+    names.update({name: (region, dimension) for name, (_, dimension) in mesh.tag_names.items()
+                  if dimension == mesh.dim})
+    return mesh.with_tags(mesh.facets, table[mesh.facet_tags], names, np.full(len(mesh.cells), region, np.int32))
 
 
 def region_labels(labels) -> np.ndarray:

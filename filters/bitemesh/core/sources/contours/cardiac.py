@@ -71,6 +71,11 @@ CVI42_NAMES = {
 #: the two-cavity myocardium, the default domain for biv-me labels; and the LV's, without RV contours.
 BIVME_DEFAULT_DOMAIN = "EPI - LV_ENDO - RV_ENDO"
 LV_DOMAIN = "LV_EPI - LV_ENDO"
+#: the tags of an LV-only myocardium (LV_DOMAIN) as cardiac-geometries names and numbers its LV (the names ldrb,
+#: fenicsx-pulse and cardiac-geometries read): the domain's surface -> (tag name, tag); and its region's tag.
+#: Tags 1-4 are cardiac-geometries' apex points and base rings.
+LV_TAGS = {"LV_EPI": ("EPI", 7), "LV_ENDO": ("ENDO", 6), "BASE": ("BASE", 5)}
+LV_REGION = 8
 #: the RV free wall thickness (mm) an RV epicardium is derived with: normal adult RV walls are 2 to 5 mm thick.
 RV_WALL = LabelledParameters.rv_wall
 #: the node spacing R (mm) of a cardiac mesh when neither radius nor cells is given: about 100,000 cells for an
