@@ -14,7 +14,7 @@ FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFi
            "QualityFilter", "MeshFromPoints", "FibreField", "TemplateFit")
 #: name -> (the module that defines it, its name there).
 _NAMES = {"mesh": ("meshing", "mesh"), "write": ("meshing", "write"), "read": ("io.meshes", "read_mesh"),
-          "fit": ("fitting", "fit"), "fit_cycle": ("fitting", "fit_cycle"),
+          "fit": ("fitting", "fit"), "fit_cycle": ("fitting", "fit_cycle"), "carry": ("core.fem.coordinates", "carry"),
           "Samples": ("meshing", "Samples"), "Voxels": ("meshing", "Voxels"), "Options": ("options", "Options"),
           "MeshingResult": ("core.steps.spine", "MeshingResult"), "Mesh": ("core.mesh.simplicial", "Mesh"),
           "batch": ("cohorts", "batch"),

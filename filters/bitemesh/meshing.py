@@ -8,6 +8,7 @@ all call it; no other module tells inputs apart.
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Optional
@@ -15,6 +16,7 @@ from typing import Optional
 import numpy as np
 
 from .core.errors import InvalidInputError
+from .core.fem.coordinates import POINT_ARRAY_FORMATS, with_coordinates
 from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
 from .core.parameters import ImplicitParameters, LabelledParameters
 from .core.progress import ProgressCallback, report, sub_progress
@@ -149,7 +151,7 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
     """
     options = as_options(options, **changes)
     fibres = options.of(FibreParameters) if options.fibres else None
-    meshed = sub_progress(progress, 0.0, 0.9 if fibres else 1.0)
+    meshed = sub_progress(progress, 0.0, 0.9 if fibres or options.coordinates else 1.0)
     data = read_input(input, options)
     if isinstance(data, Voxels):
         result = mesh_label_grid(data.labels, data.ijk_to_physical, labels=labels_of(options), progress=meshed,
@@ -159,14 +161,23 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
                               **contour_keywords(options))
     else:
         result = run(data.points, data.normals, progress=meshed, slices=data.slices, **options.steps)
-    if fibres is None:
-        return result
-    report(progress, 0.9, "adding the fibres")
-    try:
-        mesh_with_fibres, seconds = with_fibres(result.mesh, fibres, sub_progress(progress, 0.9, 1.0))
-    except InvalidInputError as error:
-        raise InvalidInputError(f"fibres (--fibres): {error}") from None
-    return replace(result, mesh=mesh_with_fibres, seconds={**result.seconds, "fibres": seconds})
+    if fibres is not None:
+        report(progress, 0.9, "adding the fibres")
+        try:
+            with_them, seconds = with_fibres(result.mesh, fibres, sub_progress(progress, 0.9, 0.95))
+        except InvalidInputError as error:
+            raise InvalidInputError(f"fibres (--fibres): {error}") from None
+        result = replace(result, mesh=with_them, seconds={**result.seconds, "fibres": seconds})
+    if options.coordinates:
+        report(progress, 0.95, "adding the ventricular coordinates")
+        start = time.perf_counter()
+        try:
+            with_them = with_coordinates(result.mesh)
+        except InvalidInputError as error:
+            raise InvalidInputError(f"coordinates (--coordinates): {error}") from None
+        result = replace(result, mesh=with_them,
+                         seconds={**result.seconds, "coordinates": time.perf_counter() - start})
+    return result
 
 
 def check_output(path, options=None) -> None:
@@ -180,6 +191,9 @@ def check_output(path, options=None) -> None:
     if options is not None and as_options(options).fibres and suffix in NO_CELL_ARRAYS:
         raise InvalidInputError(f"--fibres: a {suffix} file keeps no cell arrays but the regions, so the fibres "
                                 f"would be lost; write .vtu or .vtk, which keep {', '.join(FIBRE_ARRAYS)}")
+    if options is not None and as_options(options).coordinates and suffix not in POINT_ARRAY_FORMATS:
+        raise InvalidInputError(f"--coordinates: a {suffix} file keeps no point arrays, so the coordinates would "
+                                f"be lost; write {', '.join(POINT_ARRAY_FORMATS)}")
 
 
 def write(result, path) -> None:

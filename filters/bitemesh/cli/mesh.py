@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from dataclasses import fields
 
+from ..core.fem.coordinates import CoordinateParameters
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
 from ..meshing import check_output, mesh
 from ..options import OPTION_NAMES, Options
@@ -40,6 +41,7 @@ def add_mesh_options(parser) -> None:
                         help=describe(label.metadata, None) + " (repeat for a union)")
     labels.add_argument("--ras", action="store_true", help="write the mesh in RAS (3D Slicer) instead of LPS (ITK)")
     add_fibre_options(parser)
+    add_parameter_options(parser, (CoordinateParameters,))
 
 
 def options_of(args) -> Options:

@@ -114,6 +114,8 @@ def write_and_report(result, output, note: str = "") -> None:
     print(f"wrote {output} (radius R = {result.radius:.4g}{note})")
     if "fibres" in result.seconds:
         print(f"fibres: cell arrays {', '.join(FIBRE_ARRAYS)} (Bayer et al. 2012)")
+    if "coordinates" in result.seconds:
+        print(f"coordinates: point arrays {', '.join(result.mesh.point_data)}; cell arrays AHA, Ventricle")
     print(quality_summary(result.mesh))
     if result.fidelity is not None:
         print(f"fidelity: {result.fidelity.describe()}")

@@ -146,7 +146,7 @@ def _write_with_meshio(mesh: Mesh, regions, suffix: str, temporaries: list, file
     else:
         data = {name: [array.astype(np.uint8) if array.dtype == bool else array]
                 for name, array in mesh.cell_data.items()}
-        contents = meshio.Mesh(points, blocks[:1], cell_data=data)
+        contents = meshio.Mesh(points, blocks[:1], cell_data=data, point_data=dict(mesh.point_data))
     meshio.write(temporaries[0], contents, file_format=MESHIO_FORMATS[suffix], **options)
     if appended:
         with open(temporaries[0], "a", encoding="utf-8") as stream:
@@ -174,7 +174,8 @@ def _add_field_data(path: Path, tag_names: dict) -> None:
 def _write_xdmf(mesh: Mesh, regions, suffix: str, temporaries: list, files: list) -> None:
     regions = regions if regions is not None else np.ones(len(mesh.cells), dtype=np.int32)
     arrays = {"Region": regions, **{name: array for name, array in mesh.cell_data.items() if name != "Region"}}
-    write_grid(temporaries[0], temporaries[1], files[1].name, mesh.points, mesh.cells, arrays, mesh.tag_names)
+    write_grid(temporaries[0], temporaries[1], files[1].name, mesh.points, mesh.cells, arrays, mesh.tag_names,
+               mesh.point_data)
     if len(files) > 2:
         write_grid(temporaries[2], temporaries[3], files[3].name, mesh.points, mesh.facets,
                    {FACET_ARRAY: mesh.facet_tags}, mesh.tag_names)
@@ -218,7 +219,14 @@ def _checked_mesh(mesh):
                 f"mesh.tag_names[{name!r}] = {value!r}: a name must be a non-empty string without quotes or line "
                 f"breaks, mapped to (tag > 0, dimension {dim} for a region or {dim - 1} for a facet tag)")
         names[name] = (tag, dimension)
-    return (Mesh(points, cells, cell_data, facets, tags.astype(np.int32), names),
+    point_data = {}
+    for name, array in (getattr(mesh, "point_data", None) or {}).items():
+        array = np.asarray(array)
+        if array.ndim == 0 or len(array) != len(points):
+            raise InvalidInputError(
+                f"mesh.point_data[{name!r}] must have one row per node ({len(points)}), got shape {array.shape}")
+        point_data[str(name)] = native(array)
+    return (Mesh(points, cells, cell_data, facets, tags.astype(np.int32), names, point_data),
             _region_labels(cell_data))
 
 
@@ -318,10 +326,12 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         facets, tags, names = _tagged_facets(data, facet_type, _TAG_ARRAYS.get(suffix, FACET_ARRAY))
     if suffix in (".vtu", ".xdmf") and _facet_file(path).is_file():
         facets, tags, names = _joined(path, _facet_file(path), len(points), facet_type, (facets, tags, names))
-    return _read_mesh(path, points, cells, cell_data, facets, tags, names, orient)
+    point_data = {name: native(array) for name, array in data.point_data.items()
+                  if suffix in (".vtu", ".vtk", ".xdmf") and len(array) == len(points)} if data.point_data else {}
+    return _read_mesh(path, points, cells, cell_data, facets, tags, names, orient, point_data)
 
 
-def _read_mesh(path, points, cells, cell_data, facets, tags, names, orient: bool) -> Mesh:
+def _read_mesh(path, points, cells, cell_data, facets, tags, names, orient: bool, point_data=None) -> Mesh:
     """The Mesh of what a file gave, its indices checked, its cells positively oriented with ``orient``."""
     for what, table in (("cells", cells), ("facets", facets)):
         if table is not None and table.size and (table.min() < 0 or table.max() >= len(points)):
@@ -330,7 +340,8 @@ def _read_mesh(path, points, cells, cell_data, facets, tags, names, orient: bool
         negative = signed_measures(points, cells) < 0
         cells[negative, :2] = cells[negative, 1::-1]
     found = facets is not None and len(facets)
-    return Mesh(points, cells, cell_data, facets if found else None, tags if found else None, names)
+    return Mesh(points, cells, cell_data, facets if found else None, tags if found else None, names,
+                point_data or {})
 
 
 def _read_file(path: Path):

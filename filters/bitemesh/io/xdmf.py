@@ -49,7 +49,7 @@ DATA_TYPES = {"f": "Float", "i": "Int", "u": "UInt", "b": "UInt"}
 
 
 def write_grid(xml_path, h5_path, h5_name: str, points: np.ndarray, cells: np.ndarray, arrays: dict,
-               tag_names: dict) -> None:
+               tag_names: dict, node_arrays: dict | None = None) -> None:
     """Write one XDMF file holding one uniform grid named ``Grid``, its data in one HDF5 file.
 
     Parameters
@@ -63,7 +63,10 @@ def write_grid(xml_path, h5_path, h5_name: str, points: np.ndarray, cells: np.nd
     cells : (m, k) int64
         0-based node indices of each cell, k = 4 (tetrahedra), 3 (triangles) or 2 (edges), in VTK order.
     arrays : dict
-        Name -> (m,) or (m, c) cell array, written in this order as ``Attribute`` elements with ``Center="Cell"``.
+        Name -> (m,) or (m, c) cell array, written in this order as ``Attribute`` elements with ``Center="Cell"``,
+        each in the HDF5 dataset ``/CellData/<name>``.
+    node_arrays : dict, optional
+        Name -> (n,) or (n, c) node array, ``Center="Node"``, in ``/PointData/<name>``.
     tag_names : dict
         Name -> (tag, dimension); none written when empty.
     """
@@ -84,11 +87,12 @@ def write_grid(xml_path, h5_path, h5_name: str, points: np.ndarray, cells: np.nd
         item(ET.SubElement(grid, "Topology", TopologyType=TOPOLOGY_TYPES[cells.shape[1]],
                            NumberOfElements=str(len(cells)), NodesPerElement=str(cells.shape[1])),
              "/Mesh/topology", cells)
-        for index, (name, array) in enumerate(arrays.items()):
-            attribute = ET.SubElement(grid, "Attribute", Name=name, AttributeType=_attribute_type(array),
-                                      Center="Cell")
-            item(attribute, f"/CellData/{index}", array.reshape(len(array), -1) if array.ndim > 2 else array)
-            h5[f"/CellData/{index}"].attrs["name"] = name
+        for group, center, table in (("CellData", "Cell", arrays), ("PointData", "Node", node_arrays or {})):
+            for name, array in table.items():
+                attribute = ET.SubElement(grid, "Attribute", Name=name, AttributeType=_attribute_type(array),
+                                          Center=center)
+                item(attribute, f"/{group}/{name.replace('/', '_')}",
+                     array.reshape(len(array), -1) if array.ndim > 2 else array)
     if tag_names:
         information = ET.SubElement(grid, "Information", Name="tag_names",
                                     Value=json.dumps({name: list(value) for name, value in tag_names.items()}))

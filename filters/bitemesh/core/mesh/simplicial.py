@@ -23,6 +23,7 @@ class Mesh:
     facet_tags : (b,) int32 > 0 or None, the tag of each facet
     tag_names : name -> (tag, dimension), as meshio's field_data and gmsh's physical names: dimension k for a region
         (a value of ``cell_data["Region"]``), k - 1 for a facet tag
+    point_data : name -> (n, ...) arrays, one row per node (the ventricular coordinates, ...)
     """
 
     points: np.ndarray
@@ -31,6 +32,7 @@ class Mesh:
     facets: np.ndarray | None = None
     facet_tags: np.ndarray | None = None
     tag_names: dict = field(default_factory=dict)
+    point_data: dict = field(default_factory=dict)
 
     @property
     def dim(self) -> int:
@@ -39,6 +41,10 @@ class Mesh:
     def with_cell_data(self, **arrays) -> "Mesh":
         """A copy that also holds ``arrays`` (each with one row per cell); the tags stay."""
         return replace(self, cell_data={**self.cell_data, **arrays})
+
+    def with_point_data(self, **arrays) -> "Mesh":
+        """A copy that also holds ``arrays`` (each with one row per node)."""
+        return replace(self, point_data={**self.point_data, **arrays})
 
     def with_tags(self, facets, facet_tags, tag_names, regions=None) -> "Mesh":
         """A copy with these tagged facets (b, k), their tags (b,), the names and, if given, the cells' regions (m,)."""
