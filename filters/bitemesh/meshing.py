@@ -181,19 +181,26 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
 
 
 def check_output(path, options=None) -> None:
-    """Refuse, before any work, an output path bitemesh cannot write, or one that would lose the fibres."""
-    if not str(path).lower().endswith(MESH_EXTENSIONS):
-        raise InvalidInputError(f"output {path} has an unsupported extension; use one of {', '.join(MESH_EXTENSIONS)}")
+    """Refuse, before any work, an output path bitemesh cannot write, or one that would lose the fibres or the
+    coordinates.  A path without an extension is the folder cardiac-geometries and fenicsx-pulse read."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in MESH_EXTENSIONS + ("",):
+        raise InvalidInputError(f"output {path} has an unsupported extension; use one of {', '.join(MESH_EXTENSIONS)}"
+                                ", or none for a cardiac-geometries / fenicsx-pulse folder")
     directory = Path(path).parent
     if not directory.is_dir():
         raise InvalidInputError(f"output {path}: the directory '{directory}' does not exist")
-    suffix = Path(path).suffix.lower()
-    if options is not None and as_options(options).fibres and suffix in NO_CELL_ARRAYS:
-        raise InvalidInputError(f"--fibres: a {suffix} file keeps no cell arrays but the regions, so the fibres "
-                                f"would be lost; write .vtu or .vtk, which keep {', '.join(FIBRE_ARRAYS)}")
+    if not suffix and Path(path).exists() and not Path(path).is_dir():
+        raise InvalidInputError(f"output {path} is a file, and an output without an extension is a folder (the "
+                                "one cardiac-geometries and fenicsx-pulse read); give another name, or an "
+                                "extension such as .vtu")
+    kind = f"a {suffix} file" if suffix else "a cardiac-geometries folder"
+    if options is not None and as_options(options).fibres and suffix in NO_CELL_ARRAYS + ("",):
+        raise InvalidInputError(f"--fibres: {kind} keeps no cell arrays but the regions, so the fibres would be "
+                                f"lost; write .vtu, .vtk or .xdmf, which keep {', '.join(FIBRE_ARRAYS)}")
     if options is not None and as_options(options).coordinates and suffix not in POINT_ARRAY_FORMATS:
-        raise InvalidInputError(f"--coordinates: a {suffix} file keeps no point arrays, so the coordinates would "
-                                f"be lost; write {', '.join(POINT_ARRAY_FORMATS)}")
+        raise InvalidInputError(f"--coordinates: {kind} keeps no point arrays, so the coordinates would be lost; "
+                                f"write {', '.join(POINT_ARRAY_FORMATS)}")
 
 
 def write(result, path) -> None:

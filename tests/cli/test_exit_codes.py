@@ -142,7 +142,7 @@ def test_memory_cap_respects_the_given_grid_spacing(inputs, tmp_path, capsys):
     assert code == 0 or "grid_spacing 0.1 " in err, err
 
 
-@pytest.mark.parametrize("name", ["out.stl", "out", "out.vtu.txt"])
+@pytest.mark.parametrize("name", ["out.stl", "out.vtu.txt"])   # "out", no extension: a cardiac-geometries folder
 def test_unknown_output_extension_fails_before_meshing(name, inputs, tmp_path, capsys, pipeline_spy):
     output = tmp_path / name
     clock = time.perf_counter()
@@ -151,6 +151,14 @@ def test_unknown_output_extension_fails_before_meshing(name, inputs, tmp_path, c
     message = assert_one_line_error(capsys, code, re.escape(name), "extension")
     assert ".vtu" in message and ".msh" in message  # says what would work
     assert pipeline_spy == [] and elapsed < 2.0 and not output.exists()
+
+
+def test_an_output_without_extension_that_is_a_file_fails_before_meshing(inputs, tmp_path, capsys, pipeline_spy):
+    output = tmp_path / "heart"
+    output.write_text("not a folder")
+    code = cli.main(["mesh", str(inputs["xyz+normals"]), "-o", str(output), "--cells", "2000"])
+    assert_one_line_error(capsys, code, "heart", "is a file", "folder", ".vtu")
+    assert pipeline_spy == [] and output.read_text() == "not a folder"
 
 
 def test_missing_output_directory_fails_before_meshing(inputs, tmp_path, capsys, pipeline_spy):

@@ -3,7 +3,8 @@
 - :mod:`.tables`: text tables of points (columns by header names or by count, decimal commas);
 - :mod:`.pointsets`: points and normals from tables and VTK-readable files (a volume mesh gives its boundary);
 - :mod:`.contours`: labelled contour points (biv-me GPFiles, labelled tables and VTK files) and their config;
-- :mod:`.meshes`: tetrahedral meshes with their tags (meshio; :mod:`.xdmf` for dolfinx, :mod:`.abaqus`'s surfaces);
+- :mod:`.meshes` (writing) and :mod:`.mesh_reading`: tetrahedral meshes with their tags (meshio; :mod:`.xdmf` for
+  dolfinx, :mod:`.abaqus`'s surfaces, :mod:`.opencarp`, :mod:`.folders` for cardiac-geometries and pulse);
 - :mod:`.labelmaps`: label maps (NRRD, NIfTI, MetaImage) through SimpleITK, meshed by :mod:`bitemesh.labelmap`;
 - :mod:`.files`: what they share, the atomic write among it.
 
@@ -13,7 +14,8 @@ from .contours import (LABELLED_EXTENSIONS, LABELLED_CONFIG_KEYS, looks_labelled
                        read_labelled_points)
 from .files import atomic_output, remove_stale_partials, stale_partials  # noqa: F401
 from .labelmaps import LABEL_MAP_EXTENSIONS, LabelMap, read_label_map  # noqa: F401
+from .mesh_reading import read_mesh  # noqa: F401
 from .meshes import (FACET_ARRAY, MESH_EXTENSIONS, MESHIO_FORMATS, NO_CELL_ARRAYS, REGION_ARRAYS,  # noqa: F401
-                     mesh_files, read_mesh, write_mesh)
+                     mesh_files, write_mesh)
 from .pointsets import POINT_EXTENSIONS, TEXT_POINT_EXTENSIONS, VTK_POINT_EXTENSIONS, read_points  # noqa: F401
 

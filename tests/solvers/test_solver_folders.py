@@ -1,0 +1,84 @@
+"""bitemesh's cardiac-geometries / fenicsx-pulse folder (an output without an extension): read back by bitemesh, and
+loaded as their users load it by cardiac-geometries' ``Geometry.from_folder`` in DOLFINx (the PyPI wheel
+dolfinx-solver-real), its markers handed to fenicsx-ldrb by cardiac-geometries' ``transform_markers`` unchanged.
+The solver part runs in the Python named by $BITEMESH_SOLVER_PYTHON (a Python 3.12 environment with
+dolfinx-solver-real, cardiac-geometriesx and fenicsx-ldrb; .ci/run makes one), tests/solvers/solver_check.py."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bitemesh import cli, meshing
+from bitemesh.core.mesh.tags import facet_measures
+from bitemesh.io import read_mesh, write_mesh
+
+from tests.cli.commands import assert_one_line_error
+from tests.cli.test_fibres_flag import forbidden
+from tests.fibrecheck import tagged_shell
+from tests.io.test_tagged_files import facet_set
+
+SOLVER = os.environ.get("BITEMESH_SOLVER_PYTHON")
+
+
+def left_ventricle():
+    """The tagged shell with its RV cavity's surface left out and LV_ENDO named ENDO (numbers as bitemesh gives an
+    LV: EPI 7, ENDO 6, BASE 5, MYOCARDIUM 8)."""
+    mesh = tagged_shell()
+    keep = mesh.facet_tags != mesh.tag_names["RV_ENDO"][0]
+    renumber = np.zeros(5, np.int32)
+    renumber[[1, 2, 4]] = [7, 6, 5]
+    return mesh.with_tags(mesh.facets[keep], renumber[mesh.facet_tags[keep]],
+                          {"EPI": (7, 2), "ENDO": (6, 2), "BASE": (5, 2), "MYOCARDIUM": (8, 3)},
+                          np.full(len(mesh.cells), 8, np.int32))
+
+
+@pytest.mark.parametrize("make", [tagged_shell, left_ventricle], ids=["biventricular", "left ventricle"])
+def test_the_folder_reads_back(tmp_path, make):
+    mesh = make()
+    write_mesh(mesh, tmp_path / "heart")
+    assert sorted(path.name for path in (tmp_path / "heart").iterdir()) == ["info.json", "markers.json", "mesh.h5",
+                                                                          "mesh.xdmf"]
+    back = read_mesh(tmp_path / "heart")
+    np.testing.assert_array_equal(back.points, mesh.points)
+    np.testing.assert_array_equal(back.cells, mesh.cells)
+    np.testing.assert_array_equal(back.cell_data["Region"], mesh.cell_data["Region"])
+    assert facet_set(back.facets, back.facet_tags) == facet_set(mesh.facets, mesh.facet_tags)
+    assert back.tag_names == mesh.tag_names
+    assert json.loads((tmp_path / "heart" / "info.json").read_text())["unit"] == "mm"
+
+
+def test_fibres_or_coordinates_into_a_folder_are_refused_before_meshing(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(meshing, "read_input", forbidden)
+    for flag, words in (("--fibres", ("--fibres", "cardiac-geometries folder", ".xdmf")),
+                        ("--coordinates", ("--coordinates", "cardiac-geometries folder", ".xdmf"))):
+        code = cli.main(["mesh", "contours.txt", "-o", str(tmp_path / "heart"), flag])
+        assert_one_line_error(capsys, code, *words)
+
+
+@pytest.mark.skipif(not SOLVER, reason="no solver Python: set BITEMESH_SOLVER_PYTHON (see .ci/run)")
+@pytest.mark.parametrize("make", [tagged_shell, left_ventricle], ids=["biventricular", "left ventricle"])
+def test_cardiac_geometries_loads_the_folder_and_ldrb_takes_its_markers(tmp_path, make):
+    """The same cells, tags and names (biventricular: with cardiac-geometries' LV and RV beside LV_ENDO and
+    RV_ENDO), the volume and every surface's area as bitemesh measures them (to 1e-9), unit ldrb fibres."""
+    mesh = make()
+    write_mesh(mesh, tmp_path / "heart")
+    done = subprocess.run([SOLVER, str(Path(__file__).with_name("solver_check.py")), str(tmp_path / "heart")],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    found = json.loads(done.stdout.strip().splitlines()[-1])
+    names = {name: list(value) for name, value in mesh.tag_names.items()}
+    if "RV_ENDO" in names:
+        names.update(LV=names["LV_ENDO"], RV=names["RV_ENDO"])
+    assert found["markers"] == names
+    assert found["cells"] == len(mesh.cells) and found["cell_tags"] == sorted(set(mesh.cell_data["Region"]))
+    areas = facet_measures(mesh.points, mesh.facets)
+    for name, (tag, dimension) in mesh.tag_names.items():
+        if dimension == 2:
+            assert found["facet_counts"][str(tag)] == np.sum(mesh.facet_tags == tag)
+            assert found["areas"][name] == pytest.approx(areas[mesh.facet_tags == tag].sum(), rel=1e-9)
+    assert found["volume"] == pytest.approx(mesh.cell_data["Volume"].sum(), rel=1e-9)
+    assert found["ldrb"]["unit"] < 1e-12
