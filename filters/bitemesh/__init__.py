@@ -11,7 +11,7 @@
 """
 __version__ = "0.1.0"
 FILTERS = ("PointsToImplicit", "BitingSampler", "DelaunayTetra", "SpuriousCellFilter", "MeshOptimizer",
-           "QualityFilter", "MeshFromPoints", "FibreField", "TemplateFit")
+           "QualityFilter", "MeshFromPoints", "FibreField", "TemplateFit", "VentricularCoordinates")
 #: name -> (the module that defines it, its name there).
 _NAMES = {"mesh": ("meshing", "mesh"), "write": ("meshing", "write"), "read": ("io.mesh_reading", "read_mesh"),
           "fit": ("fitting", "fit"), "fit_cycle": ("fitting", "fit_cycle"), "carry": ("core.fem.coordinates", "carry"),

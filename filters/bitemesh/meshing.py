@@ -17,7 +17,7 @@ import numpy as np
 
 from .core.errors import InvalidInputError
 from .core.fem.coordinates import POINT_ARRAY_FORMATS, with_coordinates
-from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, with_fibres
+from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, warn_thin_walls, with_fibres
 from .core.parameters import ImplicitParameters, LabelledParameters
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.sources.contours.run import labelled_keywords, labelled_source, run_labelled
@@ -177,6 +177,8 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
             raise InvalidInputError(f"coordinates (--coordinates): {error}") from None
         result = replace(result, mesh=with_them,
                          seconds={**result.seconds, "coordinates": time.perf_counter() - start})
+    if fibres is not None or options.coordinates:
+        warn_thin_walls(result.mesh, result.radius, "--fibres" if fibres is not None else "--coordinates")
     return result
 
 

@@ -78,6 +78,7 @@ FILTERS = {
     "MeshOptimizer": ("Mesh Optimizer", ("Mesh", "Implicit"), ("Mesh",)),
     "QualityFilter": ("Quality Filter", ("Input",), ("Mesh", "Histogram")),
     "FibreField": ("Fibre Field", ("Mesh", "Surfaces"), ("Mesh",)),
+    "VentricularCoordinates": ("Ventricular Coordinates", ("Mesh", "Surfaces"), ("Mesh",)),
     "TemplateFit": ("Template Fit", ("Mesh", "Surfaces", "Data"), ("Mesh", "Surfaces")),
 }
 

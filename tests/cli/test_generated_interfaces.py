@@ -46,6 +46,7 @@ FILTERS = {
                        core.FidelityParameters),
     "FibreField": ((FibreParameters, ("alpha_endo", "alpha_epi", "beta_endo", "beta_epi")),),   # runs always
     "TemplateFit": (FitParameters,),
+    "VentricularCoordinates": (),
 }
 #: the arguments a command needs before its flags parse.
 REQUIRED = {"mesh": ("in.csv", "-o", "out.vtu"), "batch": ("in.csv", "-o", "out"), "quality": ("m.vtu",),

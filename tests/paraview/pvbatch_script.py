@@ -52,6 +52,7 @@ from vtkmodules.vtkCommonDataModel import vtkImageData
 FILTERS = {"MeshFromPoints": "VolumeMeshFromPoints", "PointsToImplicit": "PointsToImplicit",
            "BitingSampler": "BitingSampler", "DelaunayTetra": "DelaunayTetra",
            "SpuriousCellFilter": "SpuriousCellFilter", "QualityFilter": "QualityFilter", "FibreField": "FibreField",
+           "VentricularCoordinates": "VentricularCoordinates",
            "TemplateFit": "TemplateFit"}
 #: the Programmable Filter script of docs/vtk-paraview-slicer.md (Output Data Set Type: vtkUnstructuredGrid);
 #: CELLS is substituted.
@@ -275,6 +276,17 @@ def gpfile(args, out: Path) -> None:
           arrays.GetVectors() is not None and arrays.GetVectors().GetName() == "Fibre", f"error {error!r}")
     SaveData(str(out / "fibres.vtu"), proxy=fibres)
     facts["fibres"] = {"file": "fibres.vtu"}
+
+    # the ventricular coordinates on the same two outputs
+    coordinates = getattr(simple, FILTERS["VentricularCoordinates"])(Mesh=proxy, Surfaces=simple.OutputPort(proxy, 1))
+    placed = updated(coordinates)
+    error = coordinates.GetClientSideObject().last_error
+    aha = placed.GetCellData().GetArray("AHA")
+    segments = set(numpy_support.vtk_to_numpy(aha).tolist()) if aha is not None else set()
+    check("gpfile: Ventricular Coordinates gives the point coordinates and every AHA segment",
+          error is None and None not in [placed.GetPointData().GetArray(name) for name in
+                                         ("ApicoBasal", "Transmural", "Rotational", "Transventricular")]
+          and segments == set(range(18)), f"error {error!r}, segments {sorted(segments)}")   # (all: ParaView's)
 
     # the elastic template: Template Fit of the fibred mesh and the mesher's surfaces onto the same guide points
     fit = getattr(simple, FILTERS["TemplateFit"])(Mesh=fibres, Surfaces=simple.OutputPort(proxy, 1), Data=points)

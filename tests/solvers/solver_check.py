@@ -1,6 +1,8 @@
-"""Run by tests/solvers/test_solver_folders.py in a Python that has DOLFINx (the PyPI wheel dolfinx-solver-real),
-cardiac-geometriesx and fenicsx-ldrb, not bitemesh: load a bitemesh folder as their users do and print what they
-found as JSON.  Usage: python solver_check.py FOLDER."""
+"""Run by tests/solvers in a Python that has DOLFINx (the PyPI wheel dolfinx-solver-real), cardiac-geometriesx and
+fenicsx-ldrb, not bitemesh: load bitemesh's files as their users do and print what they found as JSON.
+
+Usage: python solver_check.py FOLDER (a cardiac-geometries folder), or python solver_check.py HEART.xdmf (bitemesh's
+XDMF with fibres: read as docs/solvers.md shows, ldrb run with bitemesh's angles on DG0, the two compared)."""
 import json
 import sys
 import time
@@ -36,5 +38,33 @@ def main(folder: str) -> dict:
     return found
 
 
+def compare_fibres(path: str) -> dict:
+    """bitemesh's Fibre (the HDF5 dataset /CellData/Fibre, by its name) against ldrb's DG0 fibres with the same
+    angles: the angle between the two fibre lines in each cell (degrees)."""
+    import ldrb
+    from dolfinx.io import XDMFFile
+
+    with XDMFFile(MPI.COMM_WORLD, path, "r") as xdmf:
+        mesh = xdmf.read_mesh(name="Grid")
+        names = json.loads(xdmf.read_information("tag_names", "/Xdmf/Domain/Grid"))
+    mesh.topology.create_connectivity(mesh.topology.dim - 1, mesh.topology.dim)
+    with XDMFFile(MPI.COMM_WORLD, path.replace(".xdmf", "_facets.xdmf"), "r") as xdmf:
+        facets = xdmf.read_meshtags(mesh, name="Grid")
+    angles = {f"{kind}_{wall}_{side}": value for kind, values in (("alpha", (40.0, -50.0)), ("beta", (-65.0, 25.0)))
+              for side in ("lv", "rv") for wall, value in zip(("endo", "epi"), values)}
+    markers = {name.lower().replace("_endo", ""): [value[0]] for name, value in names.items() if value[1] == 2}
+    system = ldrb.dolfinx_ldrb(mesh=mesh, ffun=facets, markers=markers, fiber_space="DG_0", **angles)
+    theirs = system.f0.x.array.reshape(-1, 3)
+    with h5py.File(path.replace(".xdmf", ".h5"), "r") as h5:
+        ours = np.asarray(h5["/CellData/Fibre"])[mesh.topology.original_cell_index]
+    cells = mesh.topology.index_map(3).size_local
+    dofs = system.f0.function_space.dofmap.list[:cells, 0]
+    cosine = np.abs(np.sum(theirs[dofs] * ours[:cells], axis=1)) / np.linalg.norm(theirs[dofs], axis=1)
+    degrees = np.degrees(np.arccos(np.clip(cosine, 0, 1)))
+    return {"cells": int(cells), "median": float(np.median(degrees)), "p90": float(np.percentile(degrees, 90)),
+            "markers": markers}
+
+
 if __name__ == "__main__":
-    print(json.dumps(main(sys.argv[1])))
+    target = sys.argv[1]
+    print(json.dumps(compare_fibres(target) if target.endswith(".xdmf") else main(target)))

@@ -72,6 +72,7 @@ VTK_9_2_API = {
     # string point arrays (Label): run in ParaView 5.11's pvpython (VTK 9.2.20230111)
     "GetAbstractArray", "GetNumberOfComponents", "GetNumberOfTuples", "IsA", "GetValue",
     "SetActiveVectors",  # vtkDataSetAttributes (FibreField's Fibre for glyphs): in ParaView 5.11's pvpython
+    "SetActiveScalars",  # vtkDataSetAttributes (VentricularCoordinates' AHA): in ParaView 5.11's pvpython
 }
 
 

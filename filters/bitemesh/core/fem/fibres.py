@@ -42,13 +42,14 @@ phi_epi = 0.9; 60 and -60: from -7 to -53 at 0.77).  On the way the fibre leaves
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 
 from . import assembly as fem
-from ..errors import InvalidInputError
+from ..errors import BitemeshWarning, InvalidInputError
 from ..mesh.simplicial import Mesh
 from ..parameters import Parameters, parameter
 from ..progress import ProgressCallback, report
@@ -56,6 +57,8 @@ from ..progress import ProgressCallback, report
 #: the facet tags the method needs, by name (the names of
 # :func:`bitemesh.core.sources.contours.function.boundary_surfaces`).
 SURFACES = ("EPI", "LV_ENDO", "RV_ENDO", "BASE")
+#: a wall is "one cell thick" where more than this share of the cells on its endocardium reach the epicardium.
+ONE_CELL = 0.5
 #: the cell arrays :func:`with_fibres` adds: unit vectors (m, 3), and the helix angle (m,) in degrees.
 FIBRE_ARRAYS = ("Fibre", "Sheet", "SheetNormal", "HelixAngle")
 #: the point arrays of the four Laplace solutions psi, phi_epi, phi_lv, phi_rv (no unit, 0 to 1).
@@ -137,6 +140,38 @@ def surface_facets(mesh: Mesh) -> dict:
             f"{present}); mesh labelled heart contours (a biv-me GPFile), whose mesh carries these tags")
     facets.setdefault("RV_ENDO", np.zeros((0, 3), np.int64))
     return facets
+
+
+def thin_walls(mesh: Mesh) -> dict:
+    """Endocardium name -> the share (0 to 1) of the cells with a face on it that also reach the epicardium (a node
+    on EPI and not on that endocardium): where the share is large the wall is one cell thick, and fibres and
+    coordinates across it have one value."""
+    facets = surface_facets(mesh)
+    epi = np.zeros(len(mesh.points), bool)
+    epi[facets["EPI"].ravel()] = True
+    shares = {}
+    for name in ("LV_ENDO", "RV_ENDO"):
+        if not len(facets[name]):
+            continue
+        endo = np.zeros(len(mesh.points), bool)
+        endo[facets[name].ravel()] = True
+        on_it = endo[mesh.cells].sum(axis=1) >= 3
+        across = (epi & ~endo)[mesh.cells].any(axis=1)
+        shares["ENDO" if "ENDO" in mesh.tag_names else name] = float(across[on_it].mean())
+    return shares
+
+
+def warn_thin_walls(mesh: Mesh, radius: float, asked: str) -> None:
+    """A :class:`BitemeshWarning` for each wall more than :data:`ONE_CELL` of whose endocardial cells reach the
+    epicardium (:func:`thin_walls`), with the radius that puts about two cells across it; ``asked`` names the
+    option (``--fibres``)."""
+    for name, share in thin_walls(mesh).items():
+        if share > ONE_CELL:
+            warnings.warn(f"{asked}: the wall under {name} is about one cell thick ({100 * share:.0f}% of the cells on "
+                          f"{name} reach the epicardium, at R = {radius:.3g}): the fibres and coordinates across it "
+                          "take one value where they turn from endocardium to epicardium (rule-based fibres by 90 "
+                          f"degrees); for two cells across it halve R (--radius {radius / 2:.3g}, about 8x the "
+                          "cells)", BitemeshWarning, stacklevel=2)
 
 
 def base_plane(points: np.ndarray, base: np.ndarray):
