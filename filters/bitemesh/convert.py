@@ -182,15 +182,17 @@ def image_to_grid(image: vtkImageData, name: str = IMPLICIT_ARRAY) -> ImplicitGr
 
 def mesh_to_unstructured(mesh: Mesh, grid: vtkUnstructuredGrid | None = None) -> vtkUnstructuredGrid:
     """A vtkUnstructuredGrid of VTK_TETRA (VTK_TRIANGLE in 2D) cells with the mesh's cell data (the regions as the
-    int32 cell array ``Region``) and, when the mesh has them, its tag names as field data (:func:`add_tag_names`)."""
+    int32 cell array ``Region``) and point data and, when the mesh has them, its tag names as field data
+    (:func:`add_tag_names`)."""
     grid = vtkUnstructuredGrid() if grid is None else grid
     grid.SetPoints(vtk_points(mesh.points))
     cell_type = VTK_TETRA if mesh.cells.shape[1] == 4 else VTK_TRIANGLE
     grid.SetCells(cell_type, cell_array(mesh.cells))
-    for name, values in mesh.cell_data.items():
-        array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values), deep=True)
-        array.SetName(name)
-        grid.GetCellData().AddArray(array)
+    for attributes, arrays in ((grid.GetCellData(), mesh.cell_data), (grid.GetPointData(), mesh.point_data)):
+        for name, values in arrays.items():
+            array = numpy_support.numpy_to_vtk(np.ascontiguousarray(values), deep=True)
+            array.SetName(name)
+            attributes.AddArray(array)
     if mesh.tag_names:
         add_tag_names(grid, mesh.tag_names)
     return grid
@@ -205,7 +207,8 @@ def cell_types(grid: vtkUnstructuredGrid) -> np.ndarray:
 
 
 def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
-    """The tetrahedra (or, without any, the triangles) of a vtkUnstructuredGrid, with their cell data, as a Mesh.
+    """The tetrahedra (or, without any, the triangles) of a vtkUnstructuredGrid, with their cell and point data (the
+    numeric arrays), as a Mesh.
 
     A triangle mesh whose points all have z = 0 is 2D.
     """
@@ -223,13 +226,14 @@ def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
     table = connectivity[offsets[chosen][:, None] + np.arange(size)]
     if size == 3 and np.all(points[:, 2] == 0):
         points = points[:, :2]
-    data = {}
-    cell_data = grid.GetCellData()
-    for index in range(cell_data.GetNumberOfArrays()):
-        array = cell_data.GetArray(index)
-        if array is not None and array.GetName():
-            data[array.GetName()] = numpy_support.vtk_to_numpy(array)[chosen].copy()
-    return Mesh(points, table, data)
+    data, point_data = {}, {}
+    for attributes, found, rows in ((grid.GetCellData(), data, chosen), (grid.GetPointData(), point_data, None)):
+        for index in range(attributes.GetNumberOfArrays()):
+            array = attributes.GetArray(index)
+            if array is not None and array.GetName():
+                values = numpy_support.vtk_to_numpy(array)
+                found[array.GetName()] = (values if rows is None else values[rows]).copy()
+    return Mesh(points, table, data, point_data=point_data)
 
 
 #: field-data arrays on the implicit image that carry the data's surface samples to the SpuriousCellFilter, which

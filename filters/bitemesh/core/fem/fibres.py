@@ -161,17 +161,17 @@ def thin_walls(mesh: Mesh) -> dict:
     return shares
 
 
-def warn_thin_walls(mesh: Mesh, radius: float, asked: str) -> None:
+def warn_thin_walls(mesh: Mesh, radius: float, asked: str, hint: float) -> None:
     """A :class:`BitemeshWarning` for each wall more than :data:`ONE_CELL` of whose endocardial cells reach the
-    epicardium (:func:`thin_walls`), with the radius that puts about two cells across it; ``asked`` names the
-    option (``--fibres``)."""
+    epicardium (:func:`thin_walls`); ``asked`` names the option (``--fibres``), ``hint`` the radius that puts about
+    two cells across it."""
     for name, share in thin_walls(mesh).items():
         if share > ONE_CELL:
             warnings.warn(f"{asked}: the wall under {name} is about one cell thick ({100 * share:.0f}% of the cells on "
                           f"{name} reach the epicardium, at R = {radius:.3g}): the fibres and coordinates across it "
                           "take one value where they turn from endocardium to epicardium (rule-based fibres by 90 "
-                          f"degrees); for two cells across it halve R (--radius {radius / 2:.3g}, about 8x the "
-                          "cells)", BitemeshWarning, stacklevel=2)
+                          f"degrees). For two cells across it, mesh with --radius {hint:.3g} (about "
+                          f"{(radius / hint) ** 3:.0f}x the cells)", BitemeshWarning, stacklevel=2)
 
 
 def base_plane(points: np.ndarray, base: np.ndarray):
