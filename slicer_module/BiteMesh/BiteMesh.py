@@ -62,7 +62,8 @@ closed by the base plane.<br>
 plot.<br>
 <b>Fibres</b>: for labelled heart contours (a biv-me GPFile; both ventricles or the LV), <i>Add fibres</i> adds the
 rule-based myocardial fibres (Bayer et al. 2012) as cell arrays Fibre, Sheet, SheetNormal and HelixAngle, and
-colours the mesh by helix angle.<br>
+colours the mesh by helix angle; <i>Add coordinates</i> adds the ventricular coordinates (ApicoBasal, Transmural,
+Rotational, Transventricular) as point arrays and the AHA 17 segments and the ventricles as cell arrays.<br>
 <b>Radius R</b> sets the element size; leave it automatic to aim for <b>Cells</b> cells. The mesh is in RAS
 (world) coordinates, where the input is.
 """)
@@ -374,6 +375,8 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
                                                      seconds=result.seconds.get("total", 0.0))
         if "fibres" in result.seconds:
             text += _("; fibres added (coloured by helix angle)")
+        if "coordinates" in result.seconds:
+            text += _("; ventricular coordinates (point arrays) and AHA segments (cell array AHA) added")
         self.ui.statusLabel.text = text
         plots = getattr(slicer.modules, "plots", None)
         if plots is not None:

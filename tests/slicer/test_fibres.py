@@ -253,3 +253,18 @@ def test_the_parameter_node_keeps_the_fibre_settings_through_a_saved_scene(scene
     settings = logic.coreParameters(read)
     assert FibreParameters(**settings) == FibreParameters(fibres=1, alpha_endo=62.5, alpha_epi=-47.25,
                                                           beta_endo=-60.125, beta_epi=0.1)
+
+
+def test_coordinates_on_the_heart_are_the_cores_on_the_models_points_and_cells(scene, logic, heart):
+    """The panel's "Add coordinates": the core's ventricular coordinates on the model's points, AHA and Ventricle
+    on its cells."""
+    from bitemesh.core.fem.coordinates import ventricular_coordinates
+    model = output_model(scene, "heart")
+    result = logic.process(heart, model, coordinates=1, **HEART)
+    expected = ventricular_coordinates(last_heart())
+    points = model.GetMesh().GetPointData()
+    for name, values in expected.points.items():
+        np.testing.assert_array_equal(numpy_support.vtk_to_numpy(points.GetArray(name)), values, err_msg=name)
+    np.testing.assert_array_equal(cell_array(model, "AHA"), expected.aha)
+    np.testing.assert_array_equal(cell_array(model, "Ventricle"), expected.ventricle)
+    assert "coordinates" in result.seconds

@@ -34,12 +34,13 @@ SECTIONS = {
         "resolution": ("LabelledParameters", "resolution"),
         "sliceShifts": ("LabelledParameters", "slice_shifts"),
     },
-    "fibresCollapsibleButton": {   # "Fibres (labelled heart contours)", open
+    "fibresCollapsibleButton": {   # "Fibres and coordinates (labelled heart contours)", open
         "fibres": ("FibreParameters", "fibres"),
         "alphaEndo": ("FibreParameters", "alpha_endo"),
         "alphaEpi": ("FibreParameters", "alpha_epi"),
         "betaEndo": ("FibreParameters", "beta_endo"),
         "betaEpi": ("FibreParameters", "beta_epi"),
+        "coordinates": ("CoordinateParameters", "coordinates"),
     },
     "optimizerCollapsibleButton": {   # "Optimizer", collapsed
         "iterations": ("OptimizeParameters", "iterations"),
@@ -66,7 +67,8 @@ PARAMETERS = {name: where for section in SECTIONS.values() for name, where in se
 KEYWORDS = {fieldName: dataclassName for dataclassName, fieldName in PARAMETERS.values()}
 assert len(KEYWORDS) == len(PARAMETERS), "two panel parameters share a core keyword"
 #: the module of bitemesh.core holding each panel dataclass that is not in bitemesh.core.parameters.
-DATACLASS_MODULES = {"FibreParameters": "bitemesh.core.fem.fibres"}
+DATACLASS_MODULES = {"FibreParameters": "bitemesh.core.fem.fibres",
+                     "CoordinateParameters": "bitemesh.core.fem.coordinates"}
 
 
 @dataclass(frozen=True)

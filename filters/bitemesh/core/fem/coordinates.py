@@ -92,7 +92,7 @@ class Coordinates:
 def ventricular_coordinates(mesh: Mesh) -> Coordinates:
     """The coordinates of a biventricular tetrahedral ``mesh`` (tagged EPI, LV_ENDO, RV_ENDO and BASE; input units
     mm), as the module's docstring defines them."""
-    facets = surface_facets(mesh)
+    facets = surface_facets(mesh, "coordinates")
     if not len(facets["RV_ENDO"]):
         raise InvalidInputError("coordinates: the rotational coordinate and the AHA segments are measured from the "
                                 "septum, and this mesh has no RV_ENDO (a left ventricle alone); mesh both ventricles")

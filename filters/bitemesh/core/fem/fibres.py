@@ -114,15 +114,15 @@ class Fibres:
     seconds: float
 
 
-def surface_facets(mesh: Mesh) -> dict:
+def surface_facets(mesh: Mesh, what: str = "fibres") -> dict:
     """The tagged boundary triangles of each of :data:`SURFACES`: name -> (b, 3) int64.  An LV-only mesh (EPI, ENDO
     and BASE, as cardiac-geometries tags an LV) gives ENDO as LV_ENDO and no RV_ENDO triangle.
 
     Raises :class:`InvalidInputError` naming the surfaces the mesh lacks (no facet tag of that name, or no facet
-    with its tag).
+    with its tag), and ``what`` needs them.
     """
     if mesh.dim != 3:
-        raise InvalidInputError(f"fibres need a tetrahedral mesh; this mesh is {mesh.dim}D")
+        raise InvalidInputError(f"{what} need a tetrahedral mesh; this mesh is {mesh.dim}D")
     tags = {name: tag for name, (tag, dimension) in mesh.tag_names.items() if dimension == 2}
     left_ventricle = "ENDO" in tags and "LV_ENDO" not in tags and "RV_ENDO" not in tags
     source = {"LV_ENDO": "ENDO"} if left_ventricle else {}
@@ -135,7 +135,7 @@ def surface_facets(mesh: Mesh) -> dict:
     if missing:
         present = ", ".join(sorted(tags)) if tags else "none"
         raise InvalidInputError(
-            f"fibres need the boundary surfaces {', '.join(SURFACES)} (a biventricular heart) or EPI, ENDO and BASE "
+            f"{what} need the boundary surfaces {', '.join(SURFACES)} (a biventricular heart) or EPI, ENDO and BASE "
             f"(a left ventricle) tagged on the mesh, and it has no {', '.join(missing)} (its facet tags: "
             f"{present}); mesh labelled heart contours (a biv-me GPFile), whose mesh carries these tags")
     facets.setdefault("RV_ENDO", np.zeros((0, 3), np.int64))
