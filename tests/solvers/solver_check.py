@@ -26,6 +26,9 @@ def main(folder: str) -> dict:
              "cells": int(mesh.topology.index_map(3).size_local),
              "cell_tags": sorted(set(map(int, geometry.cfun.values))),
              "facet_counts": {int(tag): int(np.sum(facets.values == tag)) for tag in set(facets.values)}}
+    for name, tags in (("edge_counts", geometry.efun), ("vertex_counts", geometry.vfun)):
+        if tags is not None:
+            found[name] = {int(tag): int(np.sum(tags.values == tag)) for tag in set(tags.values)}
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facets)
     found["areas"] = {name: dolfinx.fem.assemble_scalar(dolfinx.fem.form(1.0 * ds(int(value[0]))))
                       for name, value in geometry.markers.items() if int(value[1]) == 2}

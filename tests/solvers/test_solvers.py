@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bitemesh import cli, meshing
+from bitemesh.core.fem.landmarks import landmarks
 from bitemesh.core.mesh.tags import facet_measures
 from bitemesh.io import read_mesh, write_mesh
 
@@ -74,7 +75,11 @@ def test_cardiac_geometries_loads_the_folder_and_ldrb_takes_its_markers(tmp_path
     names = {name: list(value) for name, value in mesh.tag_names.items()}
     if "RV_ENDO" in names:
         names.update(LV=names["LV_ENDO"], RV=names["RV_ENDO"])
+    edges, edge_tags, vertices, vertex_tags, landmark_names = landmarks(mesh)
+    names.update({name: list(value) for name, value in landmark_names.items()})
     assert found["markers"] == names
+    assert found["edge_counts"] == {str(tag): int(np.sum(edge_tags == tag)) for tag in set(edge_tags.tolist())}
+    assert found["vertex_counts"] == {str(tag): 1 for tag in vertex_tags.tolist()}
     assert found["cells"] == len(mesh.cells) and found["cell_tags"] == sorted(set(mesh.cell_data["Region"]))
     areas = facet_measures(mesh.points, mesh.facets)
     for name, (tag, dimension) in mesh.tag_names.items():

@@ -2,9 +2,10 @@
 
 A mesh written to ``heart`` (an output without an extension) is the folder ``heart/``:
 
-- ``mesh.xdmf`` + ``mesh.h5``: three grids as dolfinx's ``XDMFFile`` writes them and cardiac-geometries reads them:
-  ``Mesh`` (the points and the cells), ``Cell tags`` (the cells with their Region) and ``Facet tags`` (the tagged
-  facets with their tag), the tag grids on the mesh's geometry;
+- ``mesh.xdmf`` + ``mesh.h5``: the grids as dolfinx's ``XDMFFile`` writes them and cardiac-geometries reads them:
+  ``Mesh`` (the points and the cells), ``Cell tags`` (the cells with their Region), ``Facet tags`` (the tagged
+  facets with their tag) and, for a heart, ``Edge tags`` (its base rings) and ``Vertex tags`` (its apex points:
+  :mod:`bitemesh.core.fem.landmarks`), the tag grids on the mesh's geometry;
 - ``markers.json``: ``{name: [tag, dimension]}``, the tag names; a biventricular heart's LV_ENDO and RV_ENDO are
   also given as ``LV`` and ``RV``, the names of cardiac-geometries' biventricular ellipsoid, by which its
   ``transform_markers`` hands them to ldrb;
@@ -23,14 +24,16 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InvalidInputError
-from .xdmf import TOPOLOGY_TYPES
+from ..core.fem.landmarks import landmarks
 
 #: the files of a folder, in the order :func:`write_folder` fills the temporary paths.
 FOLDER_FILES = ("mesh.xdmf", "mesh.h5", "markers.json", "info.json")
 #: the extra names a biventricular heart's surfaces get in markers.json (cardiac-geometries' BiV ellipsoid's).
 ALIASES = {"LV_ENDO": "LV", "RV_ENDO": "RV"}
+#: the XDMF topology of entities of k + 1 nodes, as dolfinx writes them.
+TOPOLOGY_TYPES = {4: "Tetrahedron", 3: "Triangle", 2: "PolyLine", 1: "PolyVertex"}
 #: the grids of the tags (cardiac-geometries' names) by the entities' dimension below the cells'.
-TAG_GRIDS = ("Cell tags", "Facet tags")
+TAG_GRIDS = ("Cell tags", "Facet tags", "Edge tags", "Vertex tags")
 
 
 def folder_files(path) -> list:
@@ -52,6 +55,11 @@ def write_folder(mesh, regions, temporaries: list, files: list) -> None:
 
     if mesh.dim != 3:
         raise InvalidInputError("a cardiac-geometries folder holds a tetrahedral mesh; this mesh is 2D: write .xdmf")
+    try:
+        edges, edge_tags, vertices, vertex_tags, landmark_names = landmarks(mesh)
+    except InvalidInputError:   # not a heart: no landmarks
+        edges, edge_tags, vertices, vertex_tags, landmark_names = (np.zeros((0, 2), np.int64), np.zeros(0, np.int32),
+                                                                   np.zeros(0, np.int64), np.zeros(0, np.int32), {})
     xml_path, h5_path, markers_path, info_path = temporaries
     h5_name = files[1].name
     regions = np.ones(len(mesh.cells), np.int32) if regions is None else np.asarray(regions, np.int32)
@@ -68,8 +76,11 @@ def write_folder(mesh, regions, temporaries: list, files: list) -> None:
         topology(grid, mesh.cells)
         item(grid[-1], "/Mesh/Mesh/topology", mesh.cells.astype(np.int64), NumberType="Int")
         item(ET.SubElement(grid, "Geometry", GeometryType="XYZ"), "/Mesh/Mesh/geometry", mesh.points)
-        for name, entities, values in (("Cell tags", mesh.cells, regions), ("Facet tags", mesh.facets,
-                                                                              mesh.facet_tags)):
+        tagged = (("Cell tags", mesh.cells, regions), ("Facet tags", mesh.facets, mesh.facet_tags),
+                  ("Edge tags", edges, edge_tags), ("Vertex tags", vertices.reshape(-1, 1), vertex_tags))
+        for name, entities, values in tagged:
+            if name != "Cell tags" and not len(entities):
+                continue
             grid = ET.SubElement(domain, "Grid", Name=name, GridType="Uniform")
             ET.SubElement(grid, "xi:include", xpointer="xpointer(/Xdmf/Domain/Grid[@Name='Mesh']/Geometry)")
             topology(grid, entities)
@@ -78,7 +89,7 @@ def write_folder(mesh, regions, temporaries: list, files: list) -> None:
             item(attribute, f"/MeshTags/{name}/Values", values.astype(np.int32).reshape(-1, 1))
     ET.indent(root)
     ET.ElementTree(root).write(xml_path, encoding="utf-8", xml_declaration=True)
-    Path(markers_path).write_text(json.dumps(markers(mesh.tag_names), indent=4))
+    Path(markers_path).write_text(json.dumps(markers({**mesh.tag_names, **landmark_names}), indent=4))
     Path(info_path).write_text(json.dumps({"generator": "bitemesh", "unit": "mm"}, indent=4))
 
 
@@ -89,7 +100,8 @@ def topology(grid, entities: np.ndarray) -> None:
 
 def read_folder(path: Path):
     """(points, cells, cell_data, facets, facet_tags, tag_names) of a folder's mesh.xdmf (as this module or dolfinx
-    writes it: the grids Mesh, Cell tags, Facet tags) and markers.json (the aliases of :data:`ALIASES` left out)."""
+    writes it: the grids Mesh, Cell tags, Facet tags; the edge and vertex tags left out) and markers.json (the
+    aliases of :data:`ALIASES` and the names of edges and vertices left out)."""
     import h5py
 
     xml_path = path / "mesh.xdmf"
@@ -109,7 +121,7 @@ def read_folder(path: Path):
     cells = data(grids["Mesh"].find("Topology")).astype(np.int64)
     tags = {name: (data(grids[name].find("Topology")).astype(np.int64),
                    data(grids[name].find("Attribute")).reshape(-1).astype(np.int32))
-            for name in TAG_GRIDS if name in grids}
+            for name in TAG_GRIDS[:2] if name in grids}   # a Mesh holds no edge or vertex tags
     cell_data = {}
     if "Cell tags" in tags:
         order = {tuple(sorted(cell)): index for index, cell in enumerate(cells.tolist())}
@@ -120,6 +132,6 @@ def read_folder(path: Path):
     markers_path = path / "markers.json"
     names = json.loads(markers_path.read_text()) if markers_path.is_file() else {}
     tag_names = {name: (int(tag), int(dimension)) for name, (tag, dimension) in names.items()
-                 if not (name in ALIASES.values() and any(original in names for original, alias in ALIASES.items()
-                                                          if alias == name))}
+                 if int(dimension) >= 2 and not (name in ALIASES.values() and any(
+                     original in names for original, alias in ALIASES.items() if alias == name))}
     return points, cells, cell_data, facets, facet_tags, tag_names

@@ -174,6 +174,12 @@ def warn_thin_walls(mesh: Mesh, radius: float, asked: str, hint: float) -> None:
                           f"{(radius / hint) ** 3:.0f}x the cells)", BitemeshWarning, stacklevel=2)
 
 
+def lowest_node(points: np.ndarray, nodes: np.ndarray, base: np.ndarray) -> int:
+    """The one of ``nodes`` farthest below the plane of the BASE triangles ``base`` (b, 3): an apex."""
+    centre, normal = base_plane(points, base)
+    return int(nodes[np.argmax((centre - points[nodes]) @ normal)])
+
+
 def base_plane(points: np.ndarray, base: np.ndarray):
     """The plane of the base: the area-weighted centroid (3,) of the BASE triangles (b, 3) and their mean unit
     normal (3,), turned to point away from the rest of the mesh (away from the apex)."""
@@ -202,9 +208,7 @@ def laplace_solutions(points: np.ndarray, cells: np.ndarray, facets: dict, gradi
     owner = np.full(n, -1)
     for number, name in enumerate(SURFACES[:3]):          # EPI, then LV_ENDO, then RV_ENDO win a shared node
         owner[facets[name].ravel()] = number
-    epi = np.flatnonzero(owner == 0)
-    centre, normal = base_plane(points, facets["BASE"])
-    apex = int(epi[np.argmax((centre - points[epi]) @ normal)])
+    apex = lowest_node(points, np.flatnonzero(owner == 0), facets["BASE"])
     on_base = np.zeros(n, dtype=bool)
     on_base[facets["BASE"].ravel()] = True
     problems = [(on_base | (np.arange(n) == apex), on_base.astype(np.float64))]
