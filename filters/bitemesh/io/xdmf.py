@@ -12,8 +12,8 @@ stem (dolfinx opens that one, whatever the ``DataItem`` says):
 
 Both grids carry the tag names in an ``Information`` element named ``tag_names``: its ``Value`` is JSON
 (``{"EPI": [1, 2], ...}``, name -> [tag, dimension]) and its text meshio's field-data form (meshio reads it as
-``field_data``).  Reading them in dolfinx (0.7 and later; by the dolfinx source, not run here: dolfinx installs
-from conda only)::
+``field_data``).  Reading them in DOLFINx (0.7 and later; run by tests/solvers with the PyPI wheel
+dolfinx-solver-real, whose ``dolfinx_solver`` is imported first)::
 
     import json
 
