@@ -177,6 +177,8 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
             raise InvalidInputError(f"coordinates (--coordinates): {error}") from None
         result = replace(result, mesh=with_them,
                          seconds={**result.seconds, "coordinates": time.perf_counter() - start})
+    if options.unit != result.mesh.unit:
+        result = replace(result, mesh=replace(result.mesh, unit=options.unit))
     if fibres is not None or options.coordinates:
         warn_thin_walls(result.mesh, result.radius, "--fibres" if fibres is not None else "--coordinates",
                         two_cells_across(result.radius))

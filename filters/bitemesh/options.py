@@ -32,6 +32,10 @@ READING = (
     ("config", Optional[str], field(default=None, metadata={
         "help": "labelled contours: a JSON or TOML file with the domain and its options (options given win)",
         "text": True})),
+    ("unit", str, field(default="mm", metadata={
+        "help": "the unit of the input's coordinates (and the mesh's), written into the files that hold one: .xdmf, "
+                "the cardiac-geometries folder's info.json, the Abaqus .inp; openCARP's micrometres are converted "
+                "from it", "choices": ("um", "mm", "cm", "m")})),
 )
 
 
@@ -49,6 +53,10 @@ class _Checked:
         object.__setattr__(self, "label", labels)
         object.__setattr__(self, "ras", bool(self.ras))
         object.__setattr__(self, "config", None if self.config in (None, "") else str(self.config))
+        units = next(item for item in fields(self) if item.name == "unit").metadata["choices"]
+        if self.unit not in units:
+            raise InvalidInputError(f"unit (--unit) must be one of {', '.join(units)} (the input's coordinates), got "
+                                    f"{self.unit!r}")
         for cls in OPTION_CLASSES:
             self.of(cls)   # each dataclass checks its fields
 

@@ -33,6 +33,9 @@ def add_mesh_options(parser) -> None:
     add_parameter_options(parser, (TableParameters,))
     add_parameter_options(parser)
     add_parameter_options(parser, (LabelledParameters,))
+    unit = {item.name: item for item in fields(Options)}["unit"]
+    parser.add_argument("--unit", choices=unit.metadata["choices"], default=unit.default,
+                        help=describe(unit.metadata, unit.default))
     parser.add_argument("--config", metavar="FILE", help="labelled contours: a JSON or TOML file with the domain and "
                                                          "its options (flags given on the command line win)")
     labels = parser.add_argument_group("label maps")

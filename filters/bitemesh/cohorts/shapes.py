@@ -25,7 +25,7 @@ def shape_mesh(template: Mesh, points: np.ndarray) -> Mesh:
     shape = Mesh(points, template.cells)
     cell_data = {name: values for name, values in template.cell_data.items() if name == "Region"}
     return Mesh(points, template.cells, {**cell_data, **cell_quality(shape)}, template.facets, template.facet_tags,
-                template.tag_names)
+                template.tag_names, unit=template.unit)
 
 
 def write_shape_model(rows: list, output_dir, template: Mesh) -> list:

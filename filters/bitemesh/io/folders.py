@@ -9,7 +9,7 @@ A mesh written to ``heart`` (an output without an extension) is the folder ``hea
 - ``markers.json``: ``{name: [tag, dimension]}``, the tag names; a biventricular heart's LV_ENDO and RV_ENDO are
   also given as ``LV`` and ``RV``, the names of cardiac-geometries' biventricular ellipsoid, by which its
   ``transform_markers`` hands them to ldrb;
-- ``info.json``: the generator and the unit of the coordinates (``"unit": "mm"``; pulse assumes
+- ``info.json``: the generator and the unit of the coordinates (``"unit": "mm"``, ``--unit``; pulse assumes
   metres unless told: ``HeartGeometry.from_cardiac_geometries(..., metadata)`` with the mesh scaled by 1e-3).
 
 The fibres are not in the folder: cardiac-geometries reads them only from an ADIOS2 checkpoint
@@ -90,7 +90,7 @@ def write_folder(mesh, regions, temporaries: list, files: list) -> None:
     ET.indent(root)
     ET.ElementTree(root).write(xml_path, encoding="utf-8", xml_declaration=True)
     Path(markers_path).write_text(json.dumps(markers({**mesh.tag_names, **landmark_names}), indent=4))
-    Path(info_path).write_text(json.dumps({"generator": "bitemesh", "unit": "mm"}, indent=4))
+    Path(info_path).write_text(json.dumps({"generator": "bitemesh", "unit": mesh.unit}, indent=4))
 
 
 def topology(grid, entities: np.ndarray) -> None:
@@ -99,9 +99,9 @@ def topology(grid, entities: np.ndarray) -> None:
 
 
 def read_folder(path: Path):
-    """(points, cells, cell_data, facets, facet_tags, tag_names) of a folder's mesh.xdmf (as this module or dolfinx
-    writes it: the grids Mesh, Cell tags, Facet tags; the edge and vertex tags left out) and markers.json (the
-    aliases of :data:`ALIASES` and the names of edges and vertices left out)."""
+    """(points, cells, cell_data, facets, facet_tags, tag_names, unit) of a folder's mesh.xdmf (as this module or
+    dolfinx writes it: the grids Mesh, Cell tags, Facet tags; the edge and vertex tags left out), markers.json (the
+    aliases of :data:`ALIASES` and the names of edges and vertices left out) and info.json (the unit, else mm)."""
     import h5py
 
     xml_path = path / "mesh.xdmf"
@@ -134,4 +134,6 @@ def read_folder(path: Path):
     tag_names = {name: (int(tag), int(dimension)) for name, (tag, dimension) in names.items()
                  if int(dimension) >= 2 and not (name in ALIASES.values() and any(
                      original in names for original, alias in ALIASES.items() if alias == name))}
-    return points, cells, cell_data, facets, facet_tags, tag_names
+    info = path / "info.json"
+    unit = json.loads(info.read_text()).get("unit", "mm") if info.is_file() else "mm"
+    return points, cells, cell_data, facets, facet_tags, tag_names, unit

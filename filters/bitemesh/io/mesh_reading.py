@@ -45,9 +45,9 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         that does not fit its mesh.
     """
     if Path(path).is_dir():
-        points, cells, cell_data, facets, tags, names = read_folder(Path(path))
+        points, cells, cell_data, facets, tags, names, unit = read_folder(Path(path))
         return _read_mesh(path, check_points(points, f"points of '{path}'"), cells, cell_data, facets, tags, names,
-                          orient)
+                          orient, unit=unit)
     path = existing_file(path, "a mesh", MESH_EXTENSIONS)
     suffix = path.suffix.lower()
     if suffix == ".pts":
@@ -95,10 +95,20 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
         facets, tags, names = _joined(path, facet_file(path), len(points), facet_type, (facets, tags, names))
     point_data = {name: native(array) for name, array in data.point_data.items()
                   if suffix in (".vtu", ".vtk", ".xdmf") and len(array) == len(points)} if data.point_data else {}
-    return _read_mesh(path, points, cells, cell_data, facets, tags, names, orient, point_data)
+    return _read_mesh(path, points, cells, cell_data, facets, tags, names, orient, point_data,
+                      xdmf_unit(path) if suffix == ".xdmf" else "mm")
 
 
-def _read_mesh(path, points, cells, cell_data, facets, tags, names, orient: bool, point_data=None) -> Mesh:
+def xdmf_unit(path: Path) -> str:
+    """The unit an .xdmf file of bitemesh's names (its Geometry's ``Unit``), else mm."""
+    import xml.etree.ElementTree as ET
+
+    found = ET.parse(path).getroot().find(".//Geometry")
+    return found.get("Unit", "mm") if found is not None else "mm"
+
+
+def _read_mesh(path, points, cells, cell_data, facets, tags, names, orient: bool, point_data=None,
+               unit: str = "mm") -> Mesh:
     """The Mesh of what a file gave, its indices checked, its cells positively oriented with ``orient``."""
     for what, table in (("cells", cells), ("facets", facets)):
         if table is not None and table.size and (table.min() < 0 or table.max() >= len(points)):
@@ -108,7 +118,7 @@ def _read_mesh(path, points, cells, cell_data, facets, tags, names, orient: bool
         cells[negative, :2] = cells[negative, 1::-1]
     found = facets is not None and len(facets)
     return Mesh(points, cells, cell_data, facets if found else None, tags if found else None, names,
-                point_data or {})
+                point_data or {}, unit)
 
 
 def _read_file(path: Path):

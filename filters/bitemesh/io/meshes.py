@@ -34,7 +34,7 @@ from ..core.errors import InvalidInputError, check_points
 from ..core.mesh.simplicial import Mesh
 from .abaqus import abaqus_sets
 from .folders import folder_files, write_folder
-from .opencarp import opencarp_files, write_opencarp
+from .opencarp import MICROMETRES, opencarp_files, write_opencarp
 from .files import atomic_outputs, meshio_warnings, native, supported
 from .xdmf import write_grid
 
@@ -157,6 +157,7 @@ def _write_with_meshio(mesh: Mesh, regions, suffix: str, temporaries: list, file
     elif suffix == ".inp":
         cell_sets, point_sets, appended = abaqus_sets(mesh.cells, regions, mesh.facets, mesh.facet_tags,
                                                       mesh.tag_names)
+        appended = f"** the coordinates' unit: {mesh.unit}\n" + appended
         contents = meshio.Mesh(points, blocks[:1], cell_sets=cell_sets, point_sets=point_sets)
         options = {"float_fmt": ".12e"}  # Abaqus (and CalculiX) read at most 20 characters a number
     else:
@@ -191,10 +192,10 @@ def _write_xdmf(mesh: Mesh, regions, suffix: str, temporaries: list, files: list
     regions = regions if regions is not None else np.ones(len(mesh.cells), dtype=np.int32)
     arrays = {"Region": regions, **{name: array for name, array in mesh.cell_data.items() if name != "Region"}}
     write_grid(temporaries[0], temporaries[1], files[1].name, mesh.points, mesh.cells, arrays, mesh.tag_names,
-               mesh.point_data)
+               mesh.point_data, mesh.unit)
     if len(files) > 2:
         write_grid(temporaries[2], temporaries[3], files[3].name, mesh.points, mesh.facets,
-                   {FACET_ARRAY: mesh.facet_tags}, mesh.tag_names)
+                   {FACET_ARRAY: mesh.facet_tags}, mesh.tag_names, unit=mesh.unit)
 
 
 def _checked_mesh(mesh):
@@ -242,7 +243,10 @@ def _checked_mesh(mesh):
             raise InvalidInputError(
                 f"mesh.point_data[{name!r}] must have one row per node ({len(points)}), got shape {array.shape}")
         point_data[str(name)] = native(array)
-    return (Mesh(points, cells, cell_data, facets, tags.astype(np.int32), names, point_data),
+    unit = getattr(mesh, "unit", "mm")
+    if unit not in MICROMETRES:
+        raise InvalidInputError(f"mesh.unit must be one of {', '.join(MICROMETRES)}, got {unit!r}")
+    return (Mesh(points, cells, cell_data, facets, tags.astype(np.int32), names, point_data, unit),
             _region_labels(cell_data))
 
 

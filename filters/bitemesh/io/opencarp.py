@@ -1,8 +1,9 @@
 """openCARP's text mesh format (``carp_txt``, as openCARP and its meshtool read it).
 
-A mesh written to ``heart.pts`` (bitemesh meshes are in mm; openCARP's unit is the micrometre) is:
+A mesh written to ``heart.pts`` (openCARP's unit is the micrometre) is:
 
-- ``heart.pts``: the node count, then ``x y z`` a line, in micrometres (z = 0 for a 2D mesh);
+- ``heart.pts``: the node count, then ``x y z`` a line, in micrometres, converted from the mesh's unit (z = 0 for a
+  2D mesh); read back in mm;
 - ``heart.elem``: the cell count, then ``Tt n0 n1 n2 n3 region`` a line (``Tr`` triangles in 2D): 0-based nodes,
   positively oriented (meshtool's quality check flags the others), the region the ``Region`` array's (1 without);
 - ``heart.lon``: the number of directions a cell (2: fibre and sheet, as openCARP's bidomain reads them; 1: the fibre
@@ -23,8 +24,8 @@ import numpy as np
 
 from ..core.errors import InvalidInputError
 
-#: micrometres in a millimetre: openCARP's coordinates are micrometres, bitemesh's meshes millimetres.
-MICROMETRES = 1000.0
+#: micrometres in each unit a mesh may be in: openCARP's coordinates are micrometres.
+MICROMETRES = {"um": 1.0, "mm": 1e3, "cm": 1e4, "m": 1e6}
 #: openCARP's element code of a cell with k + 1 nodes, and of a facet with k nodes.
 CELL_CODES = {4: "Tt", 3: "Tr"}
 FACET_CODES = {3: "Tr", 2: "Ln"}
@@ -64,7 +65,7 @@ def write_opencarp(mesh, regions, temporaries: list, files: list) -> None:
     """Write ``mesh`` (points in mm) to the temporary paths of ``files`` (:func:`opencarp_files`)."""
     dim = mesh.points.shape[1]
     points = np.zeros((len(mesh.points), 3))
-    points[:, :dim] = mesh.points * MICROMETRES
+    points[:, :dim] = mesh.points * MICROMETRES[mesh.unit]
     regions = np.ones(len(mesh.cells), np.int64) if regions is None else np.asarray(regions, np.int64)
     written = iter(temporaries)
     write_table(next(written), len(points), [f"{x:.17g} {y:.17g} {z:.17g}" for x, y, z in points])
@@ -99,8 +100,8 @@ def write_table(path, header, lines) -> None:
 
 
 def read_opencarp(path: Path):
-    """(points (n, k) in mm, cells (m, k + 1), cell_data, facets, facet_tags, tag_names) of ``heart.pts`` and its
-    companions (``heart_tags.json`` and the surfaces it names, when present)."""
+    """(points (n, k) in mm (from micrometres), cells (m, k + 1), cell_data, facets, facet_tags, tag_names) of
+    ``heart.pts`` and its companions (``heart_tags.json`` and the surfaces it names, when present)."""
     def rows(file: Path, counted: bool = True) -> list:
         """The rows of ``file`` after its header (the row count, unless not ``counted``)."""
         if not file.is_file():
@@ -110,7 +111,7 @@ def read_opencarp(path: Path):
         return found[:int(lines[0].split()[0])] if counted else found
 
     try:
-        points = np.array(rows(path), dtype=np.float64) / MICROMETRES
+        points = np.array(rows(path), dtype=np.float64) / MICROMETRES["mm"]
         elements = rows(companion(path, ".elem"))
         codes = {row[0] for row in elements}
         if len(codes) != 1 or codes - set(CELL_CODES.values()):

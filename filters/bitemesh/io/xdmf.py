@@ -49,7 +49,7 @@ DATA_TYPES = {"f": "Float", "i": "Int", "u": "UInt", "b": "UInt"}
 
 
 def write_grid(xml_path, h5_path, h5_name: str, points: np.ndarray, cells: np.ndarray, arrays: dict,
-               tag_names: dict, node_arrays: dict | None = None) -> None:
+               tag_names: dict, node_arrays: dict | None = None, unit: str = "mm") -> None:
     """Write one XDMF file holding one uniform grid named ``Grid``, its data in one HDF5 file.
 
     Parameters
@@ -67,6 +67,9 @@ def write_grid(xml_path, h5_path, h5_name: str, points: np.ndarray, cells: np.nd
         each in the HDF5 dataset ``/CellData/<name>``.
     node_arrays : dict, optional
         Name -> (n,) or (n, c) node array, ``Center="Node"``, in ``/PointData/<name>``.
+    unit : str
+        The points' unit, written as the ``Unit`` attribute of the ``Geometry`` element (XDMF has no place for it;
+        readers ignore it, and meshio allows one ``Information`` element only).
     tag_names : dict
         Name -> (tag, dimension); none written when empty.
     """
@@ -83,7 +86,8 @@ def write_grid(xml_path, h5_path, h5_name: str, points: np.ndarray, cells: np.nd
                                     Dimensions=" ".join(map(str, array.shape)), Format="HDF")
             element.text = f"{h5_name}:{dataset}"
 
-        item(ET.SubElement(grid, "Geometry", GeometryType="XYZ"[:points.shape[1]]), "/Mesh/geometry", points)
+        item(ET.SubElement(grid, "Geometry", GeometryType="XYZ"[:points.shape[1]], Unit=unit), "/Mesh/geometry",
+             points)
         item(ET.SubElement(grid, "Topology", TopologyType=TOPOLOGY_TYPES[cells.shape[1]],
                            NumberOfElements=str(len(cells)), NodesPerElement=str(cells.shape[1])),
              "/Mesh/topology", cells)

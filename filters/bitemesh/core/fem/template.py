@@ -296,7 +296,7 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     cell_data.update(carried_fibres(template.points, points, cells, cell_data))
     cell_data.update({name: values for name, values in cell_quality(Mesh(points, cells)).items() if name in cell_data})
     moved = Mesh(points, cells, cell_data, template.facets, template.facet_tags, dict(template.tag_names),
-                 dict(template.point_data))   # node i stays the same material point: its data stay
+                 dict(template.point_data), template.unit)   # node i stays the same material point: its data stay
     distances = distances_to_facets(np.vstack([data for _, _, data, _ in groups]), points[boundary_facets(cells)])
     check_follows(distances, mean_edge_length(points, cells), pull)
     report(progress, 1.0, "fitted")

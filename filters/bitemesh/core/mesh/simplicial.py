@@ -24,6 +24,7 @@ class Mesh:
     tag_names : name -> (tag, dimension), as meshio's field_data and gmsh's physical names: dimension k for a region
         (a value of ``cell_data["Region"]``), k - 1 for a facet tag
     point_data : name -> (n, ...) arrays, one row per node (the ventricular coordinates, ...)
+    unit : the unit of the points: "um", "mm", "cm" or "m" (the files that hold one say it)
     """
 
     points: np.ndarray
@@ -33,6 +34,7 @@ class Mesh:
     facet_tags: np.ndarray | None = None
     tag_names: dict = field(default_factory=dict)
     point_data: dict = field(default_factory=dict)
+    unit: str = "mm"
 
     @property
     def dim(self) -> int:
