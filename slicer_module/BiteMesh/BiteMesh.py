@@ -28,6 +28,7 @@ _moduleDir = os.path.dirname(os.path.abspath(__file__))
 if _moduleDir not in sys.path:
     sys.path.insert(0, _moduleDir)
 
+from BiteMeshLib.help import HELP_TEXT  # noqa: E402
 from BiteMeshLib.logic import BiteMeshLogic  # noqa: E402
 
 #: QSpinBox holds a 32-bit int: integer ranges of the core are clipped to it in the panel (not in the logic).
@@ -47,26 +48,8 @@ class BiteMesh(ScriptedLoadableModule):
         self.parent.categories = [_("Surface Models")]
         self.parent.dependencies = ["Markups", "Segmentations", "Plots"]
         self.parent.contributors = ["The bitemesh authors"]
-        self.parent.helpText = _("""
-Tetrahedral meshes for finite elements from scattered points, after Schaerer et al. ("biting" node placement):
-an implicit surface (MPU, or an RBF for sparse contours), nodes about R apart, Delaunay tetrahedra, spurious
-cells removed, a valid domain.<br>
-<b>Input</b>: a markups point list (points on the surface), one or more markups closed curves (contours), a
-surface model (its points and normals) or a segmentation (one segment).<br>
-<b>Labelled contours</b>: <i>Load labelled points...</i> reads a biv-me GPFile, a CSV table or a VTP with a Label
-array (LPS coordinates, as Slicer's files) into a model; or name closed curves after their surfaces (EPI, LV_ENDO_1,
-...) and give a <b>Domain</b> such as EPI - LV_ENDO - RV_ENDO. One surface per label, combined by the domain and
-closed by the base plane.<br>
-<b>Output</b>: a model node holding the tetrahedra (an unstructured grid) coloured by radius ratio
-(1 = regular tetrahedron), one model per tagged boundary surface, and the radius-ratio histogram as a table and a
-plot.<br>
-<b>Fibres</b>: for labelled heart contours (a biv-me GPFile; both ventricles or the LV), <i>Add fibres</i> adds the
-rule-based myocardial fibres (Bayer et al. 2012) as cell arrays Fibre, Sheet, SheetNormal and HelixAngle, and
-colours the mesh by helix angle; <i>Add coordinates</i> adds the ventricular coordinates (ApicoBasal, Transmural,
-Rotational, Transventricular) as point arrays and the AHA 17 segments and the ventricles as cell arrays.<br>
-<b>Radius R</b> sets the element size; leave it automatic to aim for <b>Cells</b> cells. The mesh is in RAS
-(world) coordinates, where the input is.
-""")
+        self.parent.helpText = _(HELP_TEXT)
+
         self.parent.acknowledgementText = _("""
 bitemesh implements M. Schaerer et al., Volumetric mesh construction from scattered prior data.
 """)
@@ -116,9 +99,10 @@ def parameterNodeClass():
             "contours": list[vtkMRMLMarkupsClosedCurveNode],
             "segmentId": str,
             "outputModel": vtkMRMLModelNode,
+            "templateModel": Union[vtkMRMLModelNode, None],
         }
         namespace = {"segmentId": ""}
-        for spec in BiteMeshLogic.parameterSpecs():
+        for spec in BiteMeshLogic.parameterSpecs() + BiteMeshLogic.fitParameterSpecs():
             annotations[spec.name] = _annotated(spec)
             namespace[spec.name] = spec.default
         namespace.update(__annotations__=annotations, __module__=__name__,
@@ -156,6 +140,7 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self.addObserver(slicer.mrmlScene, slicer.mrmlScene.StartCloseEvent, self.onSceneStartClose)
         self.addObserver(slicer.mrmlScene, slicer.mrmlScene.EndCloseEvent, self.onSceneEndClose)
         self.ui.applyButton.connect("clicked(bool)", self.onApplyButton)
+        self.ui.fitButton.connect("clicked(bool)", self.onFitButton)
         self.ui.cancelButton.connect("clicked(bool)", self.onCancelButton)
         self.ui.loadLabelledPointsButton.connect("clicked(bool)", self.onLoadLabelledPoints)
         self.ui.contoursSelector.connect("checkedNodesChanged()", self.onContoursChanged)
@@ -205,14 +190,14 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         if missing:
             self.ui.statusLabel.text = _("BiteMesh needs {packages}: reopen the module to install it.").format(
                 packages=", ".join(missing))
-            self.ui.applyButton.enabled = False
+            self.ui.applyButton.enabled = self.ui.fitButton.enabled = False
             self.ui.loadLabelledPointsButton.enabled = False
             return False
         return True
 
     def _setToolTips(self):
         """Each parameter's help and unit, from the core's dataclasses."""
-        specs = {spec.name: spec for spec in self.logic.parameterSpecs()}
+        specs = {spec.name: spec for spec in self.logic.parameterSpecs() + self.logic.fitParameterSpecs()}
         for child in vars(self.ui).values():
             name = child.property("SlicerParameterName") if hasattr(child, "property") else None
             if name in specs:
@@ -243,7 +228,7 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def _onParameterNodeModified(self, caller=None, event=None):
         node = self._parameterNode
         if node is None:
-            self.ui.applyButton.enabled = False
+            self.ui.applyButton.enabled = self.ui.fitButton.enabled = False
             return
         inputNode = node.inputNode
         if inputNode is not self._lastInputNode:
@@ -255,6 +240,7 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         self._updateExtras()
         canApply = inputNode is not None and not self._running
         self.ui.applyButton.enabled = canApply
+        self.ui.fitButton.enabled = canApply and node.templateModel is not None
         self.ui.applyButton.toolTip = _("Mesh the input into the output model.") if canApply else \
             _("Select an input: points, closed curves, a model or a segmentation.")
 
@@ -317,30 +303,57 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
 
     # --- apply, progress, cancel -------------------------------------------------------------------------------------
 
-    def onApplyButton(self):
-        if self._running or self._parameterNode is None:
-            return
-        from bitemesh.core.errors import Cancelled
+    def _inputs(self):
+        """The input node, with the further closed curves when it is a closed curve."""
         node = self._parameterNode
         inputs = node.inputNode
         if inputs is not None and inputs.IsA("vtkMRMLMarkupsClosedCurveNode"):
             inputs = [inputs] + [curve for curve in node.contours if curve is not None and curve is not inputs]
+        return inputs
+
+    def _run(self, failure, work):
+        """``work(outputModel)`` with progress and Cancel, its errors shown under ``failure``."""
+        if self._running or self._parameterNode is None:
+            return
+        from bitemesh.core.errors import Cancelled
+        node = self._parameterNode
         self._cancelRequested = False
         self._setRunning(True)
         try:
-            with slicer.util.tryWithErrorDisplay(_("BiteMesh could not mesh the input."), waitCursor=True):
+            with slicer.util.tryWithErrorDisplay(failure, waitCursor=True):
                 if node.outputModel is None:
                     node.outputModel = slicer.mrmlScene.AddNewNodeByClass("vtkMRMLModelNode", "BiteMesh")
-                values = {spec.name: getattr(node, spec.name) for spec in self.logic.parameterSpecs()}
                 try:
-                    result = self.logic.process(inputs, node.outputModel, segmentId=node.segmentId or None,
-                                                progress=self._onProgress, **self.logic.coreParameters(values))
+                    work(node.outputModel)
                 except Cancelled:
                     self.ui.statusLabel.text = _("Cancelled: the output was left as it was.")
-                    return
-                self._showResult(result)
         finally:
             self._setRunning(False)
+
+    def onApplyButton(self):
+        node = self._parameterNode
+
+        def work(output):
+            values = {spec.name: getattr(node, spec.name) for spec in self.logic.parameterSpecs()}
+            self._showResult(self.logic.process(self._inputs(), output, segmentId=node.segmentId or None,
+                                                progress=self._onProgress, **self.logic.coreParameters(values)))
+
+        self._run(_("BiteMesh could not mesh the input."), work)
+
+    def onFitButton(self):
+        """The elastic template: the template model moved onto the input's points, into the output model."""
+        node = self._parameterNode
+
+        def work(output):
+            fitted = self.logic.fitTemplate(node.templateModel, self._inputs(), output, pull=node.pull,
+                                            progress=self._onProgress)
+            self.ui.progressBar.value = 100
+            self.ui.statusLabel.text = _("Fitted: the template's {cells} tetrahedra moved; the data {mean:.2f} mm from "
+                                         "its boundary on average; {rounds} rounds, {seconds:.1f} s").format(
+                cells=len(fitted.mesh.cells), mean=float(fitted.distances.mean()), rounds=fitted.rounds,
+                seconds=fitted.seconds)
+
+        self._run(_("BiteMesh could not fit the template."), work)
 
     def onCancelButton(self):
         self._cancelRequested = True
@@ -359,8 +372,9 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
     def _setRunning(self, running):
         self._running = running
         self.ui.cancelButton.enabled = running
-        self.ui.applyButton.enabled = not running and self._parameterNode is not None \
-            and self._parameterNode.inputNode is not None
+        ready = not running and self._parameterNode is not None and self._parameterNode.inputNode is not None
+        self.ui.applyButton.enabled = ready
+        self.ui.fitButton.enabled = ready and self._parameterNode.templateModel is not None
         if running:
             self.ui.progressBar.value = 0
             self.ui.statusLabel.text = ""

@@ -31,7 +31,7 @@ WIDGET_CLASSES = {"choices": "QComboBox", str: "QLineEdit", int: "QSpinBox", flo
 
 def core_field(name):
     """The dataclass field behind a panel parameter."""
-    dataclass_name, field_name = lib_parameters.PARAMETERS[name]
+    dataclass_name, field_name = {**lib_parameters.PARAMETERS, **lib_parameters.FIT_PARAMETERS}[name]
     return {item.name: item for item in fields(lib_parameters.coreDataclass(dataclass_name))}[field_name]
 
 
@@ -123,15 +123,19 @@ def test_parameter_specs_follow_the_core_dataclasses():
 
 def test_ui_file_has_a_widget_for_every_parameter_in_its_section():
     sections = ui_sections()
-    expected = {"inputsCollapsibleButton": None, **lib_parameters.SECTIONS}
+    expected = {"inputsCollapsibleButton": None, **lib_parameters.SECTIONS, **lib_parameters.FIT_SECTIONS}
     assert list(sections) == list(expected)   # the sections, in panel order
     assert not sections["parametersCollapsibleButton"][0], "the main parameters must be visible"
-    specs = {spec.name: spec for spec in lib_parameters.parameterSpecs()}
+    specs = {spec.name: spec for spec in lib_parameters.parameterSpecs() +
+             lib_parameters.parameterSpecs(lib_parameters.FIT_PARAMETERS)}
     for section, (_, rows) in sections.items():
         bound = [properties(widget).get("SlicerParameterName") for _, widget in rows]
         if section == "inputsCollapsibleButton":
             assert [name for name in bound if name] == ["inputNode", "outputModel"]
             continue
+        if section == "templateCollapsibleButton":   # the template's node, then its parameters
+            assert bound[0] == "templateModel"
+            rows, bound = rows[1:], bound[1:]
         assert bound == list(expected[section]), section   # every parameter of the section, in order, no other
         for label, widget in rows:
             name = properties(widget)["SlicerParameterName"]
@@ -249,9 +253,9 @@ def test_parameter_node_has_each_dataclass_range_and_default():
                                text=True, timeout=300, check=False)
     assert completed.returncode == 0, completed.stderr
     node = ast.literal_eval(completed.stdout.strip().splitlines()[-1])
-    assert set(node["names"]) == set(lib_parameters.PARAMETERS) | {"inputNode", "contours", "segmentId",
-                                                                   "outputModel"}
-    for name in lib_parameters.PARAMETERS:
+    assert set(node["names"]) == set(lib_parameters.PARAMETERS) | set(lib_parameters.FIT_PARAMETERS) | {
+        "inputNode", "contours", "segmentId", "outputModel", "templateModel"}
+    for name in {**lib_parameters.PARAMETERS, **lib_parameters.FIT_PARAMETERS}:
         item, (kind, validators, default) = core_field(name), node["fields"][name]
         if "choices" in item.metadata:
             assert (kind, validators, default) == ("str", [("Choice", (list(item.metadata["choices"]),))],

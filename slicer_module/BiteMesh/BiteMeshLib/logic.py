@@ -30,7 +30,7 @@ import numpy as np
 from .contours import hasLabelledModel, labelledPoints, loadLabelledPoints
 from .fitting import fitSamples, templateMesh
 from .outputs import BiteMeshResult, writeFibres, writeOutputs, writeSurfaces
-from .parameters import coreParameters, coreSettings, parameterSpecs
+from .parameters import FIT_PARAMETERS, coreParameters, coreSettings, parameterSpecs
 from .points import scatteredPoints
 from .requirements import installRequirements, missingRequirements, requireBitemesh
 from .segments import meshSegment
@@ -79,6 +79,11 @@ class BiteMeshLogic(ScriptedLoadableModuleLogic):
 
     # The panel's parameters, for the widget (BiteMesh.py builds its parameterNodeWrapper from them).
     parameterSpecs = staticmethod(parameterSpecs)
+
+    @staticmethod
+    def fitParameterSpecs() -> tuple:
+        """The :class:`.parameters.ParameterSpec` of the elastic template's section (``pull``)."""
+        return parameterSpecs(FIT_PARAMETERS)
     coreParameters = staticmethod(coreParameters)
     missingRequirements = staticmethod(missingRequirements)
     installRequirements = staticmethod(installRequirements)

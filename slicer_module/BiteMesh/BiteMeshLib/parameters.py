@@ -63,12 +63,16 @@ SECTIONS = {
 }
 #: the module's parameters: parameter-node name -> (core dataclass, field), in panel order.
 PARAMETERS = {name: where for section in SECTIONS.values() for name, where in section.items()}
+#: the elastic template's section (BiteMeshLogic.fitTemplate, not process), after the others.
+FIT_SECTIONS = {"templateCollapsibleButton": {"pull": ("FitParameters", "pull")}}   # "Elastic template", collapsed
+FIT_PARAMETERS = {name: where for section in FIT_SECTIONS.values() for name, where in section.items()}
 #: the keywords of :meth:`BiteMeshLogic.process` (the core's field names) -> their core dataclass.
 KEYWORDS = {fieldName: dataclassName for dataclassName, fieldName in PARAMETERS.values()}
 assert len(KEYWORDS) == len(PARAMETERS), "two panel parameters share a core keyword"
 #: the module of bitemesh.core holding each panel dataclass that is not in bitemesh.core.parameters.
 DATACLASS_MODULES = {"FibreParameters": "bitemesh.core.fem.fibres",
-                     "CoordinateParameters": "bitemesh.core.fem.coordinates"}
+                     "CoordinateParameters": "bitemesh.core.fem.coordinates",
+                     "FitParameters": "bitemesh.core.fem.template"}
 
 
 @dataclass(frozen=True)
@@ -114,11 +118,12 @@ def coreDataclass(name: str) -> type:
     return getattr(importlib.import_module(DATACLASS_MODULES.get(name, "bitemesh.core.parameters")), name)
 
 
-def parameterSpecs() -> tuple:
-    """The :class:`ParameterSpec` of every panel parameter, in panel order, from the core's dataclasses."""
+def parameterSpecs(table: dict = PARAMETERS) -> tuple:
+    """The :class:`ParameterSpec` of every panel parameter of ``table`` (default: those of ``process``;
+    :data:`FIT_PARAMETERS`: the elastic template's), in panel order, from the core's dataclasses."""
     core = _core()
     specs = []
-    for name, (dataclassName, fieldName) in PARAMETERS.items():
+    for name, (dataclassName, fieldName) in table.items():
         item = {f.name: f for f in fields(coreDataclass(dataclassName))}[fieldName]
         metadata = item.metadata
         if "choices" in metadata or metadata.get("text"):
