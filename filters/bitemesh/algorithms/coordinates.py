@@ -1,16 +1,13 @@
 """VentricularCoordinates: a biventricular mesh's ventricular coordinates and AHA segments as a VTK filter."""
 from __future__ import annotations
 
-from vtkmodules.vtkCommonDataModel import vtkPolyData, vtkUnstructuredGrid
-from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm
+from vtkmodules.vtkCommonDataModel import vtkUnstructuredGrid
 
-from ..convert import with_polydata_tags
 from ..core.fem.coordinates import ventricular_coordinates
-from .base import BitemeshAlgorithm
-from .fibres import tetrahedra, vtk_array
+from .fibres import HeartArrays, vtk_array
 
 
-class VentricularCoordinates(BitemeshAlgorithm):
+class VentricularCoordinates(HeartArrays):
     """A biventricular tetrahedral mesh (port 0, vtkUnstructuredGrid) and its tagged boundary (port 1, vtkPolyData:
     the meshing filters' second output, with EPI, LV_ENDO, RV_ENDO and BASE among its names) -> the mesh with its
     ventricular coordinates (:mod:`bitemesh.core.fem.coordinates`).
@@ -21,16 +18,9 @@ class VentricularCoordinates(BitemeshAlgorithm):
     wall, 2 RV free wall, 3 septum).
     """
 
-    def __init__(self):
-        super().__init__(nInputPorts=2, inputType="vtkDataObject", nOutputPorts=1, outputType="vtkUnstructuredGrid")
-
-    def FillInputPortInformation(self, port, info):
-        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid" if port == 0 else "vtkPolyData")
-        return 1
-
     def execute(self, request, inInfo, outInfo):
-        source = vtkUnstructuredGrid.GetData(inInfo[0])
-        found = ventricular_coordinates(with_polydata_tags(tetrahedra(source), vtkPolyData.GetData(inInfo[1])))
+        source, mesh = self.heart(inInfo)
+        found = ventricular_coordinates(mesh)
         output = vtkUnstructuredGrid.GetData(outInfo)
         output.ShallowCopy(source)
         for name, values in found.points.items():

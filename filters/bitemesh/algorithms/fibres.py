@@ -29,8 +29,26 @@ def vtk_array(name: str, values: np.ndarray):
     return array
 
 
+class HeartArrays(BitemeshAlgorithm):
+    """Base of the filters that add arrays to a heart's tetrahedral mesh (port 0, vtkUnstructuredGrid) from it and
+    its tagged boundary (port 1, vtkPolyData: the meshing filters' second output); one output, the mesh."""
+
+    def __init__(self):
+        super().__init__(nInputPorts=2, inputType="vtkDataObject", nOutputPorts=1, outputType="vtkUnstructuredGrid")
+
+    def FillInputPortInformation(self, port, info):
+        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid" if port == 0 else "vtkPolyData")
+        return 1
+
+    @staticmethod
+    def heart(inInfo):
+        """(the input grid, its tagged Mesh) of the two input ports."""
+        source = vtkUnstructuredGrid.GetData(inInfo[0])
+        return source, with_polydata_tags(tetrahedra(source), vtkPolyData.GetData(inInfo[1]))
+
+
 @with_parameters((FibreParameters, ("alpha_endo", "alpha_epi", "beta_endo", "beta_epi")))
-class FibreField(BitemeshAlgorithm):
+class FibreField(HeartArrays):
     """A biventricular tetrahedral mesh (port 0, vtkUnstructuredGrid) and its tagged boundary (port 1, vtkPolyData:
     the meshing filters' second output, :func:`bitemesh.convert.tags_to_polydata`, with EPI, LV_ENDO, RV_ENDO and
     BASE among its names) -> the mesh with the rule-based fibres of Bayer et al. (2012,
@@ -42,18 +60,9 @@ class FibreField(BitemeshAlgorithm):
     ``BetaEpi``: the angles, in degrees (defaults: the paper's).
     """
 
-    def __init__(self):
-        super().__init__(nInputPorts=2, inputType="vtkDataObject", nOutputPorts=1, outputType="vtkUnstructuredGrid")
-
-    def FillInputPortInformation(self, port, info):
-        info.Set(vtkAlgorithm.INPUT_REQUIRED_DATA_TYPE(), "vtkUnstructuredGrid" if port == 0 else "vtkPolyData")
-        return 1
-
     def execute(self, request, inInfo, outInfo):
-        source = vtkUnstructuredGrid.GetData(inInfo[0])
-        mesh = tetrahedra(source)
-        field = fibre_field(with_polydata_tags(mesh, vtkPolyData.GetData(inInfo[1])),
-                            self.parameters(FibreParameters), self.progress)
+        source, mesh = self.heart(inInfo)
+        field = fibre_field(mesh, self.parameters(FibreParameters), self.progress)
         output = vtkUnstructuredGrid.GetData(outInfo)
         output.ShallowCopy(source)
         for name, values in zip(FIBRE_ARRAYS, (field.fibre, field.sheet, field.sheet_normal, field.helix_angle)):
