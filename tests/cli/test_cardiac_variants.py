@@ -15,6 +15,7 @@ from bitemesh.core.sources.contours.run import run_labelled
 from bitemesh.core.sources.contours import cardiac
 from bitemesh.core.parameters import FidelityParameters
 from bitemesh.core.errors import BitemeshWarning, InvalidInputError, MeshingError
+from bitemesh.core.fem.fibres import with_fibres
 from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.io import read_labelled_points
 from tests.builders import PLAIN
@@ -123,6 +124,10 @@ def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart)
     if name in ("no RV epicardium", "like GPFile of issue 10"):
         assert "RV_EPI" in result.function.derived
         assert abs(volume - full) <= 0.1 * full
+        # tagged as every biventricular heart (the derived RV epicardium is part of EPI): the fibres take it
+        assert mesh.tag_names == {"EPI": (1, 2), "LV_ENDO": (2, 2), "RV_ENDO": (3, 2), "BASE": (4, 2),
+                                  "MYOCARDIUM": (1, 3)}
+        assert np.isfinite(with_fibres(mesh)[0].cell_data["HelixAngle"]).all()
     elif name == "LV only":
         assert set(result.function.surfaces) == {"LV_EPI", "LV_ENDO"} and volume < 0.9 * full
     else:   # no valves: the base still follows the long-axis contours' upper ends

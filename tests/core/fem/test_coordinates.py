@@ -114,3 +114,21 @@ def test_the_real_heart_carried_to_its_end_systole_and_back(cine, tmp_path):
     error = np.linalg.norm(back - ed.points, axis=1) / mean_edge_length(ed.points, ed.cells)
     below = ed.point_data["ApicoBasal"] < 0.8
     assert np.mean(error[below] <= 1) >= 0.95, np.mean(error[below] <= 1)
+
+
+def test_a_heart_meshed_from_other_contours_carried_there_and_back(cine, tmp_path):
+    """Two meshes of one heart with no node in common: the template (frame 0) and frame 0 without its RV epicardial
+    contours (the RV epicardium derived), as another export of the same heart would give: below the basal fifth 95 %
+    of the nodes come back within one mean edge (measured 97 %; 98 % with the data moved to scanner coordinates)."""
+    from bitemesh import mesh
+
+    from tests.cardiac_variants import variant_file
+    folder, template_path = cine
+    variant = variant_file(folder / "guidepoints" / "GPFile_000.txt", "no RV epicardium", tmp_path)
+    first = with_coordinates(read_mesh(template_path))
+    second = with_coordinates(mesh(variant, cells=20000).mesh)
+    there = carry(first, second, ["Position"])["Position"]
+    back = carry(second.with_point_data(Original=there), first, ["Original"])["Original"]
+    error = np.linalg.norm(back - first.points, axis=1) / mean_edge_length(first.points, first.cells)
+    below = first.point_data["ApicoBasal"] < 0.8
+    assert np.mean(error[below] <= 1) >= 0.95, np.mean(error[below] <= 1)

@@ -76,6 +76,10 @@ LV_DOMAIN = "LV_EPI - LV_ENDO"
 #: Tags 1-4 are cardiac-geometries' apex points and base rings.
 LV_TAGS = {"LV_EPI": ("EPI", 7), "LV_ENDO": ("ENDO", 6), "BASE": ("BASE", 5)}
 LV_REGION = 8
+#: the tags of a biventricular myocardium whose RV epicardium was derived (LV_EPI + RV_EPI): those of every
+#: biventricular mesh, the two epicardial parts one EPI.
+DERIVED_EPI_TAGS = {"LV_EPI": ("EPI", 1), "RV_EPI": ("EPI", 1), "LV_ENDO": ("LV_ENDO", 2),
+                    "RV_ENDO": ("RV_ENDO", 3), "BASE": ("BASE", 4)}
 #: the RV free wall thickness (mm) an RV epicardium is derived with: normal adult RV walls are 2 to 5 mm thick.
 RV_WALL = LabelledParameters.rv_wall
 #: the node spacing R (mm) of a cardiac mesh when neither radius nor cells is given: about 100,000 cells for an

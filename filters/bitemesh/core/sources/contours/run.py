@@ -17,7 +17,8 @@ from ...progress import ProgressCallback, sub_progress
 from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
 from ...mesh.tags import DOMAIN, MYOCARDIUM, renamed_tags, surface_tags
-from .cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, LV_DOMAIN, LV_REGION, LV_TAGS, check_heart
+from .cardiac import (BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, DERIVED_EPI_TAGS, LV_DOMAIN, LV_REGION,
+                      LV_TAGS, check_heart)
 from .fit import labelled_implicit
 from .function import LabelledImplicit
 
@@ -51,7 +52,8 @@ def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
     """``mesh`` of ``function``'s domain (its frame) with every boundary triangle tagged by the surface it lies on
     (:func:`~bitemesh.core.mesh.tags.surface_tags`: tag = position in ``function.names`` + 1; biv-me EPI 1, LV_ENDO 2,
     RV_ENDO 3, BASE 4), one region (MYOCARDIUM for a heart's myocardium, else DOMAIN); an LV-only myocardium as
-    cardiac-geometries tags its LV: EPI 7, ENDO 6, BASE 5, MYOCARDIUM 8 (:data:`~.cardiac.LV_TAGS`).
+    cardiac-geometries tags its LV: EPI 7, ENDO 6, BASE 5, MYOCARDIUM 8 (:data:`~.cardiac.LV_TAGS`); a myocardium
+    whose RV epicardium was derived has the biventricular tags, LV_EPI and RV_EPI one EPI.
 
     The valve openings are no triangles of a myocardium: its cavities open through the base plane, so each valve
     is a hole in the BASE ring, bounded where the LV_ENDO or RV_ENDO triangles meet the base.  The base plane is
@@ -62,6 +64,8 @@ def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
                           MYOCARDIUM if is_myocardium(function) else DOMAIN)
     if is_myocardium(function) and function.expression == LV_DOMAIN:
         return renamed_tags(tagged, LV_TAGS, LV_REGION)
+    if is_myocardium(function) and "RV_EPI" in function.derived:
+        return renamed_tags(tagged, DERIVED_EPI_TAGS, 1)
     return tagged
 
 
