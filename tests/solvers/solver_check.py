@@ -1,8 +1,9 @@
 """Run by tests/solvers in a Python that has DOLFINx (the PyPI wheel dolfinx-solver-real), cardiac-geometriesx and
 fenicsx-ldrb, not bitemesh: load bitemesh's files as their users do and print what they found as JSON.
 
-Usage: python solver_check.py FOLDER (a cardiac-geometries folder), or python solver_check.py HEART.xdmf (bitemesh's
-XDMF with fibres: read as docs/solvers.md shows, ldrb run with bitemesh's angles on DG0, the two compared)."""
+Usage: python solver_check.py TARGET...; prints {TARGET: what was found} as one JSON line.  A TARGET is a
+cardiac-geometries folder, or HEART.xdmf (bitemesh's XDMF with fibres: read as docs/solvers.md shows, ldrb run with
+bitemesh's angles on DG0, the two compared).  One process for all: DOLFINx takes seconds to import."""
 import json
 import sys
 import time
@@ -69,5 +70,5 @@ def compare_fibres(path: str) -> dict:
 
 
 if __name__ == "__main__":
-    target = sys.argv[1]
-    print(json.dumps(compare_fibres(target) if target.endswith(".xdmf") else main(target)))
+    print(json.dumps({target: compare_fibres(target) if target.endswith(".xdmf") else main(target)
+                      for target in sys.argv[1:]}))

@@ -61,17 +61,33 @@ def test_fibres_or_coordinates_into_a_folder_are_refused_before_meshing(tmp_path
         assert_one_line_error(capsys, code, *words)
 
 
-@pytest.mark.skipif(not SOLVER, reason="no solver Python: set BITEMESH_SOLVER_PYTHON (see .ci/run)")
+@pytest.fixture(scope="module")
+def solved(tmp_path_factory):
+    """What the solvers found (tests/solvers/solver_check.py, one process) in the shell's folder, a left
+    ventricle's folder and the shell's .xdmf with bitemesh's fibres: {"biventricular": ..., "left ventricle": ...,
+    "xdmf": ...}."""
+    if not SOLVER:
+        pytest.skip("no solver Python: set BITEMESH_SOLVER_PYTHON (see .ci/run)")
+    from bitemesh.core.fem.fibres import with_fibres
+    folder = tmp_path_factory.mktemp("solvers")
+    targets = {"biventricular": folder / "biventricular", "left ventricle": folder / "left_ventricle",
+               "xdmf": folder / "heart.xdmf"}
+    write_mesh(tagged_shell(), targets["biventricular"])
+    write_mesh(left_ventricle(), targets["left ventricle"])
+    write_mesh(with_fibres(tagged_shell())[0], targets["xdmf"])
+    done = subprocess.run([SOLVER, str(Path(__file__).with_name("solver_check.py")), *map(str, targets.values())],
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    found = json.loads(done.stdout.strip().splitlines()[-1])
+    return {name: found[str(path)] for name, path in targets.items()}
+
+
 @pytest.mark.parametrize("make", [tagged_shell, left_ventricle], ids=["biventricular", "left ventricle"])
-def test_cardiac_geometries_loads_the_folder_and_ldrb_takes_its_markers(tmp_path, make):
+def test_cardiac_geometries_loads_the_folder_and_ldrb_takes_its_markers(solved, make):
     """The same cells, tags and names (biventricular: with cardiac-geometries' LV and RV beside LV_ENDO and
     RV_ENDO), the volume and every surface's area as bitemesh measures them (to 1e-9), unit ldrb fibres."""
     mesh = make()
-    write_mesh(mesh, tmp_path / "heart")
-    done = subprocess.run([SOLVER, str(Path(__file__).with_name("solver_check.py")), str(tmp_path / "heart")],
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr[-3000:]
-    found = json.loads(done.stdout.strip().splitlines()[-1])
+    found = solved["biventricular" if make is tagged_shell else "left ventricle"]
     names = {name: list(value) for name, value in mesh.tag_names.items()}
     if "RV_ENDO" in names:
         names.update(LV=names["LV_ENDO"], RV=names["RV_ENDO"])
@@ -90,18 +106,12 @@ def test_cardiac_geometries_loads_the_folder_and_ldrb_takes_its_markers(tmp_path
     assert found["ldrb"]["unit"] < 1e-12
 
 
-@pytest.mark.skipif(not SOLVER, reason="no solver Python: set BITEMESH_SOLVER_PYTHON (see .ci/run)")
-def test_ldrb_on_the_xdmf_agrees_with_bitemeshs_fibres(tmp_path):
+def test_ldrb_on_the_xdmf_agrees_with_bitemeshs_fibres(solved):
     """The shell's .xdmf with bitemesh's fibres, read in DOLFINx as docs/solvers.md shows, its Fibre found in the
     HDF5 file by name (/CellData/Fibre); ldrb with the same angles on DG0: the two implement the same rule and differ
     in where it is evaluated (ldrb on its own P1 gradients per cell, bitemesh on gradients recovered at the nodes).
     Across walls two to three cells thick the helix angle turns 90 degrees, so half a cell apart is up to 15-20
     degrees: the median within 10, 90 % within 20 (measured 4.5 and 16.6; 3.8 and 13.5 on the 20,000-cell heart)."""
-    from bitemesh.core.fem.fibres import with_fibres
-    write_mesh(with_fibres(tagged_shell())[0], tmp_path / "heart.xdmf")
-    done = subprocess.run([SOLVER, str(Path(__file__).with_name("solver_check.py")), str(tmp_path / "heart.xdmf")],
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr[-3000:]
-    found = json.loads(done.stdout.strip().splitlines()[-1])
+    found = solved["xdmf"]
     assert found["cells"] == len(tagged_shell().cells)
     assert found["median"] <= 10 and found["p90"] <= 20, found
