@@ -20,7 +20,7 @@ from .core.fem.coordinates import POINT_ARRAY_FORMATS, with_coordinates
 from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, warn_thin_walls, with_fibres
 from .core.parameters import ImplicitParameters, LabelledParameters
 from .core.progress import ProgressCallback, report, sub_progress
-from .core.sources.contours.run import MIN_WALL, WALL_PER_RADIUS, labelled_keywords, labelled_source, run_labelled
+from .core.sources.contours.run import labelled_keywords, labelled_source, run_labelled, two_cells_across
 from .core.sources.points import points_source, run
 from .core.sources.source import Source
 from .core.steps.spine import MeshingResult
@@ -183,15 +183,6 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
         warn_thin_walls(result.mesh, result.radius, "--fibres" if fibres is not None else "--coordinates",
                         two_cells_across(result.radius))
     return result
-
-
-def two_cells_across(radius: float) -> float:
-    """The radius that puts about two cells across a heart's thinnest wall: contours keep every wall at least
-    max(MIN_WALL, WALL_PER_RADIUS R) thick, one cell and a quarter while R is above MIN_WALL / WALL_PER_RADIUS
-    (2 mm), so below that (measured on biv-me patient1's 3-4 mm RV free wall: 46 % of its cells span it at R = 1.83
-    mm, 60 % at 2.1, 64 % at 3.7); where R is below it already, half of R."""
-    below = 0.9 * MIN_WALL / WALL_PER_RADIUS
-    return below if radius > below else radius / 2
 
 
 def check_output(path, options=None) -> None:

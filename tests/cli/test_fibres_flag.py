@@ -38,7 +38,9 @@ def check_written(path, out):
     for name, values in zip(FIBRE_ARRAYS, (expected.fibre, expected.sheet, expected.sheet_normal,
                                            expected.helix_angle)):
         assert np.allclose(mesh.cell_data[name], values, rtol=0, atol=1e-12), name
-    assert "fibres: cell arrays Fibre, Sheet, SheetNormal, HelixAngle" in out
+    assert "fibres: cell arrays Fibre, Sheet, SheetNormal, HelixAngle" in out and "point arrays Psi" in out
+    if str(path).endswith((".vtu", ".vtk", ".xdmf")):   # the Laplace solutions, where point arrays are kept
+        np.testing.assert_array_equal(mesh.point_data["Psi"], expected.laplace["Psi"])
     assert "  fibres " in out.split("time per step:")[1]
 
 

@@ -5,7 +5,8 @@ import sys
 import time
 from dataclasses import fields
 
-from ..core.fem.fibres import FIBRE_ARRAYS, FibreParameters
+from ..core.fem.coordinates import COORDINATE_ARRAYS
+from ..core.fem.fibres import FIBRE_ARRAYS, LAPLACE_ARRAYS, FibreParameters
 from ..core.mesh.quality import quality_summary
 from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
 from ..meshing import write
@@ -113,9 +114,11 @@ def write_and_report(result, output, note: str = "") -> None:
     write(result, output)
     print(f"wrote {output} (radius R = {result.radius:.4g}{note})")
     if "fibres" in result.seconds:
-        print(f"fibres: cell arrays {', '.join(FIBRE_ARRAYS)} (Bayer et al. 2012)")
+        print(f"fibres: cell arrays {', '.join(FIBRE_ARRAYS)} (Bayer et al. 2012); point arrays "
+              f"{', '.join(LAPLACE_ARRAYS)} (its Laplace solutions)")
     if "coordinates" in result.seconds:
-        print(f"coordinates: point arrays {', '.join(result.mesh.point_data)}; cell arrays AHA, Ventricle")
+        print(f"coordinates: point arrays {', '.join(COORDINATE_ARRAYS + LAPLACE_ARRAYS)}; cell arrays AHA, "
+              "Ventricle")
     print(quality_summary(result.mesh))
     if result.fidelity is not None:
         print(f"fidelity: {result.fidelity.describe()}")

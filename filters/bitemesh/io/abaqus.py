@@ -24,6 +24,7 @@ import numpy as np
 
 from ..core.errors import InvalidInputError
 from ..core.mesh.simplicial import facet_of, facets_of, signed_measures
+from ..core.mesh.topology import first_rows
 
 #: Abaqus face identifier of the facet opposite each vertex (0-based) of a tetrahedron (k = 3) or a triangle (k = 2).
 FACE_OPPOSITE = {3: ("S3", "S4", "S2", "S1"), 2: ("S2", "S3", "S1")}
@@ -104,10 +105,10 @@ def faces_of(cells: np.ndarray, facets: np.ndarray):
     """(b,) cell and (b,) opposite vertex of each facet: the cell it points out of, else any cell it bounds."""
     k = cells.shape[1] - 1
     faces = facets_of(cells).reshape(-1, k)
-    found = _first_rows(_oriented_key(faces), _oriented_key(facets))
+    found = first_rows(_oriented_key(faces), _oriented_key(facets))
     lost = np.flatnonzero(found < 0)
     if lost.size:
-        found[lost] = _first_rows(np.sort(faces, axis=1), np.sort(facets[lost], axis=1))
+        found[lost] = first_rows(np.sort(faces, axis=1), np.sort(facets[lost], axis=1))
     if (found < 0).any():
         first = int(np.argmax(found < 0))
         raise InvalidInputError(
@@ -121,15 +122,6 @@ def _oriented_key(rows: np.ndarray) -> np.ndarray:
     with the same orientation."""
     parity = sum((rows[:, i] > rows[:, j]).astype(np.int64) for i, j in combinations(range(rows.shape[1]), 2)) % 2
     return np.column_stack([np.sort(rows, axis=1), parity])
-
-
-def _first_rows(haystack: np.ndarray, needles: np.ndarray) -> np.ndarray:
-    """For each row of ``needles`` the index of the first equal row of ``haystack``, or -1."""
-    _, inverse = np.unique(np.concatenate([haystack, needles]), axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    first = np.full(int(inverse.max(initial=-1)) + 1, -1, dtype=np.int64)
-    first[inverse[:len(haystack)][::-1]] = np.arange(len(haystack))[::-1]
-    return first[inverse[len(haystack):]]
 
 
 def read_abaqus_tags(path, data, chosen, points: np.ndarray, cells: np.ndarray):

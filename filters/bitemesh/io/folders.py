@@ -25,6 +25,7 @@ import numpy as np
 
 from ..core.errors import InvalidInputError
 from ..core.fem.landmarks import landmarks
+from ..core.mesh.topology import first_rows
 
 #: the files of a folder, in the order :func:`write_folder` fills the temporary paths.
 FOLDER_FILES = ("mesh.xdmf", "mesh.h5", "markers.json", "info.json")
@@ -124,9 +125,9 @@ def read_folder(path: Path):
             for name in TAG_GRIDS[:2] if name in grids}   # a Mesh holds no edge or vertex tags
     cell_data = {}
     if "Cell tags" in tags:
-        order = {tuple(sorted(cell)): index for index, cell in enumerate(cells.tolist())}
         regions = np.zeros(len(cells), np.int32)
-        regions[[order[tuple(sorted(cell))] for cell in tags["Cell tags"][0].tolist()]] = tags["Cell tags"][1]
+        where = first_rows(np.sort(cells, axis=1), np.sort(tags["Cell tags"][0], axis=1))
+        regions[where[where >= 0]] = tags["Cell tags"][1][where >= 0]
         cell_data["Region"] = regions
     facets, facet_tags = tags.get("Facet tags", (None, None))
     markers_path = path / "markers.json"

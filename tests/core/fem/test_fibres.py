@@ -143,10 +143,12 @@ def test_the_same_mesh_gives_the_same_fibres_bit_for_bit(shell, shell_fibres):
     assert all(np.array_equal(again.laplace[name], shell_fibres.laplace[name]) for name in LAPLACE_ARRAYS)
 
 
-def test_with_fibres_adds_the_cell_arrays_and_keeps_the_tags(shell):
+def test_with_fibres_adds_the_cell_arrays_and_keeps_the_tags(shell, shell_fibres):
     mesh, seconds = with_fibres(shell)
     m = len(shell.cells)
     assert [mesh.cell_data[name].shape for name in FIBRE_ARRAYS] == [(m, 3), (m, 3), (m, 3), (m,)]
+    for name in LAPLACE_ARRAYS:   # the Laplace solutions, as point arrays (bitemesh mesh --fibres writes them)
+        np.testing.assert_array_equal(mesh.point_data[name], shell_fibres.laplace[name])
     assert mesh.facets is shell.facets and mesh.tag_names == shell.tag_names and seconds > 0
 
 

@@ -277,11 +277,12 @@ def fibre_field(mesh: Mesh, parameters: FibreParameters = FibreParameters(),
 
 
 def with_fibres(mesh: Mesh, parameters: FibreParameters = FibreParameters(), progress: ProgressCallback = None):
-    """A copy of ``mesh`` with the cell arrays :data:`FIBRE_ARRAYS` of :func:`fibre_field`, and the seconds it
+    """A copy of ``mesh`` with the cell arrays :data:`FIBRE_ARRAYS` of :func:`fibre_field` and its Laplace
+    solutions as the point arrays :data:`LAPLACE_ARRAYS` (as the FibreField filter gives them), and the seconds it
     took."""
     fibres = fibre_field(mesh, parameters, progress)
     return mesh.with_cell_data(Fibre=fibres.fibre, Sheet=fibres.sheet, SheetNormal=fibres.sheet_normal,
-                               HelixAngle=fibres.helix_angle), fibres.seconds
+                               HelixAngle=fibres.helix_angle).with_point_data(**fibres.laplace), fibres.seconds
 
 
 def helix_angles(fibre: np.ndarray, frames: np.ndarray) -> np.ndarray:

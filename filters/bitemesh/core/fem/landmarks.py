@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh.simplicial import Mesh
+from ..mesh.topology import first_rows
 from .fibres import lowest_node, surface_facets
 
 #: (tag name, tag, dimension, what): the landmarks of a left ventricle and of both ventricles.
@@ -27,9 +28,8 @@ def edges_of(triangles: np.ndarray) -> np.ndarray:
 
 def shared_edges(first: np.ndarray, second: np.ndarray) -> np.ndarray:
     """(e, 2) the edges that a triangle of ``first`` and one of ``second`` share, sorted."""
-    a, b = np.unique(edges_of(first), axis=0), np.unique(edges_of(second), axis=0)
-    both, counts = np.unique(np.vstack([a, b]), axis=0, return_counts=True)
-    return both[counts == 2]
+    edges = np.unique(edges_of(first), axis=0)
+    return edges[first_rows(edges_of(second), edges) >= 0]
 
 
 def landmarks(mesh: Mesh):

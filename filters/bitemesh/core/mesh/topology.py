@@ -30,6 +30,15 @@ def unique_rows(rows: np.ndarray):
     return unique, inverse.ravel(), counts
 
 
+def first_rows(haystack: np.ndarray, needles: np.ndarray) -> np.ndarray:
+    """For each row of ``needles`` (r, j) the index of the first equal row of ``haystack`` (h, j), or -1."""
+    _, inverse = np.unique(np.concatenate([haystack, needles]), axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    first = np.full(int(inverse.max(initial=-1)) + 1, -1, dtype=np.int64)
+    first[inverse[:len(haystack)][::-1]] = np.arange(len(haystack))[::-1]
+    return first[inverse[len(haystack):]]
+
+
 def face_groups(simplices: np.ndarray, corners: np.ndarray, inverse: bool = True):
     """The distinct faces of (m, j) ``simplices`` whose vertices are at the positions ``corners`` (f, size) of
     each, without a table of every face where they are many.
