@@ -1,11 +1,12 @@
 """The ParaView plugin, headless in pvbatch: the same mesh from the same points as the VTK filters and bitemesh.run
 (and, for labelled contours, as run_labelled).
 
-pvbatch runs ``pvbatch_script.py`` beside this file once per session (about 25 s): ParaView 5.11's own Python and
-VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH`` holding only the clone's ``filters/`` (the pip ``vtk``
-wheel of this virtual environment would crash it).  The script records every check by name in ``results.json``;
-the tests here report them and check again, in this Python, the meshes it wrote.  Skipped where pvbatch is absent
-(on CI, ``.ci/run`` installs Debian's ``paraview python3-paraview python3-numpy python3-scipy``).
+pvbatch runs ``pvbatch_script.py`` beside this file once per session (about 55 s with its numba cache empty, as on
+CI; 10 s with it filled): ParaView 5.11's own Python and VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH``
+holding only the clone's ``filters/`` (the pip ``vtk`` wheel of this virtual environment would crash it).  The
+script records every check by name in ``results.json``; the tests here report them and check again, in this
+Python, the meshes it wrote.  Skipped where pvbatch is absent (on CI, ``.ci/run`` installs Debian's ``paraview
+python3-paraview python3-numpy python3-scipy``).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -55,6 +57,9 @@ def pvbatch_environment() -> dict:
                                           if part != venv_bin)
     environment["PYTHONPATH"] = str(FILTERS)
     environment["PYTHONNOUSERSITE"] = "1"  # a pip vtk in ~/.local would be found too
+    # Debian's numba keeps its compiled kernels apart: beside the package's its index (same Python, another numba)
+    # would replace this environment's, and each would compile everything again after the other
+    environment["NUMBA_CACHE_DIR"] = str(Path(tempfile.gettempdir()) / "bitemesh-pvbatch-numba-cache")
     return environment
 
 

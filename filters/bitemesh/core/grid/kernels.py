@@ -17,32 +17,33 @@ from ..compiled import kernel
 #: the bricks of a banded grid have 2 ** BRICK_SHIFT nodes a side (a 2D grid's: one along its last axis)
 BRICK_SHIFT = 3
 _MASK = (1 << BRICK_SHIFT) - 1
-#: helpers compiled into the kernels that call them (numba inlines them: a call per node costs more than the read)
+#: helpers compiled into the kernels that call them (numba inlines them: a call per node costs more than the read);
+#: the small arithmetic ones are plain ``njit``, which LLVM inlines as well: numba's own inlining retypes the caller
+#: at each site, and numba 0.56 (Debian's, beside its ParaView) took 275 s to compile these kernels with every helper
+#: inlined that way, 44 s now (numba 0.68: 23 s -> 20 s for the whole demo; the meshes and their times unchanged)
 inline = njit(inline="always")
 
 
 @inline
 def _refined_0(coarse, x, cy, cz):
     """f at fine x, coarse y and z: node x / 2 of coarse, or the mean of its two neighbours along axis 0."""
-    if x % 2 == 0:
-        return coarse[x // 2, cy, cz]
-    return 0.5 * (coarse[x // 2, cy, cz] + coarse[x // 2 + 1, cy, cz])
+    low = coarse[x // 2, cy, cz]
+    return low if x % 2 == 0 else 0.5 * (low + coarse[x // 2 + 1, cy, cz])
 
 
 @inline
 def _refined_1(coarse, x, y, cz):
-    if y % 2 == 0:
-        return _refined_0(coarse, x, y // 2, cz)
-    return 0.5 * (_refined_0(coarse, x, y // 2, cz) + _refined_0(coarse, x, y // 2 + 1, cz))
+    """f at fine x and y, coarse z: :func:`_refined_0` refined along axis 1."""
+    low = _refined_0(coarse, x, y // 2, cz)
+    return low if y % 2 == 0 else 0.5 * (low + _refined_0(coarse, x, y // 2 + 1, cz))
 
 
 @inline
 def refined_value(coarse, x, y, z):
     """f at node (x, y, z) of the grid with every cell of ``coarse`` halved, refined along axis 0, then 1, then 2,
     each new node the mean of its two neighbours (the arithmetic of refining the whole array axis after axis)."""
-    if z % 2 == 0:
-        return _refined_1(coarse, x, y, z // 2)
-    return 0.5 * (_refined_1(coarse, x, y, z // 2) + _refined_1(coarse, x, y, z // 2 + 1))
+    low = _refined_1(coarse, x, y, z // 2)
+    return low if z % 2 == 0 else 0.5 * (low + _refined_1(coarse, x, y, z // 2 + 1))
 
 
 @inline
@@ -74,7 +75,7 @@ def _difference(coarse, slots, bricks, shape, x, y, z, axis, step):
                        ahead, behind, step)
 
 
-@inline
+@njit
 def _derivative(f_ahead, f_behind, ahead, behind, step):
     """numpy.gradient's difference of f at the node ``ahead`` (0 or 1) after and ``behind`` before one: central
     when both are 1, else one-sided."""
@@ -89,7 +90,7 @@ def _far_difference(coarse, slots, bricks, shape, x, y, z, axis, step):
     return _difference(coarse, slots, bricks, shape, x, y, z, axis, step)
 
 
-@inline
+@njit
 def _axis(cc, n):
     """The lower and upper node along one axis at fractional node index ``cc`` of ``n`` nodes, and their weights
     1 - t and 1 - (1 - t); beyond the grid its nearest node (scipy's mode "nearest")."""
@@ -112,7 +113,7 @@ def _cell(points, p, origin, spacing, shape):
     return cx == cx and cy == cy and cz == cz, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1
 
 
-@inline
+@njit
 def _brick_of(slots, x0, x1, y0, y1, z0, z1):
     """(slot, its first node x, y, z) of the one brick that holds the cell's eight corners: -1 for one the coarse
     grid's refinement holds, -2 when the corners lie in several bricks; a dense grid's one brick from node 0."""
@@ -124,7 +125,7 @@ def _brick_of(slots, x0, x1, y0, y1, z0, z1):
     return -2, 0, 0, 0
 
 
-@inline
+@njit
 def _mix(v000, v001, v010, v011, v100, v101, v110, v111, a0, a1, b0, b1, c0, c1):
     """The multilinear mean of a cell's corner values: summed in C order, each value times its weights in axis
     order (scipy's ``map_coordinates`` order 1)."""
@@ -149,16 +150,13 @@ def _value(coarse, slots, bricks, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1
         x0, x1, y0, y1, z0, z1 = x0 - bx, x1 - bx, y0 - by, y1 - by, z0 - bz, z1 - bz
         return _mix(f[x0, y0, z0], f[x0, y0, z1], f[x0, y1, z0], f[x0, y1, z1], f[x1, y0, z0], f[x1, y0, z1],
                     f[x1, y1, z0], f[x1, y1, z1], a0, a1, b0, b1, c0, c1)
-    if slot == -1:
-        return _mix(_far_refined(coarse, x0, y0, z0), _far_refined(coarse, x0, y0, z1),
-                    _far_refined(coarse, x0, y1, z0), _far_refined(coarse, x0, y1, z1),
-                    _far_refined(coarse, x1, y0, z0), _far_refined(coarse, x1, y0, z1),
-                    _far_refined(coarse, x1, y1, z0), _far_refined(coarse, x1, y1, z1), a0, a1, b0, b1, c0, c1)
-    return _mix(node_value(coarse, slots, bricks, x0, y0, z0), node_value(coarse, slots, bricks, x0, y0, z1),
-                node_value(coarse, slots, bricks, x0, y1, z0), node_value(coarse, slots, bricks, x0, y1, z1),
-                node_value(coarse, slots, bricks, x1, y0, z0), node_value(coarse, slots, bricks, x1, y0, z1),
-                node_value(coarse, slots, bricks, x1, y1, z0), node_value(coarse, slots, bricks, x1, y1, z1),
-                a0, a1, b0, b1, c0, c1)
+    total = 0.0   # _mix's sum, corner by corner in the same order (one inlined read, not eight)
+    for corner in range(8):
+        i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
+        x, y, z = x1 if i else x0, y1 if j else y0, z1 if h else z0
+        value = _far_refined(coarse, x, y, z) if slot == -1 else node_value(coarse, slots, bricks, x, y, z)
+        total += value * (a1 if i else a0) * (b1 if j else b0) * (c1 if h else c0)
+    return total
 
 
 @inline
@@ -183,15 +181,13 @@ def _gradient(coarse, slots, bricks, gradients, shape, spacing, x0, x1, y0, y1, 
         x0, x1, y0, y1, z0, z1 = x0 - bx, x1 - bx, y0 - by, y1 - by, z0 - bz, z1 - bz
         return _mix(g[x0, y0, z0, q], g[x0, y0, z1, q], g[x0, y1, z0, q], g[x0, y1, z1, q], g[x1, y0, z0, q],
                     g[x1, y0, z1, q], g[x1, y1, z0, q], g[x1, y1, z1, q], a0, a1, b0, b1, c0, c1)
-    f, g, h = coarse, slots, bricks
-    return _mix(_node_gradient(f, g, h, gradients, shape, spacing, x0, y0, z0, q),
-                _node_gradient(f, g, h, gradients, shape, spacing, x0, y0, z1, q),
-                _node_gradient(f, g, h, gradients, shape, spacing, x0, y1, z0, q),
-                _node_gradient(f, g, h, gradients, shape, spacing, x0, y1, z1, q),
-                _node_gradient(f, g, h, gradients, shape, spacing, x1, y0, z0, q),
-                _node_gradient(f, g, h, gradients, shape, spacing, x1, y0, z1, q),
-                _node_gradient(f, g, h, gradients, shape, spacing, x1, y1, z0, q),
-                _node_gradient(f, g, h, gradients, shape, spacing, x1, y1, z1, q), a0, a1, b0, b1, c0, c1)
+    total = 0.0   # as in _value
+    for corner in range(8):
+        i, j, h = corner >> 2, (corner >> 1) & 1, corner & 1
+        total += (_node_gradient(coarse, slots, bricks, gradients, shape, spacing, x1 if i else x0,
+                                 y1 if j else y0, z1 if h else z0, q)
+                  * (a1 if i else a0) * (b1 if j else b0) * (c1 if h else c0))
+    return total
 
 
 @kernel
