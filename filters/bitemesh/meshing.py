@@ -15,6 +15,7 @@ from typing import Optional
 
 import numpy as np
 
+from .core.compiled import using_threads
 from .core.errors import InvalidInputError
 from .core.fem.coordinates import POINT_ARRAY_FORMATS, with_coordinates
 from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, warn_thin_walls, with_fibres
@@ -150,6 +151,11 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
     ``radius`` R, ``fidelity``, ``notes`` (what was done to the data), ``seconds`` per step
     """
     options = as_options(options, **changes)
+    with using_threads(options.threads):
+        return _meshed(input, options, progress)
+
+
+def _meshed(input, options: Options, progress: ProgressCallback) -> MeshingResult:
     fibres = options.of(FibreParameters) if options.fibres else None
     meshed = sub_progress(progress, 0.0, 0.9 if fibres or options.coordinates else 1.0)
     data = read_input(input, options)

@@ -12,6 +12,7 @@ import difflib
 from dataclasses import asdict, field, fields, make_dataclass, replace
 from typing import Optional
 
+from .core.compiled import check_threads
 from .core.errors import InvalidInputError
 from .core.fem.coordinates import CoordinateParameters
 from .core.fem.fibres import FibreParameters
@@ -38,6 +39,14 @@ READING = (
                 "from it", "choices": ("um", "mm", "cm", "m")})),
 )
 
+#: the fields that say how to run, not what: the mesh does not depend on them (left out of a cohort case's hash).
+RUNNING = (
+    ("threads", Optional[int], field(default=None, metadata={
+        "help": "the threads of the parallel kernels, 1 to the machine's cores (the mesh is the same for any "
+                "count); default the environment variable BITEMESH_THREADS, else every core; a batch's workers take "
+                "1 each unless it is given", "integer": True})),
+)
+
 
 class _Checked:
     """What Options does beyond holding its fields."""
@@ -57,6 +66,8 @@ class _Checked:
         if self.unit not in units:
             raise InvalidInputError(f"unit (--unit) must be one of {', '.join(units)} (the input's coordinates), got "
                                     f"{self.unit!r}")
+        if self.threads is not None:
+            object.__setattr__(self, "threads", check_threads(self.threads))
         for cls in OPTION_CLASSES:
             self.of(cls)   # each dataclass checks its fields
 
@@ -87,11 +98,12 @@ class _Checked:
 Options = make_dataclass(
     "Options",
     [(item.name, item.type, field(default=item.default, metadata=item.metadata))
-     for cls in OPTION_CLASSES for item in fields(cls)] + list(READING),
+     for cls in OPTION_CLASSES for item in fields(cls)] + list(READING) + list(RUNNING),
     bases=(_Checked,), frozen=True)
 Options.__module__ = __name__
 Options.__doc__ = ("Every option of a mesh, by the name of its ``bitemesh mesh`` flag (underscores for dashes): the "
-                   "fields of " + ", ".join(cls.__name__ for cls in OPTION_CLASSES) + ", and label, ras, config. "
+                   "fields of " + ", ".join(cls.__name__ for cls in OPTION_CLASSES) + ", and label, ras, config, unit, "
+                   "threads. "
                    "None for an optional number is automatic.")
 #: every option's name.
 OPTION_NAMES = tuple(item.name for item in fields(Options))

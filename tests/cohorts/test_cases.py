@@ -72,6 +72,7 @@ def test_the_hash_follows_the_input_and_the_options(inputs, tmp_path):
     assert case_hash(case, {"cells": 1500}) == first
     assert case_hash(Case("sphere", copy, {"cells": 1500}), {}) == first       # the case's own option, same value
     assert case_hash(case, {"cells": 1500, "seed": 0}) == first                # a default given is the default
+    assert case_hash(case, {"cells": 1500, "threads": 1}) == first             # how it runs, not what it makes
     assert case_hash(case, {"cells": 1600}) != first
     assert case_hash(Case("sphere", copy, extension=".msh"), {"cells": 1500}) != first
     copy.write_bytes(copy.read_bytes() + b"\n0 0 1 0 0 1\n")

@@ -111,11 +111,13 @@ def command() -> None:
 
 
 def _run(argv) -> int:
+    from ..core.compiled import using_threads
     from ..core.errors import BitemeshError, Cancelled
 
     args = build_parser().parse_args(argv)
     try:
-        args.run(args)
+        with using_threads(getattr(args, "threads", None)):
+            args.run(args)
         sys.stdout.flush()  # here, not at exit, so that a closed pipe is caught below
     except BrokenPipeError:
         # Whoever read our output stopped (bitemesh quality m.vtu | head -1): stop quietly, as a shell tool does.

@@ -16,7 +16,8 @@ from ..core.parameters import DEFAULT_CELLS, BitingParameters, OptimizeParameter
 from ..core.shapes import die, sample_surface
 from ..meshing import Samples, check_output, mesh
 from ..options import Options
-from .options import ProgressBar, add_fibre_options, add_parameter_options, describe, write_and_report
+from .options import (ProgressBar, add_fibre_options, add_parameter_options, add_threads_option, describe,
+                      write_and_report)
 
 #: cells asked for the heart: the cells-per-volume estimate undershoots by about 12 % on thin walls.
 HEART_CELLS = 155000
@@ -33,6 +34,7 @@ def add_parser(subcommands) -> None:
                         + f"; default {DEFAULT_CELLS} (die), 136000 (heart)")
     add_parameter_options(parser, (OptimizeParameters,))
     add_fibre_options(parser)
+    add_threads_option(parser)
     parser.set_defaults(run=run)
 
 

@@ -10,7 +10,7 @@ from ..core.fem.template import FitParameters
 from ..fitting import fit, fit_cycle, frame_fit_row
 from ..io import atomic_output
 from ..meshing import check_output, write
-from .options import ProgressBar, add_parameter_options, parameters_from_args
+from .options import ProgressBar, add_parameter_options, add_threads_option, parameters_from_args
 
 
 def add_parser(subcommands) -> None:
@@ -29,6 +29,7 @@ def add_parser(subcommands) -> None:
                                                               "time series for several frames")
     parser.add_argument("--frame", type=float, help="the frame of a GPFile that holds several (one DATA)")
     add_parameter_options(parser, (FitParameters,))
+    add_threads_option(parser)
     parser.set_defaults(run=run)
 
 

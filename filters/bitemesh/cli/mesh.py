@@ -7,7 +7,8 @@ from ..core.fem.coordinates import CoordinateParameters
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
 from ..meshing import check_output, mesh
 from ..options import OPTION_NAMES, Options
-from .options import ProgressBar, add_fibre_options, add_parameter_options, describe, write_and_report
+from .options import (ProgressBar, add_fibre_options, add_parameter_options, add_threads_option, describe,
+                      write_and_report)
 
 
 def add_parser(subcommands) -> None:
@@ -45,6 +46,7 @@ def add_mesh_options(parser) -> None:
     labels.add_argument("--ras", action="store_true", help="write the mesh in RAS (3D Slicer) instead of LPS (ITK)")
     add_fibre_options(parser)
     add_parameter_options(parser, (CoordinateParameters,))
+    add_threads_option(parser)
 
 
 def options_of(args) -> Options:

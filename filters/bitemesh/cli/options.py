@@ -10,6 +10,7 @@ from ..core.fem.fibres import FIBRE_ARRAYS, LAPLACE_ARRAYS, FibreParameters
 from ..core.mesh.quality import quality_summary
 from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
 from ..meshing import write
+from ..options import Options
 
 
 def describe(metadata: dict, default) -> str:
@@ -47,6 +48,12 @@ def add_parameter_options(parser, parameter_classes=STEP_PARAMETERS) -> None:
                 kind, help = or_automatic(kind), f"{help}; {AUTOMATIC} or auto: automatic (the default)"
             group.add_argument(flag, dest=item.name, type=kind, choices=item.metadata.get("choices"),
                                default=item.default, help=help)
+
+
+def add_threads_option(parser) -> None:
+    """``--threads N``: the threads of the parallel kernels (the Options field, with its help)."""
+    threads = {item.name: item for item in fields(Options)}["threads"]
+    parser.add_argument("--threads", type=int, metavar="N", help=describe(threads.metadata, None))
 
 
 def add_fibre_options(parser) -> None:

@@ -13,7 +13,7 @@ from .. import __version__
 from ..core.errors import InvalidInputError
 from ..io import MESH_EXTENSIONS, atomic_output
 from ..meshing import INPUT_EXTENSIONS
-from ..options import as_options, check_names, parse_option
+from ..options import RUNNING, as_options, check_names, parse_option
 
 #: the files a folder or a glob pattern gives as cases
 #: the manifest's columns that are no option: the input file and the output's name
@@ -138,6 +138,8 @@ def case_hash(case: Case, options: dict, fitting: dict | None = None) -> str:
     the same hash means the same mesh."""
     digest = hashlib.sha256(f"bitemesh {__version__}\n".encode())
     full = as_options({**options, **case.options}).as_dict()
+    for name, *_ in RUNNING:   # how it runs, not what it makes
+        del full[name]
     digest.update(json.dumps(full, sort_keys=True, default=str).encode())
     digest.update(case.extension.encode())
     file_digest(case.input, digest)

@@ -15,6 +15,7 @@ import time
 import warnings
 from pathlib import Path
 
+from ..core.compiled import using_threads
 from ..core.errors import BitemeshError, InvalidInputError
 from ..core.fem.template import FitParameters
 from ..core.mesh.quality import quality_summary
@@ -22,7 +23,7 @@ from ..core.progress import ProgressCallback
 from ..fitting import fit, template_mesh
 from ..io import remove_stale_partials
 from ..meshing import check_output, mesh, write
-from ..options import Options, as_options
+from ..options import RUNNING, Options, as_options
 from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
 from .report import picture_path, render_cut, save_picture, write_report, write_summary
 from .shapes import write_shape_model
@@ -96,7 +97,8 @@ def run_case(case: Case, options: dict, output_dir: str, digest: str, fitting: d
     logger, captured = logging.getLogger("bitemesh"), _Captured()
     logger.addHandler(captured)
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        threads = {**options, **case.options}.get("threads") or 1   # one a worker unless given
+        with warnings.catch_warnings(record=True) as caught, using_threads(threads):
             warnings.simplefilter("always")
             result, values = made(case, options, fitting)
             write(result, output_dir / case.output_name)
@@ -317,7 +319,9 @@ def fitted_cohort(template, pull: float, options: dict):
     FitParameters(pull)
     template_mesh(template)
     defaults = Options().as_dict()
-    changed = [name for name, value in as_options(options).as_dict().items() if value != defaults[name]]
+    running = {name for name, *_ in RUNNING}
+    changed = [name for name, value in as_options(options).as_dict().items()
+               if value != defaults[name] and name not in running]
     if changed:
         raise InvalidInputError(f"{changed[0]} (--{changed[0].replace('_', '-')}) is an option of meshing; with a "
                                 "template each case is the template fitted to its data, so no mesh option "

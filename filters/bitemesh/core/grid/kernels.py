@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from numba import njit
+from numba import njit, prange
 
 from ..compiled import kernel
 
@@ -190,13 +190,13 @@ def _gradient(coarse, slots, bricks, gradients, shape, spacing, x0, x1, y0, y1, 
     return total
 
 
-@kernel
+@kernel(parallel=True)
 def evaluate_at(coarse, slots, bricks, shape, origin, spacing, points):
     """(m,) f multilinear at the (m, k) ``points`` of the grid of ``shape`` (3,) from ``origin`` (k,) by ``spacing``
     (k,) (the arithmetic of ``scipy.ndimage.map_coordinates(values, index.T, order=1, mode="nearest")``, scipy
     1.17, bit for bit); beyond the grid at most minus the distance to it; NaN at a NaN point."""
     out = np.empty(len(points))
-    for p in range(len(points)):
+    for p in prange(len(points)):
         number, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1 = _cell(points, p, origin, spacing, shape)
         if not number:
             out[p] = np.nan
@@ -211,13 +211,13 @@ def evaluate_at(coarse, slots, bricks, shape, origin, spacing, points):
     return out
 
 
-@kernel
+@kernel(parallel=True)
 def gradient_at(coarse, slots, bricks, gradients, shape, origin, spacing, points):
     """(m, k) the central-difference gradient of f (``numpy.gradient(values, *spacing)``) multilinear at the (m, k)
     ``points``, as :func:`evaluate_at` takes f; ``gradients`` is :func:`brick_gradients`."""
     m, k = points.shape
     out = np.empty((m, k))
-    for p in range(m):
+    for p in prange(m):
         number, x0, x1, y0, y1, z0, z1, a0, a1, b0, b1, c0, c1 = _cell(points, p, origin, spacing, shape)
         for q in range(k):
             out[p, q] = _gradient(coarse, slots, bricks, gradients, shape, spacing, x0, x1, y0, y1, z0, z1,
@@ -225,7 +225,7 @@ def gradient_at(coarse, slots, bricks, gradients, shape, origin, spacing, points
     return out
 
 
-@kernel
+@kernel(parallel=True)
 def newton_to_surface(coarse, slots, bricks, gradients, shape, origin, spacing, points, steps, settled):
     """(m, k) points moved onto f = 0 by up to ``steps`` Newton steps along the interpolated gradient (as
     :func:`evaluate_at` and :func:`gradient_at` take f and grad f), each at most the largest spacing
@@ -233,9 +233,10 @@ def newton_to_surface(coarse, slots, bricks, gradients, shape, origin, spacing, 
     ``settled`` (its next ones would be shorter still); a NaN point stays NaN."""
     m, k = points.shape
     out = points.copy()
-    gradient = np.zeros(k)
+    rows = np.zeros((m, k))   # the gradient at each point: the iterations share nothing
     limit = spacing.max()
-    for p in range(m):
+    for p in prange(m):
+        gradient = rows[p]
         for _ in range(steps):
             beyond = 0.0
             for d in range(k):
@@ -305,11 +306,11 @@ def brick_gradients(coarse, slots, bricks, shape, spacing):
     return gradients
 
 
-@kernel
+@kernel(parallel=True)
 def node_values(coarse, slots, bricks, shape, flat):
     """(m,) f at the nodes with C-order flat indices ``flat`` (m,) of the grid of ``shape`` (3,)."""
     out = np.empty(flat.size)
-    for p in range(flat.size):
+    for p in prange(flat.size):
         x, rest = divmod(flat[p], shape[1] * shape[2])
         y, z = divmod(rest, shape[2])
         out[p] = node_value(coarse, slots, bricks, x, y, z)
@@ -345,11 +346,11 @@ def plane_values(coarse, slots, bricks, shape, first, last):
     return out
 
 
-@kernel
+@kernel(parallel=True)
 def fill_bricks(coarse, bricks, brick_index, shape):
     """Fill ``bricks`` (m, b_0, b_1, b_2) with the refinement of ``coarse`` over the bricks of (m, 3) indices
     ``brick_index``, nodes beyond the grid of ``shape`` (3,) left at 0."""
-    for s in range(brick_index.shape[0]):
+    for s in prange(brick_index.shape[0]):
         for i in range(bricks.shape[1]):
             x = brick_index[s, 0] * bricks.shape[1] + i
             for j in range(bricks.shape[2]):

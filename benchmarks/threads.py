@@ -1,0 +1,138 @@
+"""Every core and the first run (issue 35): meshes on 1 thread against every core, side by side in one run, and
+``bitemesh demo`` with numba's cache empty against filled.
+
+    python benchmarks/threads.py [--repeats 3] [--out benchmarks/threads.md]
+
+Threads: each case (the shipped biv-me heart at the default size; a sphere of scattered points at about 136,000
+cells) is meshed ``--repeats`` times on 1 thread and on every core, alternating, in fresh processes; the report
+gives each step's median and checks that both counts give the same mesh bit for bit.  First run: ``bitemesh demo``
+in a fresh process with ``NUMBA_CACHE_DIR`` an empty folder (every kernel compiled), then again with that folder
+filled (loaded), ``--repeats`` times each; the compile events are counted by numba's event API.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+FILTERS = HERE.parent / "filters"
+GPFILE = FILTERS / "bitemesh" / "data" / "bivme_patient1" / "GPFile_000.txt"
+
+#: run in a fresh interpreter: one mesh on THREADS threads, its steps' seconds and its hash as JSON
+MESH_WORKER = """
+import hashlib, json, sys, time
+import numpy as np
+import bitemesh
+from bitemesh.core.shapes import sample_surface, sphere
+case, threads = sys.argv[1], int(sys.argv[2])
+if case == "heart":
+    data = sys.argv[3]
+else:
+    shape = sphere()
+    data = bitemesh.Samples(*sample_surface(shape, spacing=0.012, noise=0.002, seed=0))
+bitemesh.mesh(data, cells=2000, threads=threads)   # kernels loaded before the clock
+start = time.perf_counter()
+result = bitemesh.mesh(data, threads=threads, **({} if case == "heart" else {"cells": 136000}))
+wall = time.perf_counter() - start
+digest = hashlib.sha256(result.mesh.points.tobytes() + result.mesh.cells.tobytes()).hexdigest()[:16]
+print(json.dumps({"wall": wall, "seconds": result.seconds, "cells": len(result.mesh.cells), "hash": digest}))
+"""
+
+#: run in a fresh interpreter: bitemesh demo, timed from before the import, with numba's compile events counted
+DEMO_WORKER = """
+import sys, time
+start = time.perf_counter()
+from numba.core import event
+compiled = []
+class Count(event.Listener):
+    def on_start(self, ev):
+        pass
+    def on_end(self, ev):
+        compiled.append(ev)
+event.register("numba:compile", Count())
+from bitemesh.cli import main
+main(["demo", "-o", sys.argv[1]])
+print("RESULT", time.perf_counter() - start, len(compiled))
+"""
+
+
+def fresh(code: str, *args, environment=None) -> str:
+    completed = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True,
+                               env={**os.environ, "PYTHONPATH": str(FILTERS), **(environment or {})}, check=True)
+    return completed.stdout
+
+
+def mesh_runs(case: str, counts, repeats: int) -> dict:
+    """count -> list of the worker's JSON results, the counts alternating."""
+    runs = {count: [] for count in counts}
+    for _ in range(repeats):
+        for count in counts:
+            runs[count].append(json.loads(fresh(MESH_WORKER, case, count, GPFILE).strip().splitlines()[-1]))
+    return runs
+
+
+def demo_runs(repeats: int) -> dict:
+    """"empty" / "filled" -> list of (seconds, kernels compiled)."""
+    runs = {"empty": [], "filled": []}
+    with tempfile.TemporaryDirectory() as folder:
+        for repeat in range(repeats):
+            cache = Path(folder) / f"cache{repeat}"   # empty, then filled by the first run
+            for state in ("empty", "filled"):
+                line = fresh(DEMO_WORKER, Path(folder) / "die.vtu", environment={"NUMBA_CACHE_DIR": str(cache)})
+                seconds, kernels = line.split("RESULT")[-1].split()
+                runs[state].append((float(seconds), int(kernels)))
+    return runs
+
+
+def report(meshes: dict, demo: dict, counts, repeats: int) -> str:
+    most = counts[-1]
+    lines = ["# Every core and the first run", "",
+             f"`python benchmarks/threads.py --repeats {repeats}` on this {os.cpu_count()}-core machine "
+             f"({time.strftime('%Y-%m-%d')}); medians of {repeats} fresh processes each, the thread counts "
+             "alternating so that the machine's noise falls on both.", "",
+             f"| case | cells | 1 thread (s) | {most} threads (s) | ratio | same mesh |", "|---|---|---|---|---|---|"]
+    for case, runs in meshes.items():
+        walls = {count: statistics.median(run["wall"] for run in runs[count]) for count in counts}
+        hashes = {run["hash"] for count in counts for run in runs[count]}
+        lines.append(f"| {case} | {runs[1][0]['cells']:,} | {walls[1]:.2f} | {walls[most]:.2f} | "
+                     f"{walls[most] / walls[1]:.2f} | {'yes' if len(hashes) == 1 else 'NO'} |")
+    lines += ["", "Per step (median seconds, 1 thread / every core):", "",
+              "| case | " + " | ".join(next(iter(meshes.values()))[1][0]["seconds"]) + " |",
+              "|---|" + "---|" * len(next(iter(meshes.values()))[1][0]["seconds"])]
+    for case, runs in meshes.items():
+        steps = runs[1][0]["seconds"]
+        cells = [f"{statistics.median(run['seconds'].get(step, 0) for run in runs[1]):.2f} / "
+                 f"{statistics.median(run['seconds'].get(step, 0) for run in runs[most]):.2f}" for step in steps]
+        lines.append(f"| {case} | " + " | ".join(cells) + " |")
+    empty = statistics.median(seconds for seconds, _ in demo["empty"])
+    filled = statistics.median(seconds for seconds, _ in demo["filled"])
+    lines += ["", "## The first run", "",
+              "| numba's cache | `bitemesh demo` from the start of Python (s) | kernels compiled |", "|---|---|---|",
+              f"| empty (a first run after install) | {empty:.1f} | {demo['empty'][0][1]} |",
+              f"| filled (every later run) | {filled:.1f} | {demo['filled'][0][1]} |",
+              "", f"Cold / warm: {empty / filled:.1f}x.", ""]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args()
+    counts = sorted({1, os.cpu_count() or 1})
+    meshes = {case: mesh_runs(case, counts, args.repeats) for case in ("heart", "sphere")}
+    text = report(meshes, demo_runs(args.repeats), counts, args.repeats)
+    print(text)
+    if args.out:
+        args.out.write_text(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,99 @@
+"""The thread count (issue 35): the same mesh bit for bit whatever the count, from any interface that sets it, and
+from two Python threads meshing at once; a count the machine cannot give is refused naming where it came from.
+
+The parallel kernels split loops whose iterations write only their own outputs, so the count cannot change a bit;
+these tests hold that for scattered points (an ellipsoid with different semi-axes, hypothesis over seeds) and for
+the shipped biv-me heart (labelled contours, whose grids are read through those kernels millions of times)."""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from bitemesh import Options, mesh
+from bitemesh.core.compiled import THREADS_VARIABLE, available_threads, threads, using_threads
+from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.parameters import BitingParameters
+from bitemesh.core.shapes import Shape, ellipsoid_distance, sample_surface
+from bitemesh.core.sources.points import run
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+AXES = np.array([1.0, 0.7, 0.45])
+SAMPLES = sample_surface(Shape("ellipsoid", lambda p: ellipsoid_distance(p, np.zeros(3), AXES), -AXES, AXES,
+                               4 / 3 * np.pi * np.prod(AXES), 2), spacing=0.06, seed=3)
+MOST = available_threads()
+
+needs_two_cores = pytest.mark.skipif(MOST < 2, reason="one core: nothing to compare")
+
+
+def assert_same_mesh(first, second):
+    assert np.array_equal(first.points, second.points) and np.array_equal(first.cells, second.cells)
+
+
+@needs_two_cores
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1))
+def test_one_thread_and_every_core_give_the_same_points_mesh(seed):
+    biting = BitingParameters(cells=1500, seed=seed)
+    with using_threads(1):
+        single = run(*SAMPLES, biting=biting).mesh
+    with using_threads(MOST):
+        every = run(*SAMPLES, biting=biting).mesh
+    assert_same_mesh(single, every)
+
+
+@needs_two_cores
+def test_one_thread_and_every_core_give_the_same_heart(gpfile):
+    single = mesh(gpfile, cells=20000, threads=1).mesh
+    every = mesh(gpfile, cells=20000, threads=MOST).mesh
+    assert_same_mesh(single, every)
+    assert {name: np.array_equal(single.cell_data[name], every.cell_data[name]) for name in single.cell_data} == \
+        {name: True for name in single.cell_data}
+
+
+def test_two_python_threads_meshing_at_once_give_the_mesh_of_one():
+    """numba's workqueue layer stops the process when two threads launch a parallel kernel at once: the launches
+    are taken in turn."""
+    expected = run(*SAMPLES, biting=BitingParameters(cells=1500)).mesh
+    results, errors = [None, None], []
+
+    def work(slot):
+        try:
+            results[slot] = run(*SAMPLES, biting=BitingParameters(cells=1500)).mesh
+        except Exception as error:   # noqa: BLE001 (reported below)
+            errors.append(error)
+
+    workers = [threading.Thread(target=work, args=(slot,)) for slot in range(2)]
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join()
+    assert not errors
+    for result in results:
+        assert_same_mesh(result, expected)
+
+
+def test_the_count_follows_the_option_then_the_environment_then_the_cores(monkeypatch):
+    monkeypatch.delenv(THREADS_VARIABLE, raising=False)
+    assert threads() == MOST
+    monkeypatch.setenv(THREADS_VARIABLE, "1")
+    assert threads() == 1
+    with using_threads(MOST):
+        assert threads() == MOST
+        with using_threads(None):   # an unset option keeps the count around it
+            assert threads() == MOST
+    assert threads() == 1
+
+
+@pytest.mark.parametrize("value", [0, -1, 1.5, "two", MOST + 1])
+def test_a_count_the_machine_cannot_give_is_refused_naming_the_option(value):
+    with pytest.raises(InvalidInputError, match=r"threads \(--threads\) must be a whole number in \[1, \d+\].*"
+                                                r"leave it unset to use every core"):
+        Options(threads=value)
+
+
+def test_a_bad_environment_variable_is_refused_by_name_before_any_work(monkeypatch):
+    monkeypatch.setenv(THREADS_VARIABLE, "many")
+    with pytest.raises(InvalidInputError, match=f"{THREADS_VARIABLE} must be a whole number.*got 'many'"):
+        mesh(SAMPLES[0], cells=1000)
