@@ -103,13 +103,13 @@ def report(meshes: dict, demo: dict, counts, repeats: int) -> str:
         hashes = {run["hash"] for count in counts for run in runs[count]}
         lines.append(f"| {case} | {runs[1][0]['cells']:,} | {walls[1]:.2f} | {walls[most]:.2f} | "
                      f"{walls[most] / walls[1]:.2f} | {'yes' if len(hashes) == 1 else 'NO'} |")
-    lines += ["", "Per step (median seconds, 1 thread / every core):", "",
-              "| case | " + " | ".join(next(iter(meshes.values()))[1][0]["seconds"]) + " |",
-              "|---|" + "---|" * len(next(iter(meshes.values()))[1][0]["seconds"])]
+    steps = list(dict.fromkeys(step for runs in meshes.values() for step in runs[1][0]["seconds"]))
+    lines += ["", "Per step (median seconds, 1 thread / every core; - where the case has no such step):", "",
+              "| case | " + " | ".join(steps) + " |", "|---|" + "---|" * len(steps)]
     for case, runs in meshes.items():
-        steps = runs[1][0]["seconds"]
-        cells = [f"{statistics.median(run['seconds'].get(step, 0) for run in runs[1]):.2f} / "
-                 f"{statistics.median(run['seconds'].get(step, 0) for run in runs[most]):.2f}" for step in steps]
+        cells = [f"{statistics.median(run['seconds'][step] for run in runs[1]):.2f} / "
+                 f"{statistics.median(run['seconds'][step] for run in runs[most]):.2f}"
+                 if step in runs[1][0]["seconds"] else "-" for step in steps]
         lines.append(f"| {case} | " + " | ".join(cells) + " |")
     empty = statistics.median(seconds for seconds, _ in demo["empty"])
     filled = statistics.median(seconds for seconds, _ in demo["filled"])

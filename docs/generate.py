@@ -55,8 +55,9 @@ def architecture() -> str:
 def option_table() -> str:
     """The table of every option: its flag, what it is, its unit, range and default (bitemesh.Options' fields)."""
     sys.path.insert(0, str(ROOT / "filters"))
-    from bitemesh.options import OPTION_CLASSES, Options
+    from bitemesh.options import OPTION_CLASSES, RUNNING, Options
     owner = {item.name: cls.__name__ for cls in OPTION_CLASSES for item in fields(cls)}
+    owner.update({name: "running" for name, *_ in RUNNING})
     lines = ["| flag | meaning | unit | range or choices | default | step |", "|---|---|---|---|---|---|"]
     for item in fields(Options):
         metadata = item.metadata
