@@ -17,6 +17,7 @@ Convention: f > 0 inside, about the signed distance (input units) near f = 0.
 from __future__ import annotations
 
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -25,6 +26,7 @@ from scipy import linalg
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist, squareform
 
+from ..compiled import threads
 from ..errors import InvalidInputError, check_choice, check_number, check_points
 from ..grid.sampled import bounding_box, box_depth, box_depth_gradient
 from .normals import unit_normals
@@ -173,20 +175,16 @@ class RBFImplicit:
             total, weights = np.zeros(len(part)), np.zeros(len(part))
             total_slope, weight_slope = (np.zeros(part.shape), np.zeros(part.shape)) if slope else (0, 0)
             members = cKDTree(part).query_ball_point(self.centres, self.radii, return_sorted=False)
-            for centre, radius, patch, index in zip(self.centres, self.radii, self.patches, members):
-                if not index:
-                    continue
-                index = np.asarray(index)
-                offset = part[index] - centre
-                distance = np.sqrt(np.einsum("ij,ij->i", offset, offset))
-                w, dw = _wendland(distance / radius)
-                f, df = patch.value_and_slope(part[index], slope)
-                total[index] += w * f
-                weights[index] += w
-                if slope:
-                    direction = dw[:, None] * offset / (radius * np.maximum(distance, 1e-300))[:, None]
-                    total_slope[index] += direction * f[:, None] + w[:, None] * df
-                    weight_slope[index] += direction
+            jobs = [(part, slope, centre, radius, patch, np.asarray(index))
+                    for centre, radius, patch, index in zip(self.centres, self.radii, self.patches, members) if index]
+            # the patches on threads (numpy and BLAS release the GIL), their terms summed in the patches' order
+            with ThreadPoolExecutor(threads()) as pool:
+                for index, w, f, df, direction in pool.map(lambda job: _patch_terms(*job), jobs):
+                    total[index] += w * f
+                    weights[index] += w
+                    if slope:
+                        total_slope[index] += direction * f[:, None] + w[:, None] * df
+                        weight_slope[index] += direction
             lonely = np.flatnonzero(weights <= 0)   # beyond every ball: the nearest patch alone
             if len(lonely):
                 nearest = self._patch_tree.query(part[lonely])[1]
@@ -201,6 +199,17 @@ class RBFImplicit:
                 gradient[start:start + len(part)] = (total_slope - value[start:start + len(part), None]
                                                      * weight_slope) / weights[:, None]
         return value, gradient
+
+
+def _patch_terms(part, slope: bool, centre, radius: float, patch: LocalRBF, index):
+    """One patch's terms at the (q,) ``index`` of the (m, k) points ``part`` in its ball: the index, the weights w
+    and f (q,), and with ``slope`` grad f and grad w (q, k)."""
+    offset = part[index] - centre
+    distance = np.sqrt(np.einsum("ij,ij->i", offset, offset))
+    w, dw = _wendland(distance / radius)
+    f, df = patch.value_and_slope(part[index], slope)
+    direction = dw[:, None] * offset / (radius * np.maximum(distance, 1e-300))[:, None] if slope else None
+    return index, w, f, df, direction
 
 
 def _solve(centres, values, kernel: str, smoothing: float, shift, scale: float, what: str) -> LocalRBF:
