@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from bitemesh.core.steps.biting import bite
+from bitemesh.core.steps.biting import _sort_into, bite
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.grid.sampled import sample_function
 from bitemesh.core.shapes import annulus, sphere, torus
@@ -75,3 +77,16 @@ def test_sampling_exactly_only_near_the_surface_keeps_f_there_and_its_sign_every
     assert np.array_equal(exact.values[near], banded.values[near])
     assert np.array_equal(exact.values > 0, banded.values > 0)
     assert np.abs(exact.values - banded.values).max() < 2 * 0.03  # interpolation error of the coarse grid
+
+
+@settings(max_examples=30, deadline=None)
+@given(size=st.integers(1, 2000), distinct=st.integers(1, 50), equal_ties=st.booleans(), seed=st.integers(0, 2**16))
+def test_the_selection_sort_is_numpys_lexsort_by_key_then_tie_then_position(size, distinct, equal_ties, seed):
+    """The biting's order: by key (f or the distance), equal keys by the seeded tie, then by position."""
+    rng = np.random.default_rng(seed)
+    key = rng.integers(0, distinct, size).astype(float)
+    tie = np.where(rng.random(size) < 0.3, 0.5, rng.random(size)) if equal_ties else rng.random(size)
+    items = np.arange(size) * 7
+    out = np.empty_like(items)
+    _sort_into(out, items, key, tie)
+    assert np.array_equal(out, items[np.lexsort((np.arange(size), tie, key))])

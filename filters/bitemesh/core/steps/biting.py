@@ -11,6 +11,7 @@ from scipy import ndimage
 from ..compiled import kernel
 from ..errors import InvalidInputError, MeshingError, check_choice, check_number
 from ..grid.sampled import SampledGrid, inside_extents
+from ..mesh.topology import sorted_by
 from ..progress import ProgressCallback, report
 
 ORDERS = ("boundary", "random")
@@ -70,9 +71,7 @@ def _order_runs(order, key, tie) -> None:
         if end < order.size and key[order[end]] == key[order[start]]:
             continue
         if end - start > 1:
-            run = order[start:end]
-            run = run[np.argsort(run, kind="mergesort")]   # by index, then stably by tie (one sort compiled)
-            order[start:end] = run[np.argsort(tie[run], kind="mergesort")]
+            order[start:end] = sorted_by(order[start:end], tie)
         start = end
 
 
