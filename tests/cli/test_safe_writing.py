@@ -123,6 +123,35 @@ def test_ctrl_c_at_any_moment_exits_130_with_one_line(points_file, previous, tmp
     assert leftovers(tmp_path) == []
 
 
+def test_an_interrupt_inside_a_kernels_runtime_is_a_cancel_not_a_system_error(monkeypatch, points_file, previous,
+                                                                              tmp_path, capsys):
+    """A Ctrl-C that lands while a compiled kernel runs Python inside numba's runtime comes out of the kernel's call
+    as "SystemError: ... returned a result with an exception set" (seen once in the test above at 1.0 s): it is
+    the user's cancel, 130 and one line; a SystemError of another cause is not hidden."""
+    import bitemesh.cli.mesh as mesh_command
+    path, before = previous
+
+    def interrupted_kernel(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as interrupt:
+            raise SystemError("CPUDispatcher(<function mean_ratio_terms>) returned a result with an exception set") \
+                from interrupt
+
+    monkeypatch.setattr(mesh_command, "mesh", interrupted_kernel)
+    code = cli.main(["mesh", str(points_file), "-o", str(path), "--cells", "2000"])
+    _, err = capsys.readouterr()
+    assert code == 130 and err.strip().splitlines()[-1] == "bitemesh: cancelled" and "Traceback" not in err
+    assert path.read_bytes() == before and leftovers(tmp_path) == []
+
+    def broken_kernel(*args, **kwargs):
+        raise SystemError("returned a result with an exception set")
+
+    monkeypatch.setattr(mesh_command, "mesh", broken_kernel)
+    with pytest.raises(SystemError):
+        cli.main(["mesh", str(points_file), "-o", str(path), "--cells", "2000"])
+
+
 def test_an_interrupt_inside_the_writer_keeps_the_previous_file(monkeypatch, points_file, previous, tmp_path, capsys):
     """Ctrl-C after the writer has put half a file on disk: the previous file stays, the half file goes."""
     import meshio

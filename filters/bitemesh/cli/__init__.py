@@ -78,10 +78,26 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("\nbitemesh: cancelled", file=sys.stderr)
         return 130
+    except SystemError as error:
+        if not _interrupted(error):
+            raise
+        print("\nbitemesh: cancelled", file=sys.stderr)
+        return 130
     finally:
         logger.removeHandler(handler)
         logger.setLevel(previous_level)
         warnings.showwarning = shown
+
+
+def _interrupted(error: BaseException) -> bool:
+    """Whether a KeyboardInterrupt caused ``error``: a Ctrl-C that lands while a compiled kernel runs Python inside
+    numba's runtime (unpickling a constant) comes out of the kernel's call as "SystemError: ... returned a result
+    with an exception set", the interrupt its cause."""
+    while error is not None:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        error = error.__cause__ or error.__context__
+    return False
 
 
 def _interrupt(number=None, frame=None):
