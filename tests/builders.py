@@ -33,6 +33,16 @@ def sampled(shape, spacing):
     return sample_function(shape.function, shape.lower, shape.upper, spacing, margin=3 * spacing)
 
 
+#: the semi-axes of :func:`ellipsoid`: three different ones, so that no symmetry hides a wrong axis
+ELLIPSOID_AXES = np.array([1.0, 0.7, 0.45])
+
+
+def ellipsoid() -> shapes.Shape:
+    """The ellipsoid of semi-axes :data:`ELLIPSOID_AXES` about the origin, its exact volume as its measure."""
+    return shapes.Shape("ellipsoid", lambda p: shapes.ellipsoid_distance(p, np.zeros(3), ELLIPSOID_AXES),
+                        -ELLIPSOID_AXES, ELLIPSOID_AXES, 4 / 3 * np.pi * np.prod(ELLIPSOID_AXES), 2)
+
+
 def sphere_samples(spacing, *, noise=0.0, seed=0):
     """(points, unit outward normals) scattered on the unit sphere, about ``spacing`` apart."""
     return shapes.sample_surface(shapes.sphere(), spacing, noise=noise, seed=seed)

@@ -30,6 +30,8 @@ from tests.cli.commands import assert_refused, mesh_cli, write_rows
     (["--threshold", "2"], ["threshold must be in [0, 1], got 2"]),
     (["--far-samples", "-1"], ["far_samples must be in [0, 100]"]),
     (["--outliers", "maybe"], []),
+    (["--threads", "0"], ["threads (--threads) must be a whole number in [1, ", "got 0",
+                          "leave it unset to use every core"]),
 ])
 def test_parameters_out_of_range_are_named_at_once(capsys, tmp_path, unit_sphere_samples, options, words):
     path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])

@@ -14,21 +14,21 @@ import numpy as np
 import pytest
 from bitemesh.core.parameters import BitingParameters
 from bitemesh.core.sources.points import run
-from bitemesh.core.shapes import Shape, ellipsoid_distance, sample_surface
+from bitemesh.core.shapes import sample_surface
 from bitemesh.core.mesh.topology import boundary_facets
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tests.builders import ELLIPSOID_AXES, ellipsoid
 from tests.meshcheck import assert_valid_domain
 
-AXES = np.array([1.0, 0.7, 0.45])
-VOLUME = 4 / 3 * np.pi * np.prod(AXES)
+AXES = ELLIPSOID_AXES
+VOLUME = ellipsoid().measure
 CELLS = 2500
 
 
 def ellipsoid_samples():
-    shape = Shape("ellipsoid", lambda p: ellipsoid_distance(p, np.zeros(3), AXES), -AXES, AXES, VOLUME, 2)
-    return sample_surface(shape, spacing=0.06, seed=3)
+    return sample_surface(ellipsoid(), spacing=0.06, seed=3)
 
 
 SAMPLES = ellipsoid_samples()
@@ -103,8 +103,7 @@ def test_a_half_sampled_more_sparsely_meshes_the_whole_shape(coarser, seed):
     """One half of the ellipsoid sampled up to 4 x more coarsely (16 x fewer points) than the other: no sample is
     dropped as an outlier, and the mesh is the whole ellipsoid (valid, its volume that of the evenly sampled one
     within 2 %, no far sample)."""
-    shape = Shape("ellipsoid", lambda p: ellipsoid_distance(p, np.zeros(3), AXES), -AXES, AXES, VOLUME, 2)
-    sparse, sparse_normals = sample_surface(shape, spacing=0.06 * coarser, seed=seed)
+    sparse, sparse_normals = sample_surface(ellipsoid(), spacing=0.06 * coarser, seed=seed)
     points, normals = SAMPLES
     upper, lower = points[:, 2] > 0, sparse[:, 2] <= 0
     result = run(np.vstack([points[upper], sparse[lower]]), np.vstack([normals[upper], sparse_normals[lower]]),

@@ -14,14 +14,14 @@ from bitemesh import Options, mesh
 from bitemesh.core.compiled import THREADS_VARIABLE, available_threads, threads, using_threads
 from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.parameters import BitingParameters
-from bitemesh.core.shapes import Shape, ellipsoid_distance, sample_surface
+from bitemesh.core.shapes import sample_surface
 from bitemesh.core.sources.points import run
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-AXES = np.array([1.0, 0.7, 0.45])
-SAMPLES = sample_surface(Shape("ellipsoid", lambda p: ellipsoid_distance(p, np.zeros(3), AXES), -AXES, AXES,
-                               4 / 3 * np.pi * np.prod(AXES), 2), spacing=0.06, seed=3)
+from tests.builders import ellipsoid
+
+SAMPLES = sample_surface(ellipsoid(), spacing=0.06, seed=3)
 MOST = available_threads()
 
 needs_two_cores = pytest.mark.skipif(MOST < 2, reason="one core: nothing to compare")

@@ -11,18 +11,18 @@ from bitemesh.core.mesh.quality import quality_summary
 from bitemesh.core.mesh.simplicial import Mesh, signed_measures
 from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.parameters import BitingParameters
-from bitemesh.core.shapes import Shape, ellipsoid_distance, sample_surface, sphere
+from bitemesh.core.shapes import sample_surface, sphere
 from bitemesh.core.sources.points import run
 
-AXES = np.array([1.0, 0.7, 0.45])   # three different axes: no symmetry but the four half turns
+from tests.builders import ELLIPSOID_AXES, ellipsoid
+
+AXES = ELLIPSOID_AXES   # three different axes: no symmetry but the four half turns
 SHEAR = np.array([[1.3, 0.2, 0.0], [0.0, 0.9, 0.0], [0.0, 0.0, 0.7]])
 
 
 @pytest.fixture(scope="module")
 def ellipsoid_template():
-    shape = Shape("ellipsoid", lambda p: ellipsoid_distance(p, np.zeros(3), AXES), -AXES, AXES,
-                  4 / 3 * np.pi * AXES.prod(), 2)
-    return run(*sample_surface(shape, spacing=0.04, seed=3), biting=BitingParameters(cells=3000)).mesh
+    return run(*sample_surface(ellipsoid(), spacing=0.04, seed=3), biting=BitingParameters(cells=3000)).mesh
 
 
 @pytest.fixture(scope="module")
