@@ -4,14 +4,18 @@ the guide points and against biv-me's own fitted surfaces of the same frame (``b
 
 The data: ``../shared/data/bivme_patient1_cine`` (biv-me patient1, 25 frames, with biv-me's fits), or $BITEMESH_DATA.
 ``--variants`` adds the classes of variation of ``tests/cardiac_variants.py`` built on chosen frames (open arcs,
-shifted slices, frames merged into one file, sparser and denser exports); ``--gpfile PATH[:FRAME]`` adds any other
-GPFile (another patient's, another tool's export), measured against its guide points alone.
+shifted slices, frames merged into one file, sparser and denser exports); ``--gpfile PATH[:FRAME][@MODEL]`` adds
+any other GPFile (another patient's, another tool's export), measured against its guide points and, given biv-me's
+fit of it (MODEL, its control points ``*_model_frame_NNN.txt``) and ``--bivme-model`` (biv-me's ``src/model``
+folder, not shipped), against biv-me's surfaces of that fit.
 
 Usage (from the repository root)::
 
     python benchmarks/cine.py                              # all 25 frames
     python benchmarks/cine.py --frames 0 8 16 --variants   # three frames, and the variants of frame 0
     python benchmarks/cine.py --gpfile other/GPFile_000.txt:0 --frames
+    python benchmarks/cine.py --frames --bivme-model biv-me/src/model --gpfile P/GPFile_000.txt:0@P/M_000.txt
+        # P: biv-me/tests/test_data/patient_1_gpdata, M: reference_model/patient_1_gpdata_model_frame
     python benchmarks/cine.py --output benchmarks/cine.md
 """
 from __future__ import annotations
@@ -51,6 +55,27 @@ def reference(folder: Path, frame: int) -> dict:
     """biv-me's fitted surfaces of ``frame``: name -> (vertices, triangles)."""
     return {name: read_surface(folder / "fitted" / f"patient1_{name}_{frame:03d}.vtk")
             for name in ("EPICARDIAL", "LV_ENDOCARDIAL", "RV_ENDOCARDIAL")}
+
+
+#: biv-me's surfaces as ranges of its subdivided model's triangles (ETIndicesSorted.txt, 0-based, inclusive):
+#: BiventricularModel.surface_start_end, LV endocardium, RV septum and RV free wall, epicardium.
+BIVME_TRIANGLES = {"LV_ENDOCARDIAL": ((0, 3071),), "RV_ENDOCARDIAL": ((3072, 4479), (4480, 6751)),
+                   "EPICARDIAL": ((6752, 11615),)}
+
+
+def model_surfaces(model: Path, control_points: Path) -> dict:
+    """biv-me's fitted surfaces from a fit's (388, 3) control points and biv-me's model folder (its subdivision basis
+    ``basis_matrix_sparse.mat``, 5,810 x 388, and triangles ``ETIndicesSorted.txt``): name -> (vertices, triangles)."""
+    from scipy.io import loadmat
+    vertices = loadmat(model / "basis_matrix_sparse.mat")["S"] @ np.loadtxt(control_points, delimiter=",",
+                                                                           skiprows=1)[:, :3]
+    triangles = np.loadtxt(model / "ETIndicesSorted.txt", dtype=np.int64) - 1
+    surfaces = {}
+    for name, ranges in BIVME_TRIANGLES.items():
+        mine = np.vstack([triangles[first:last + 1] for first, last in ranges])
+        used, renumbered = np.unique(mine, return_inverse=True)
+        surfaces[name] = (np.asarray(vertices)[used], renumbered.reshape(mine.shape))
+    return surfaces
 
 
 def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> dict:
@@ -107,7 +132,9 @@ def main(argv=None) -> None:
     parser.add_argument("--frames", type=int, nargs="*", default=None, help="frames of the cine (default all)")
     parser.add_argument("--variants", action="store_true", help="the classes of variation on the first frame given")
     parser.add_argument("--classes", nargs="*", default=None, help="only these classes of variation")
-    parser.add_argument("--gpfile", action="append", default=[], help="another GPFile, PATH or PATH:FRAME")
+    parser.add_argument("--gpfile", action="append", default=[],
+                        help="another GPFile, PATH[:FRAME][@MODEL] (MODEL: biv-me's control points of its fit)")
+    parser.add_argument("--bivme-model", type=Path, help="biv-me's src/model folder, to read MODEL")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="an option of bitemesh mesh for every case (e.g. slice_shifts=none)")
     parser.add_argument("--output", type=Path, help="write the table (markdown) here too")
@@ -132,9 +159,11 @@ def main(argv=None) -> None:
                 rows.append(run_case(f"frame {base}, {name}", path, frame, reference(folder, base), options))
                 print(line(rows[-1]), flush=True)
     for text in args.gpfile:
+        text, _, model = text.partition("@")
         path, _, frame = text.partition(":")
+        surfaces = model_surfaces(args.bivme_model, Path(model)) if model and args.bivme_model else None
         rows.append(run_case(f"{Path(path).parent.name}/{Path(path).name}" + (f" frame {frame}" if frame else ""),
-                             Path(path), float(frame) if frame else None, options=options))
+                             Path(path), float(frame) if frame else None, surfaces, options))
         print(line(rows[-1]), flush=True)
     if args.output:
         args.output.write_text(HEADER + "\n" + "\n".join(line(row) for row in rows) + "\n")

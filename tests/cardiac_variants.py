@@ -200,6 +200,37 @@ def shifted_slices(gp: dict, seed: int = 0, largest: float = 5.0):
     return {**gp, "points": points}, shifts
 
 
+def stack_normal(gp: dict) -> np.ndarray:
+    """(3,) unit normal of the short-axis slices, pointing to the valves (the base)."""
+    sax = short_axis_slices(gp)
+    normal = np.cross(*in_plane_axes(gp["points"][gp["slices"] == sax[0]]))
+    valves = gp["points"][np.isin(gp["labels"], VALVES)].mean(axis=0)
+    return normal * np.sign((valves - gp["points"].mean(axis=0)) @ normal)
+
+
+def long_axis_view_shifted(gp: dict, shift: float = 5.0) -> dict:
+    """The first long-axis view moved by ``shift`` mm in its plane, across the short-axis stack's axis (a long-axis
+    breath-hold off the others)."""
+    sax = short_axis_slices(gp)
+    view = next(number for number in dict.fromkeys(gp["slices"].tolist())
+                if number not in sax and np.sum(gp["slices"] == number) > 20)
+    members = gp["slices"] == view
+    across = np.cross(np.cross(*in_plane_axes(gp["points"][members])), stack_normal(gp))
+    points = gp["points"].copy()
+    points[members] += shift * across / np.linalg.norm(across)
+    return {**gp, "points": points}
+
+
+def sparse_base(gp: dict) -> dict:
+    """The base traced sparsely, as exports of fewer views leave it: the RV's long-axis contour points above the
+    basal short-axis slice and the outflow valves' points left out."""
+    normal = stack_normal(gp)
+    basal = max(short_axis_slices(gp), key=lambda number: gp["points"][gp["slices"] == number].mean(axis=0) @ normal)
+    height = gp["points"] @ normal - gp["points"][gp["slices"] == basal].mean(axis=0) @ normal
+    right = np.char.startswith(gp["labels"].astype(str), "LAX_RV_")
+    return subset(gp, ~((right & (height > 0)) | np.isin(gp["labels"], OUTFLOW_VALVES)))
+
+
 def thinned_contours(gp: dict, step: int = 3) -> dict:
     """Every ``step``-th point of each contour (a sparser export), the valves and landmarks kept."""
     keep = np.ones(len(gp["labels"]), bool)
@@ -219,6 +250,8 @@ CLASSES = {
     "open arcs": lambda folder, frame: (open_arcs(read_frame(folder, frame)), None),
     "short arcs": lambda folder, frame: (short_arcs(read_frame(folder, frame)), None),
     "slices shifted 5 mm": lambda folder, frame: (shifted_slices(read_frame(folder, frame))[0], None),
+    "long-axis view shifted 5 mm": lambda folder, frame: (long_axis_view_shifted(read_frame(folder, frame)), None),
+    "sparse base": lambda folder, frame: (sparse_base(read_frame(folder, frame)), None),
     "sparser 3x": lambda folder, frame: (thinned_contours(read_frame(folder, frame)), None),
     "denser 4x": lambda folder, frame: (denser(read_frame(folder, frame)), None),
     "no RV epicardium": lambda folder, frame: (without(read_frame(folder, frame), RV_EPICARDIUM), None),

@@ -12,7 +12,7 @@ import pytest
 
 from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, BIVME_VALVES
 from bitemesh.core.sources.contours.fit import labelled_implicit
-from bitemesh.core.sources.contours.registration import register_short_axis
+from bitemesh.core.sources.contours.registration import register_slices
 from bitemesh.core.sources.contours.slices import contour_normals, slice_planes
 from bitemesh.core.sources.contours.valves import annulus_normals
 from bitemesh.core.errors import MeshingError
@@ -47,7 +47,7 @@ def fitted(frame: int, variant: str = "", seed: int = 0):
 
 
 def registration(gp: dict):
-    return register_short_axis(gp["points"], gp["labels"], gp["slices"], slice_planes(gp["points"], gp["slices"]),
+    return register_slices(gp["points"], gp["labels"], gp["slices"], slice_planes(gp["points"], gp["slices"]),
                                SURFACES)
 
 
@@ -56,16 +56,16 @@ def registration(gp: dict):
 @pytest.mark.parametrize("frame", FRAMES)
 @pytest.mark.parametrize("seed", [0, 1])
 def test_short_axis_slices_shifted_up_to_5_mm_are_moved_back_within_1_mm(frame, seed):
-    """Each short-axis slice moved in its plane by 2 to 5 mm: the shift found is the one applied plus the frame's
-    own (the registration of the unshifted frame), within 1 mm, so that the corrected slices sit where the
-    unshifted frame's do."""
+    """Each short-axis slice moved in its plane by 2 to 5 mm: every slice ends where the unshifted frame's
+    registration puts it (the shift applied plus the one found equals the unshifted frame's shift), within 1 mm,
+    the long-axis slices included."""
     gp = read_frame(CINE, frame)
     own = registration(gp)
     moved, applied = shifted_slices(gp, seed=seed, largest=5.0)
     found = registration(moved)
-    assert set(found.shifts) == set(applied) and not found.outliers
-    for number, shift in applied.items():
-        error = np.linalg.norm(found.shifts[number] + shift - own.shifts.get(number, 0.0))
+    assert set(applied) <= set(found.shifts) and not found.outliers
+    for number in slice_planes(gp["points"], gp["slices"]):
+        error = np.linalg.norm(found.shifts.get(number, 0.0) + applied.get(number, 0.0) - own.shifts.get(number, 0.0))
         assert error < 1.0, (number, error)
 
 

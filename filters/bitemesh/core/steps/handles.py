@@ -26,6 +26,10 @@ TRIES_PER_HANDLE = 20
 #: a cut or fill reaches at most this many cells' size (the edge of a regular tetrahedron of the median volume)
 #: from the surface f = 0: the handles it removes are thinner than about two cells.
 MAX_DEPTH = 1.0
+#: the reach of a second pass, for a domain that has no handle by nature (a myocardium with its cavities open is a
+#: ball): a handle up to about four cells thick is an artefact of fitted surfaces that nearly meet, and a cut or
+#: fill that deep changes the domain by at most two cells' size where it lies.
+THICK_DEPTH = 2.0
 
 
 def handle_count(cells: np.ndarray) -> int:
@@ -122,13 +126,14 @@ class _Growth:
         return np.frombuffer(bytes(self.grown), dtype=np.uint8).astype(bool)
 
 
-def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex, keep: np.ndarray):
-    """``keep`` with the handles of the kept cells thinner than about two cells cut or filled.
+def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex, keep: np.ndarray,
+                  max_depth: float = MAX_DEPTH):
+    """``keep`` with the handles of the kept cells thinner than about 2 x ``max_depth`` cells cut or filled.
 
     A cluster reaches into the domain (a cut) or out of it (a fill) as far as the largest |f| at its cells'
     centroids; the shallower clusters are tried first, then the smaller, and none reaching farther than
-    :data:`MAX_DEPTH` cells' size (a handle that thick is the data's, not the sampling's).  A cluster is kept
-    when it raises the Euler characteristic by one and leaves the parts and the boundary surfaces as they were.
+    ``max_depth`` cells' size (:data:`MAX_DEPTH`: a handle thicker is the data's, not the sampling's).  A cluster is
+    kept when it raises the Euler characteristic by one and leaves the parts and the boundary surfaces as they were.
     The result may need the repair of :func:`bitemesh.core.steps.repair.repaired` (a cut can pinch the boundary).
 
     Parameters
@@ -152,7 +157,7 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     fill = ~keep & ~_grown_outside(growth_complex, cells, len(points), keep, value)
     cell_size = float(np.cbrt(6 * np.sqrt(2) * np.median(signed_measures(points, kept_cells))))
     candidates = [candidate for candidate in _clusters(points, cells, cut, value, fill=False)
-                  + _clusters(points, cells, fill, value, fill=True) if candidate[0] <= MAX_DEPTH * cell_size]
+                  + _clusters(points, cells, fill, value, fill=True) if candidate[0] <= max_depth * cell_size]
     removed, parts_before, pieces_before = 0, parts.max() + 1, _surface_pieces(kept_cells)
     for _, _, members, is_fill in sorted(candidates, key=lambda candidate: candidate[:2])[:TRIES_PER_HANDLE * handles]:
         if euler_change(complex_.incidence, cells, keep, members, is_fill) != 1:

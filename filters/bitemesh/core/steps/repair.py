@@ -15,7 +15,7 @@ from scipy.sparse import csgraph
 
 from ..errors import MeshingError
 from ..grid.sampled import ImplicitGrid
-from .handles import break_handles, handle_count
+from .handles import MAX_DEPTH, THICK_DEPTH, break_handles, handle_count
 from ..mesh.simplicial import Mesh, signed_measures
 from ..parameters import SpuriousParameters
 from ..mesh.validity import check_valid_domain
@@ -186,8 +186,9 @@ def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, para
 
 def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
                     progress: ProgressCallback = None) -> np.ndarray:
-    """``keep`` with its handles thinner than about two cells cut or filled, repaired (a repair can reopen a fill:
-    then once more), and every enclosed void filled (a domain without handles has none: a spurious bubble of a
+    """``keep`` with its handles thinner than about two cells cut or filled, then those up to about four cells
+    thick (a domain with no handle by nature), repaired (a repair can reopen a fill: then once more), and every
+    enclosed void filled (a domain without handles has none: a spurious bubble of a
     fitted surface inside a wall); what was done is logged."""
     points, cells = delaunay.points, delaunay.cells
     voids = enclosed_inside_voids(grid, delaunay, keep, every=True)
@@ -196,19 +197,20 @@ def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarra
                     "handles = 'remove')", int(delaunay.complex.components(voids).max() + 1),
                     float(delaunay.volume[voids].sum()))
         keep = repaired(grid, delaunay, keep | voids, parameters)
-    before, handles = keep, handle_count(cells[keep])
-    for round_ in range(HANDLE_ROUNDS):
-        report(progress, round_ / HANDLE_ROUNDS, "removing handles")
-        keep, removed = break_handles(grid, points, delaunay.complex, keep)
-        if not removed:
-            break
-        keep = repaired(grid, delaunay, keep, parameters)
-    left = handle_count(cells[keep])
-    if left < handles:
-        logger.info("%d handle(s) thinner than two cells removed: %d cells cut, %d filled (handles = 'remove')",
-                    handles - left, int((before & ~keep).sum()), int((keep & ~before).sum()))
+    for depth, words in ((MAX_DEPTH, "thinner than two cells"), (THICK_DEPTH, "two to four cells thick")):
+        before, handles = keep, handle_count(cells[keep])
+        for round_ in range(HANDLE_ROUNDS):
+            report(progress, round_ / HANDLE_ROUNDS, "removing handles")
+            keep, removed = break_handles(grid, points, delaunay.complex, keep, depth)
+            if not removed:
+                break
+            keep = repaired(grid, delaunay, keep, parameters)
+        left = handle_count(cells[keep])
+        if left < handles:
+            logger.info("%d handle(s) %s removed: %d cells cut, %d filled (handles = 'remove')", handles - left,
+                        words, int((before & ~keep).sum()), int((keep & ~before).sum()))
     if left:
-        logger.info("%d handle(s) kept: thicker than two cells, or no single cut or fill removes them", left)
+        logger.info("%d handle(s) kept: thicker than four cells, or no single cut or fill removes them", left)
     return keep
 
 

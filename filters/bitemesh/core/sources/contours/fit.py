@@ -52,10 +52,10 @@ from ...implicit.samples import slice_spacing
 from .base import choose_base
 from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
                       check_millimetres, default_surfaces, grown, is_bivme, needs_derived_epicardium,
-                      unused_labels_note)
+                      short_axis_stack, unused_labels_note)
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
-from .registration import register_short_axis
+from .registration import register_slices
 from .valves import across_valves, annulus_normals, outlet_points
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .surface_fit import fit_contour_rbf
@@ -158,8 +158,8 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         normal) a plane, the normal pointing out of the domain
     slices : (n,) int slice id per point (a GPFile's frameID), or None to find them
         (:func:`~bitemesh.core.sources.contours.slices.infer_slices`)
-    slice_shifts : "auto" (each short-axis slice moved in its plane onto the long-axis contours of the same
-        surfaces: :mod:`bitemesh.core.sources.contours.registration`) or "none"
+    slice_shifts : "auto" (every slice moved in its plane so that the contours of each surface meet where the slices
+        cross: :mod:`bitemesh.core.sources.contours.registration`) or "none"
     surfaces : dict name -> labels, default :func:`default_surfaces`
     outlets : dict surface name -> valve labels through which that cavity opens (see :data:`BIVME_OUTLETS`, the
         default for biv-me labels; {} for none)
@@ -220,8 +220,8 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     planes = slice_planes(points, slices)
     shifts, disagreement = {}, 0.0
     if check_choice(slice_shifts, "slice_shifts", ("auto", "none")) == "auto":
-        registration = register_short_axis(points, labels, slices, planes,
-                                           {name: surfaces[name] for name in fitted})
+        registration = register_slices(points, labels, slices, planes,
+                                       {name: surfaces[name] for name in fitted})
         notes += registration.notes()
         shifts, disagreement = registration.shifts, registration.disagreement
         if shifts or registration.outliers:
@@ -235,8 +235,12 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     in_any = np.isin(labels, [label for name in used if name not in grown_from for label in surfaces[name]])
     base, note = choose_base(base_plane, points, labels, points[in_any], slices, planes)
     notes += note
+    basal_slice = ()
     if base is not None:
         base = base.raised(check_number(base_offset, "base_offset"))
+        axis, stack, heights = short_axis_stack(points, labels, slices, planes)
+        if axis is not None:
+            basal_slice = (planes[stack[int(np.argmax(heights))]].centre, axis)
 
     functions, surface_points, surface_normals, surface_slices = {}, {}, {}, {}
     for number, name in enumerate(fitted):
@@ -258,7 +262,8 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
                                 base=base, min_wall=check_number(min_wall, "min_wall", low=0),
                                 lower=points[in_any].min(axis=0), upper=points[in_any].max(axis=0),
                                 points=surface_points, normals=surface_normals, slices=surface_slices,
-                                derived=derived, shifts=shifts, disagreement=disagreement, notes=notes)
+                                derived=derived, shifts=shifts, disagreement=disagreement, basal_slice=basal_slice,
+                                notes=notes)
     lower, upper = _domain_box(function)
     report(progress, 1.0, "surfaces fitted")
     function = replace(function, lower=lower, upper=upper)

@@ -33,7 +33,9 @@ class LabelledImplicit:
     derived : names of the surfaces built from others, not fitted to contours (an RV epicardium grown from the
         RV endocardium); shifts : slice id -> (3,) the in-plane shift each short-axis slice was moved by
         (:mod:`~bitemesh.core.sources.contours.registration`; ``points`` are the moved ones); disagreement : how far the
-        short- and long-axis contours still disagree once moved (input units, median); notes : what was read,
+        contours still disagree where the slices cross once moved (input units, median); basal_slice : (point (3,),
+        unit normal (3,) towards the base) of the short-axis stack's basal slice, or () without a stack or a base:
+        beyond it the surfaces run on to the base where no short-axis contour samples them; notes : what was read,
         derived or chosen, one sentence each
     """
 
@@ -50,6 +52,7 @@ class LabelledImplicit:
     derived: tuple = ()
     shifts: dict = field(default_factory=dict)
     disagreement: float = 0.0
+    basal_slice: tuple = ()
     notes: tuple = ()
 
     @property
@@ -86,7 +89,8 @@ class LabelledImplicit:
                                        for name, grid in self.surfaces.items()},
                        base=None if self.base is None else self.base.moved(shift),
                        lower=self.lower + shift, upper=self.upper + shift,
-                       points={name: points + shift for name, points in self.points.items()})
+                       points={name: points + shift for name, points in self.points.items()},
+                       basal_slice=(self.basal_slice[0] + shift, self.basal_slice[1]) if self.basal_slice else ())
 
     def _kept(self) -> np.ndarray:
         """(n,) bool over the points of every surface in turn: those below the base (those above it are cut away)."""
@@ -142,9 +146,15 @@ class LabelledImplicit:
         return self.active_surface(x) == len(self.surfaces)
 
     def is_unsampled(self, x) -> np.ndarray:
-        """(m,) True where no contour gives f at (m, 3) points: the base or a :attr:`derived` surface."""
+        """(m,) True where no contour gives f at (m, 3) points: the base, a :attr:`derived` surface, or a surface
+        between the basal short-axis slice and the base (run on to the valve rings, which only the long-axis
+        contours' upper ends and the valve points sample)."""
         unsampled = [len(self.surfaces)] + [list(self.surfaces).index(name) for name in self.derived]
-        return np.isin(self.active_surface(x), unsampled)
+        made = np.isin(self.active_surface(x), unsampled)
+        if self.basal_slice:
+            point, normal = self.basal_slice
+            made |= (np.asarray(x, dtype=np.float64) - point) @ normal > 0
+        return made
 
 
 
