@@ -94,7 +94,8 @@ def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> 
     points, labels, slices = read_labelled_points(path, frame=frame)
     for number, shift in getattr(result.function, "shifts", {}).items():
         points[slices == number] += shift
-    row = measure_heart(result.mesh, points, labels, surfaces)
+    base = result.function.base
+    row = measure_heart(result.mesh, points, labels, surfaces, None if base is None else base.below)
     row.update(name=name, seconds=seconds, notes=result.notes, warnings=[str(w.message) for w in caught])
     return row
 
@@ -102,7 +103,7 @@ def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> 
 def line(row: dict) -> str:
     """One markdown row."""
     if "refused" in row:
-        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 13
+        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 14
     surfaces = row.get("surfaces", {})
     both = " / ".join(f"{surfaces[name][0]:.2f}, {surfaces[name][1]:.2f}" if name in surfaces else "-"
                       for name in ("EPICARDIAL", "LV_ENDOCARDIAL", "RV_ENDOCARDIAL"))
@@ -116,15 +117,15 @@ def line(row: dict) -> str:
     return (f"| {row['name']} | {row['cells']:,} | {'yes' if row['valid'] else 'NO'} | {row['components']} | "
             f"{row['boundaries']} | {row['euler']} | {row['wall_mean']:.2f} / {row['wall_p95']:.2f} / "
             f"{row['wall_max']:.1f} | {peer} | {valves} | {both} | {row.get('to_bivme', np.nan):.2f} / "
-            f"{row.get('from_bivme', np.nan):.2f} | "
+            f"{row.get('from_bivme', np.nan):.2f} | {row.get('to_bivme_deep', np.nan):.2f} | "
             f"{row['myocardium_ml']:.0f} | {volumes} | {row['seconds']:.1f} | {flags} |")
 
 
 HEADER = ("| case | cells | valid | parts | boundaries | Euler | wall guide points mean / 95 % / max (mm) | "
           "biv-me's fit: wall guide points mean / 95 % (mm) | valves MV / TV / AV / PV max (mm) | "
           "biv-me EPI / LV / RV: ref->mesh, mesh->ref (mm) | mesh->biv-me / biv-me->mesh, mean of 3 (mm) | "
-          "myocardium (ml) | "
-          "LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 15 + "|")
+          "mesh->biv-me more than 10 mm below the base (mm) | myocardium (ml) | "
+          "LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 16 + "|")
 
 
 def main(argv=None) -> None:
