@@ -143,7 +143,7 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
 
     Returns
     -------
-    keep : (m,) bool; removed : int, the clusters kept (one handle each)
+    keep : (m,) bool; removed : int, the handles removed
     """
     cells = complex_.cells
     kept_cells = cells[keep]
@@ -160,13 +160,14 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
                   + _clusters(points, cells, fill, value, fill=True) if candidate[0] <= max_depth * cell_size]
     removed, parts_before, pieces_before = 0, parts.max() + 1, _surface_pieces(kept_cells)
     for _, _, members, is_fill in sorted(candidates, key=lambda candidate: candidate[:2])[:TRIES_PER_HANDLE * handles]:
-        if euler_change(complex_.incidence, cells, keep, members, is_fill) != 1:
+        change = euler_change(complex_.incidence, cells, keep, members, is_fill)
+        if not 1 <= change <= handles - removed:   # a cut across two handles side by side removes both
             continue
         trial = keep.copy()
         trial[members] = is_fill
         if complex_.components(trial).max() + 1 == parts_before \
                 and _surface_pieces(cells[trial]) == pieces_before:
-            keep, removed = trial, removed + 1
+            keep, removed = trial, removed + change
             if removed == handles:
                 break
     return keep, removed
