@@ -18,7 +18,8 @@ from bitemesh.core.sources.contours.valves import annulus_normals
 from bitemesh.core.errors import MeshingError
 from bitemesh.core.steps.fidelity import Fidelity, check_fidelity
 from bitemesh.core.parameters import FidelityParameters
-from tests.cardiac_variants import open_arcs, read_frame, shifted_slices, short_arcs, subset
+from tests.cardiac_variants import (long_axis_view_shifted, open_arcs, read_frame, shifted_slices, short_arcs,
+                                    short_axis_slices, subset)
 from tests.conftest import DATA
 
 CINE = DATA / "bivme_patient1_cine" / "guidepoints"
@@ -82,6 +83,31 @@ def test_a_slice_far_from_every_long_axis_contour_is_left_out_and_named():
     found = registration({**gp, "points": points})
     assert list(found.outliers) == [number] and number not in found.shifts
     assert any(f"(slice {number})" in note and "left out" in note for note in found.notes())
+
+
+def test_a_long_axis_view_far_from_every_short_axis_contour_is_left_out_and_named():
+    """A long-axis view 25 mm off in its plane, across the stack's axis (a wrong image position): it moves as the
+    short-axis slices do, no shift within reason lays its contours through theirs, so it is left out and named, and
+    every other slice ends where it would without that view (within 1 mm)."""
+    gp = read_frame(CINE, 0)
+    moved = long_axis_view_shifted(gp, shift=25.0)
+    number = int(gp["slices"][np.argmax(np.abs(moved["points"] - gp["points"]).max(axis=1))])
+    found = registration(moved)
+    assert list(found.outliers) == [number]
+    assert any(f"(slice {number})" in note and "left out" in note for note in found.notes())
+    without = registration(subset(gp, gp["slices"] != number))
+    for other in set(gp["slices"].tolist()) - {number}:
+        assert np.linalg.norm(found.shifts.get(other, 0.0) - without.shifts.get(other, 0.0)) < 1.0, other
+
+
+def test_the_basal_slice_is_kept_where_the_base_moves_through_it():
+    """At end-systole (frame 6) the basal short-axis slice's partial contours lie 23 mm (median) from where the
+    long-axis views cross its plane (the base moves through the slices, which no in-plane shift undoes): it is kept,
+    not left out as a misplaced slice would be."""
+    gp = read_frame(CINE, 6)
+    basal = short_axis_slices(gp)[0]   # biv-me writes the stack from the base
+    found = registration(gp)
+    assert basal not in found.outliers and not found.outliers
 
 
 # --- every contour is data --------------------------------------------------------------------------------------------
