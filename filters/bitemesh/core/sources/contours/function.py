@@ -31,7 +31,7 @@ class LabelledImplicit:
     points : name -> (n, 3) distinct points of each surface; normals : name -> (n, 3) their in-plane normals (NaN
         where none); slices : name -> (n,) their slice ids
     derived : names of the surfaces built from others, not fitted to contours (an RV epicardium grown from the
-        RV endocardium); shifts : slice id -> (3,) the in-plane shift each short-axis slice was moved by
+        RV endocardium); shifts : slice id -> (3,) the in-plane shift each slice was moved by
         (:mod:`~bitemesh.core.sources.contours.registration`; ``points`` are the moved ones); disagreement : how far the
         contours still disagree where the slices cross once moved (input units, median); basal_slice : (point (3,),
         unit normal (3,) towards the base) of the short-axis stack's basal slice, or () without a stack or a base:
