@@ -55,10 +55,12 @@ def surface_distances(mesh, names, vertices, triangles, below=None):
     area = facet_measures(corners)
     centroids = corners.mean(axis=1)
     to_reference = distances_to_facets(centroids, vertices[triangles])
-    deep = area * (below(centroids) > BASAL_BAND) if below is not None else area * np.nan
+    deep = np.nan
+    if below is not None:
+        weight = area * (below(centroids) > BASAL_BAND)
+        deep = float((to_reference * weight).sum() / max(weight.sum(), 1e-300))
     return (float(to_mesh.mean()), float((to_reference * area).sum() / area.sum()),
-            float(np.percentile(np.r_[to_mesh, to_reference], 95)),
-            float((to_reference * deep).sum() / max(deep.sum(), 1e-300)) if below is not None else np.nan)
+            float(np.percentile(np.r_[to_mesh, to_reference], 95)), deep)
 
 
 def measure_heart(mesh, points, labels, reference: dict | None = None, below=None) -> dict:

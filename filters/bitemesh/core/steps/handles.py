@@ -133,7 +133,8 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     A cluster reaches into the domain (a cut) or out of it (a fill) as far as the largest |f| at its cells'
     centroids; the shallower clusters are tried first, then the smaller, and none reaching farther than
     ``max_depth`` cells' size (:data:`MAX_DEPTH`: a handle thicker is the data's, not the sampling's).  A cluster is
-    kept when it raises the Euler characteristic by one and leaves the parts and the boundary surfaces as they were.
+    kept when it raises the Euler characteristic (by one per handle it removes: a cut across two handles side by
+    side removes both) and leaves the parts and the boundary surfaces as they were.
     The result may need the repair of :func:`bitemesh.core.steps.repair.repaired` (a cut can pinch the boundary).
 
     Parameters
@@ -161,7 +162,7 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     removed, parts_before, pieces_before = 0, parts.max() + 1, _surface_pieces(kept_cells)
     for _, _, members, is_fill in sorted(candidates, key=lambda candidate: candidate[:2])[:TRIES_PER_HANDLE * handles]:
         change = euler_change(complex_.incidence, cells, keep, members, is_fill)
-        if not 1 <= change <= handles - removed:   # a cut across two handles side by side removes both
+        if not 1 <= change <= handles - removed:
             continue
         trial = keep.copy()
         trial[members] = is_fill

@@ -188,8 +188,8 @@ def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarra
                     progress: ProgressCallback = None) -> np.ndarray:
     """``keep`` with its handles thinner than about two cells cut or filled, then those up to about four cells
     thick (a domain with no handle by nature), repaired (a repair can reopen a fill: then once more), and every
-    enclosed void filled (a domain without handles has none: a spurious bubble of a
-    fitted surface inside a wall); what was done is logged."""
+    enclosed void filled (a domain without handles has none: a spurious bubble of a fitted surface inside a wall);
+    what was done is logged."""
     points, cells = delaunay.points, delaunay.cells
     voids = enclosed_inside_voids(grid, delaunay, keep, every=True)
     if voids.any():

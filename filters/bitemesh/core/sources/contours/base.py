@@ -168,12 +168,13 @@ def fit_base_plane(valve_points, inside_point) -> BaseSurface:
     return BaseSurface.plane(centre, normal)
 
 
-def annulus_points(points, labels, slices, planes, axis, stack, floor: float) -> np.ndarray:
-    """(k, 3) the points the base passes through: every valve point, and each end of a wall contour on a slice out
-    of the short-axis ``stack`` (a long-axis slice, whatever its labels' prefix) that lies higher than ``floor``
-    along ``axis`` (its other end is at the apex; a closed contour has no end).  A contour's ends are those of the
-    longest paths of its points in its slice (:func:`~bitemesh.core.sources.contours.slices.polylines`); ``floor`` is
-    the basal short-axis slice's height, the other end of such a contour being at the apex."""
+def annulus_points(points, labels, slices, planes, axis, stack, floor: float):
+    """(k, 3) the points the base passes over, and (k,) how far above each it passes (mm): every valve point
+    (:data:`ABOVE_VALVES`), and each end of a wall contour on a slice out of the short-axis ``stack`` (a long-axis
+    slice, whatever its labels' prefix) that lies higher than ``floor`` along ``axis`` (:data:`ABOVE_ANNULUS`; its
+    other end is at the apex; a closed contour has no end).  A contour's ends are those of the longest paths of its
+    points in its slice (:func:`~bitemesh.core.sources.contours.slices.polylines`); ``floor`` is the basal short-axis
+    slice's height, the other end of such a contour being at the apex."""
     chosen = [points[np.isin(labels, BIVME_VALVES)]]
     wall = np.isin(labels, [label for members in BIVME_SURFACES.values() for label in members])
     for label in np.unique(labels[wall]).tolist():
@@ -187,7 +188,9 @@ def annulus_points(points, labels, slices, planes, axis, stack, floor: float) ->
                 if len(path) > 3 and not is_closed(q, path, spacing, GAP_FACTOR):
                     ends = points[members[[path[0], path[-1]]]]
                     chosen.append(ends[ends @ axis > floor])
-    return np.vstack(chosen)
+    lift = np.full(sum(map(len, chosen)), ABOVE_ANNULUS)
+    lift[:len(chosen[0])] = ABOVE_VALVES
+    return np.vstack(chosen), lift
 
 
 def annulus_surface(points, labels, slices, planes):
@@ -197,7 +200,7 @@ def annulus_surface(points, labels, slices, planes):
     if axis is None:
         return None, ()
     basal = int(np.argmax(heights))
-    anchors = annulus_points(points, labels, slices, planes, axis, numbers, heights[basal])
+    anchors, lift = annulus_points(points, labels, slices, planes, axis, numbers, heights[basal])
     if len(anchors) < 3:
         return BaseSurface.plane(planes[numbers[basal]].centre, axis), (
             f"no valve points or long-axis contours above the basal short-axis slice: the base is that slice's "
@@ -205,8 +208,6 @@ def annulus_surface(points, labels, slices, planes):
     base = BaseSurface.plane(anchors.mean(axis=0), axis)
     covered = [label for members in BIVME_SURFACES.values() for label in members] + list(BIVME_VALVES)
     wall = points[np.isin(labels, covered)]
-    valves = int(np.isin(labels, BIVME_VALVES).sum())   # annulus_points gives the valve points first
-    lift = np.r_[np.full(valves, ABOVE_VALVES), np.full(len(anchors) - valves, ABOVE_ANNULUS)]
     anchors = _highest_per_cell(anchors + lift[:, None] * axis, base)
     for _ in range(ENVELOPE_ROUNDS):
         in_plane = (anchors - base.point) @ base.axes.T

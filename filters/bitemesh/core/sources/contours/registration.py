@@ -280,8 +280,7 @@ def register_slices(points, labels, slices, planes, surfaces: dict, gap_factor: 
         typical = float(np.median(list(distances.values()))) if distances else 0.0
         needed = {number: float(np.linalg.norm(shifts[number])) for number in distances}
         far = {number: max(distance, needed[number]) for number, distance in distances.items()
-               if number not in outliers and (needed[number] > MAX_SHIFT
-                                              or (distance > max(MISPLACED * typical, FAR) and number not in ends))}
+               if needed[number] > MAX_SHIFT or (distance > max(MISPLACED * typical, FAR) and number not in ends)}
         if not far:
             break
         outliers.update(far)   # then again without them: they may have pulled the others
