@@ -149,6 +149,17 @@ def test_ball_in_the_hole_of_a_torus_is_not_a_cavity():
     assert agreement(estimated[4000:], ball_normals) > 0.98
 
 
+def test_two_spheres_in_contact_take_their_signs_from_their_own_sides():
+    """Two unit spheres touching at the origin: their neighbour graphs join at the contact, where the sheets cannot
+    be told apart; each sphere is oriented from its own part of the hull, so only points within a few sample
+    spacings of the contact may be wrong (at most 2 %; before, one whole sphere pointed inward)."""
+    points, normals, _ = sphere_sample(3000, seed=4)
+    pair = np.vstack([points - [1, 0, 0], points + [1, 0, 0]])
+    agree = np.einsum("ij,ij->i", estimate_normals(pair), np.vstack([normals, normals])) > 0
+    assert agree.mean() > 0.98
+    assert np.linalg.norm(pair[~agree], axis=1).max() < 0.4
+
+
 def test_estimate_normals_refuses_what_it_cannot_orient():
     rng = np.random.default_rng(0)
     flat = np.c_[rng.uniform(size=(100, 2)), np.zeros(100)]

@@ -9,7 +9,7 @@ import logging
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from ..errors import InvalidInputError, check_number, check_points
 
@@ -54,10 +54,12 @@ def estimate_normals(points, *, neighbours: int = 12) -> np.ndarray:
     Each normal is the direction of least spread (PCA) of the point's ``neighbours`` nearest neighbours.  Signs are
     made consistent along the minimum spanning tree of the symmetric neighbour graph, with edge weight
     1 - |n_i . n_j| plus the sine between the edge and the tangent planes (so the tree prefers not to jump across
-    thin walls).  Each connected component is seeded at its highest point (largest last coordinate) with its normal
-    pointing up.  A component nested inside an odd number of others (its bounding box strictly inside theirs and
-    its highest point behind their nearest normal) is a cavity wall and is flipped, so that it points into the
-    cavity.
+    thin walls).  The tree is seeded at every vertex of the points' convex hull whose normal lies along its hull
+    normal, pointing out of the hull (two surfaces in contact each take their signs from their own part of the
+    hull, not across the contact), and a component with no such vertex at its highest point (largest last
+    coordinate), pointing up.  Such a component nested inside an odd number of others (its bounding box strictly
+    inside theirs and its highest point behind their nearest normal) is a cavity wall and is flipped, so that it
+    points into the cavity.
 
     Parameters
     ----------
@@ -129,28 +131,55 @@ def _orient(points: np.ndarray, normals: np.ndarray, near: np.ndarray) -> np.nda
     graph = graph.maximum(graph.T)
     components, label = csgraph.connected_components(graph, directed=False)
 
-    # Seeds: the highest point of each component, pointing up.
+    # Seeds: the hull's vertices whose normal clearly points out of or into the hull, and the highest point of each
+    # component that has none, pointing up.
+    hull_seed, hull_sign = _hull_seeds(points, normals)
     by_height = np.lexsort((points[:, -1], label))
-    seed = by_height[np.r_[np.flatnonzero(np.diff(label[by_height])), count - 1]]
+    highest = by_height[np.r_[np.flatnonzero(np.diff(label[by_height])), count - 1]]   # one per component
+    top = highest[~np.isin(np.arange(components), label[hull_seed])]
+    seed = np.r_[hull_seed, top]
+    seed_sign = np.r_[hull_sign, np.where(normals[top, -1] < 0, -1.0, 1.0)]
 
-    # One tree: the spanning forest plus a virtual root (index count) joined to every seed.
-    forest = csgraph.minimum_spanning_tree(graph).tocoo()
-    tree = sparse.csr_matrix(
-        (np.ones(forest.nnz + components), (np.r_[forest.row, np.full(components, count)], np.r_[forest.col, seed])),
-        shape=(count + 1, count + 1))
+    # One tree: the minimum spanning tree of the graph with a virtual root (index count) joined to every seed at
+    # no cost, so that each point hangs from one seed by a path along its surface.
+    root_edges = sparse.csr_matrix((np.full(len(seed), 1e-12), (np.full(len(seed), count), seed)),
+                                   shape=(count + 1, count + 1))
+    tree = csgraph.minimum_spanning_tree(sparse.block_diag([graph, sparse.csr_matrix((1, 1))]).tocsr() + root_edges)
     _, parent = csgraph.breadth_first_order(tree, count, directed=False, return_predecessors=True)
     parent[count] = count
     # relative[i]: the sign that makes normal i agree with its (already oriented) parent.
     extended = np.vstack([normals, np.zeros(dim)])
     relative = np.where(np.einsum("ij,ij->i", extended, extended[parent]) < 0, -1.0, 1.0)
-    relative[seed] = np.where(normals[seed, -1] < 0, -1.0, 1.0)
+    relative[seed] = seed_sign
     relative[count] = 1.0
     # Pointer jumping: sign[i] = product of the relative signs on the path to the root, in log2(depth) passes.
     sign, ancestor = relative, parent
     while (ancestor != count).any():
         sign, ancestor = sign * sign[ancestor], ancestor[ancestor]
     oriented = normals * sign[:count, None]
-    return oriented * _nesting_parity(points, oriented, label, seed)[label, None]
+    parity = _nesting_parity(points, oriented, label, highest)
+    parity[label[hull_seed]] = 1.0   # a component on the hull lies inside no other
+    return oriented * parity[label, None]
+
+
+#: a hull vertex seeds the orientation when its normal lies within 30 degrees of its hull normal (or the opposite).
+_HULL_SEED_COSINE = np.cos(np.radians(30))
+
+
+def _hull_seeds(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices of the points' convex hull whose normal is clearly along their hull normal, and the signs that make
+    those normals point out of the hull: (m,) indices, (m,) +-1.  Every closed surface touching the hull is seeded
+    there, so that surfaces that touch (two objects in contact) do not take their signs from each other."""
+    try:
+        hull = ConvexHull(points, qhull_options="QbB")
+    except QhullError:
+        return np.zeros(0, dtype=int), np.zeros(0)
+    outward = np.zeros_like(points)
+    np.add.at(outward, hull.simplices.ravel(), np.repeat(hull.equations[:, :-1], points.shape[1], axis=0))
+    vertex = hull.vertices
+    cosine = np.einsum("ij,ij->i", normals[vertex], outward[vertex]) / np.linalg.norm(outward[vertex], axis=1)
+    clear = np.abs(cosine) > _HULL_SEED_COSINE
+    return vertex[clear], np.where(cosine[clear] < 0, -1.0, 1.0)
 
 
 def _nesting_parity(points, normals, label, seed) -> np.ndarray:
