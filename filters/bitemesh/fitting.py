@@ -2,12 +2,14 @@
 (:mod:`bitemesh.core.fem.template`), one frame or a cycle.
 
 The data are read as :func:`bitemesh.mesh` reads an input (:func:`~bitemesh.meshing.read_input`): labelled guide
-points pull each of the template's surfaces to their own contours (EPI to the epicardial, LV_ENDO and RV_ENDO to the
-endocardial, BASE to the valve points; a left ventricle's EPI, ENDO and BASE to the LV's own), scattered points
-pull the whole boundary, a label map its boundary voxels.
+points, their slices registered as the mesher registers them, pull each of the template's surfaces to their own
+contours (EPI to the epicardial, LV_ENDO and RV_ENDO to the endocardial, BASE to the valve points; a left
+ventricle's EPI, ENDO and BASE to the LV's own), scattered points pull the whole boundary, a label map its boundary
+voxels.
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,9 +21,13 @@ from .core.mesh.simplicial import Mesh
 from .core.mesh.tags import cavity_volumes
 from .core.progress import ProgressCallback, sub_progress
 from .core.sources.contours.cardiac import BIVME_OUTLETS, BIVME_SURFACES, BIVME_VALVES, canonical_labels
+from .core.sources.contours.registration import registered
+from .core.sources.contours.slices import infer_slices
 from .io import read_mesh
 from .meshing import Samples, Voxels, read_input
 from .options import as_options
+
+logger = logging.getLogger("bitemesh")
 
 #: the template's surfaces and the guide-point labels that pull each (BASE: the valve annuli); a left ventricle's
 #: (tagged EPI, ENDO, BASE as cardiac-geometries tags an LV): its epicardium and septum, its endocardium, its valves.
@@ -69,17 +75,21 @@ def template_mesh(template) -> Mesh:
 
 
 def fit_data(template: Mesh, data, frame=None):
-    """The points that pull the template: a mapping of its surface names to points for labelled data, an (n, 3)
-    array for scattered points or a label map's boundary voxels."""
+    """The points that pull the template: a mapping of its surface names to points for labelled data (its slices
+    registered as :func:`bitemesh.mesh` registers them, a slice no other agrees with left out, each with a note on
+    the "bitemesh" logger), an (n, 3) array for scattered points or a label map's boundary voxels."""
     samples = read_input(data, as_options(None if frame is None else {"frame": frame}))
     if isinstance(samples, Voxels):
         return boundary_voxels(samples)
     if samples.labels is None:
         return samples.points
     labels = canonical_labels(samples.labels)[0]
+    slices = infer_slices(samples.points) if samples.slices is None else np.asarray(samples.slices)
+    points, labels, _, registration = registered(samples.points, labels, slices, BIVME_SURFACES)
+    for note in registration.notes():
+        logger.info(note)
     surfaces = LV_SURFACE_LABELS if is_left_ventricle(template) else SURFACE_LABELS
-    pulled = {name: samples.points[np.isin(labels, surfaces[name])] for name in template.tag_names
-              if name in surfaces}
+    pulled = {name: points[np.isin(labels, surfaces[name])] for name in template.tag_names if name in surfaces}
     if not any(len(points) for points in pulled.values()):
         raise InvalidInputError(f"data: none of its labels ({', '.join(sorted(set(labels))[:6])}, ...) samples a "
                                 f"surface of the template ({', '.join(sorted(template.tag_names))}); give biv-me "

@@ -12,6 +12,8 @@ import pytest
 from bitemesh.core.fem.template import fit_template
 from bitemesh.core.mesh.tags import cavity_volumes, enclosed_volume
 from bitemesh.core.mesh.topology import boundary_facets
+from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, canonical_labels
+from bitemesh.core.sources.contours.registration import registered
 from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.io import read_labelled_points, read_mesh
 
@@ -24,6 +26,13 @@ WALL_WORDS = ("ENDOCARDIAL", "EPICARDIAL", "FREEWALL", "SEPTUM")
 
 def gpfile(folder, frame: int):
     return folder / "guidepoints" / f"GPFile_{frame:03d}.txt"
+
+
+def wall_points(points, labels, slices) -> np.ndarray:
+    """(n, 3) the wall guide points (every ENDO / EPI / FREEWALL / SEPTUM point of the slices kept) where the fit
+    takes them: their slices moved back from their breath-hold shifts, as the mesher moves them."""
+    points, labels, _, _ = registered(points, canonical_labels(labels)[0], slices, BIVME_SURFACES)
+    return points[[any(word in label for word in WALL_WORDS) for label in labels]]
 
 
 def bivme_lv_volume(folder, frame: int) -> float:
@@ -42,9 +51,8 @@ def test_end_systole_fitted_from_end_diastole(cine, tmp_path, capsys):
     np.testing.assert_array_equal(fitted.cells, template.cells)
     assert fitted.tag_names == template.tag_names
     assert_valid_domain(fitted)
-    points, labels, _ = read_labelled_points(gpfile(folder, 8))
-    wall = np.array([any(word in label for word in WALL_WORDS) for label in labels])
-    distance = distances_to_facets(points[wall], fitted.points[boundary_facets(fitted.cells)])
+    wall = wall_points(*read_labelled_points(gpfile(folder, 8)))
+    distance = distances_to_facets(wall, fitted.points[boundary_facets(fitted.cells)])
     assert distance.mean() <= 1.0 and np.percentile(distance, 95) <= 3.0
     assert cavity_volumes(fitted)["LV_ENDO"] / 1000 == pytest.approx(bivme_lv_volume(folder, 8), rel=0.15)
 
@@ -83,11 +91,9 @@ def test_the_template_fitted_twice_gives_the_same_mesh(cine):
 @pytest.mark.parametrize("scale", [0.8, 1.3])
 def test_another_patient_sized_turned_and_placed_elsewhere(cine, scale):
     """A stand-in for another patient's end-systole: frame 8 turned 29 degrees, stretched 1.15 / 1.0 / 0.9, scaled
-    by 0.8 or 1.3 and moved 95 mm (scanner coordinates): the issue's accuracy bounds (1.0 mm mean, 3.0 at 95 %) times
-    the scale when it enlarges (the fit takes the slices as given, and the frame's breath-hold shifts, up to 4 mm,
-    grow with it), a valid domain, and the
-    smallest dihedral angle no lower than the template's (or the 10-degree floor) less 1 degree (the floor lets a
-    cell already under it lose 0.1 degree a step)."""
+    by 0.8 or 1.3 and moved 95 mm (scanner coordinates): the issue's accuracy bounds (1.0 mm mean, 3.0 at 95 %) to
+    the registered wall guide points, a valid domain, and the smallest dihedral angle no lower than the template's
+    (or the 10-degree floor) less 1 degree (the floor lets a cell already under it lose 0.1 degree a step)."""
     from bitemesh import Samples, fit
     from bitemesh.core.mesh.quality import quality_summary
     folder, template_path = cine
@@ -98,10 +104,8 @@ def test_another_patient_sized_turned_and_placed_elsewhere(cine, scale):
     moved = scale * (points - centre) @ np.diag([1.15, 1.0, 0.9]) @ turn.T + centre + [80.0, -40.0, 25.0]
     fitted = fit(template, Samples(moved, labels=labels, slices=slices)).mesh
     assert_valid_domain(fitted)
-    wall = np.array([any(word in label for word in WALL_WORDS) for label in labels])
-    distance = distances_to_facets(moved[wall], fitted.points[boundary_facets(fitted.cells)])
-    grown = max(scale, 1.0)
-    assert distance.mean() <= 1.0 * grown and np.percentile(distance, 95) <= 3.0 * grown
+    distance = distances_to_facets(wall_points(moved, labels, slices), fitted.points[boundary_facets(fitted.cells)])
+    assert distance.mean() <= 1.0 and np.percentile(distance, 95) <= 3.0
     assert quality_summary(fitted).angle_min >= min(quality_summary(template).angle_min, 10.0) - 1.0
 
 
@@ -115,3 +119,24 @@ def test_a_cycle_refuses_what_does_not_apply(cine, tmp_path, capsys, output, ext
     assert cli.main(["fit", str(template_path), str(gpfile(folder, 0)), str(gpfile(folder, 1)),
                      "-o", str(tmp_path / output), *extra]) == 1
     assert words in capsys.readouterr().err
+
+
+def test_slices_shifted_by_breath_holds_fit_as_the_unshifted_frame(cine, tmp_path, capsys):
+    """Frame 8 with every short-axis slice moved 2-5 mm in its plane (tests/cardiac_variants.py): the fit registers
+    the slices as the mesher does (a note says so), so its boundary lies where the unshifted frame's fit lies: the
+    unshifted frame's wall guide points within the issue's bounds (1.0 mm mean, 3.0 at 95 %) of it, and the LV cavity
+    within 3 % of the unshifted fit's (the shifts are found within 1 mm: tests/core/sources)."""
+    from tests.cardiac_variants import read_frame, shifted_slices, write_gpfile
+    folder, template_path = cine
+    shifted = write_gpfile(shifted_slices(read_frame(folder / "guidepoints", 8), seed=1)[0], tmp_path / "GPFile.txt")
+    meshes = {}
+    for name, data in (("shifted", shifted), ("as traced", gpfile(folder, 8))):
+        assert cli.main(["fit", str(template_path), str(data), "-o", str(tmp_path / f"{name}.vtu")]) == 0
+        meshes[name] = read_mesh(tmp_path / f"{name}.vtu")
+        if name == "shifted":
+            assert "slices moved in their planes" in capsys.readouterr().err
+    wall = wall_points(*read_labelled_points(gpfile(folder, 8)))
+    distance = distances_to_facets(wall, meshes["shifted"].points[boundary_facets(meshes["shifted"].cells)])
+    assert distance.mean() <= 1.0 and np.percentile(distance, 95) <= 3.0
+    volumes = [cavity_volumes(meshes[name])["LV_ENDO"] for name in ("shifted", "as traced")]
+    assert volumes[0] == pytest.approx(volumes[1], rel=0.03)

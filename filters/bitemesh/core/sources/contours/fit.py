@@ -55,7 +55,7 @@ from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, OUTLET_WALL, RV_WALL, bivme
                       short_axis_stack, unused_labels_note)
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
-from .registration import register_slices
+from .registration import registered
 from .valves import across_valves, annulus_normals, outlet_points
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .surface_fit import fit_contour_rbf
@@ -217,20 +217,13 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     if is_bivme(labels):
         across, note = across_valves(points, labels, slices, [label for name in fitted for label in surfaces[name]])
         points, labels, slices, notes = points[~across], labels[~across], slices[~across], notes + note
-    planes = slice_planes(points, slices)
     shifts, disagreement = {}, 0.0
     if check_choice(slice_shifts, "slice_shifts", ("auto", "none")) == "auto":
-        registration = register_slices(points, labels, slices, planes,
-                                       {name: surfaces[name] for name in fitted})
+        points, labels, slices, registration = registered(points, labels, slices,
+                                                          {name: surfaces[name] for name in fitted}, gap_factor)
         notes += registration.notes()
         shifts, disagreement = registration.shifts, registration.disagreement
-        if shifts or registration.outliers:
-            points = points.copy()
-            for number, shift in shifts.items():
-                points[slices == number] += shift
-            kept = ~np.isin(slices, list(registration.outliers))
-            points, labels, slices = points[kept], labels[kept], slices[kept]
-            planes = slice_planes(points, slices)
+    planes = slice_planes(points, slices)
     outlets = (BIVME_OUTLETS if is_bivme(labels) else {}) if outlets is None else dict(outlets)
     in_any = np.isin(labels, [label for name in used if name not in grown_from for label in surfaces[name]])
     base, note = choose_base(base_plane, points, labels, points[in_any], slices, planes)

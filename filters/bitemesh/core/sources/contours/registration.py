@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .cardiac import short_axis_stack
-from .slices import GAP_FACTOR, is_closed, polylines
+from .slices import GAP_FACTOR, is_closed, polylines, slice_planes
 
 #: a crossing farther than this (input units, mm) from the slice's contour is no pair (another part of the heart).
 OUTLIER = 10.0
@@ -288,3 +288,16 @@ def register_slices(points, labels, slices, planes, surfaces: dict, gap_factor: 
     moved = {number: shift @ planes[number].axes for number, shift in shifts.items()
              if number not in fixed and np.linalg.norm(shift) >= SMALLEST}
     return Registration(moved, tuple(sorted(fixed)), outliers, typical)
+
+
+def registered(points, labels, slices, surfaces: dict, gap_factor: float = GAP_FACTOR):
+    """The points with every slice moved as :func:`register_slices` finds and its outliers left out: (points,
+    labels, slices) of the slices kept, and the Registration (the arguments as register_slices takes them, without
+    the planes)."""
+    registration = register_slices(points, labels, slices, slice_planes(points, slices), surfaces, gap_factor)
+    if registration.shifts:
+        points = points.copy()
+        for number, shift in registration.shifts.items():
+            points[slices == number] += shift
+    kept = ~np.isin(slices, list(registration.outliers))
+    return points[kept], labels[kept], slices[kept], registration
