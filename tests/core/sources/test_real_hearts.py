@@ -178,6 +178,21 @@ def test_the_base_passes_by_the_annuli_and_over_every_wall_point(frame):
     assert not function.base.is_plane and np.isin(gp["labels"], BIVME_VALVES).sum() >= 10
 
 
+@pytest.mark.parametrize("frame", FRAMES)
+def test_the_epicardium_holds_the_inflow_rings_a_wall_inside(frame):
+    """Every mitral and tricuspid point lies inside the epicardium, by 1 mm at least (held RING_WALL = 2.5 mm
+    inside, a value the fit meets only in part where an epicardial contour's end lies nearer than that): the
+    epicardial contours end short of the annuli, and before, ring points lay up to 1.9 mm outside it (the wall
+    tapering to nothing there, the mesh 4.6 mm from a mitral point on frame 7)."""
+    from bitemesh.core.sources.contours.fit import RING_WALL
+    function, gp = fitted(frame)
+    points = gp["points"].copy()
+    for number, shift in function.shifts.items():
+        points[gp["slices"] == number] += shift
+    rings = points[np.isin(gp["labels"], ("MITRAL_VALVE", "TRICUSPID_VALVE"))]
+    assert function.surfaces["EPI"](rings).min() >= 0.4 * RING_WALL
+
+
 def test_without_valve_points_the_base_follows_the_long_axis_contours_ends():
     gp = read_frame(CINE, 0)
     plain = subset(gp, ~np.isin(gp["labels"], BIVME_VALVES))

@@ -17,7 +17,8 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    plate r^2 log r and MPU): it passes through the points and bends least between slices, with the fewest
    spurious bubbles where short- and long-axis contours disagree.  A cavity also gets a point inside it at the
    centre of each of its valves (:data:`BIVME_OUTLETS`), so that it opens through the base instead of closing in
-   a dome just above the last short-axis slice.  The points are thinned to 1.6 mm apart and, beyond 1,200
+   a dome just above the last short-axis slice; the epicardium holds each inflow ring point :data:`RING_WALL`
+   inside (fitted again with those it left nearer).  The points are thinned to 1.6 mm apart and, beyond 1,200
    constraints, the RBF is a partition of unity of RBFs on overlapping patches (:mod:`bitemesh.core.implicit.rbf`),
    so that denser contours cost about linearly.  Each RBF is sampled once on a fine grid, exactly near its zero
    level (:func:`bitemesh.core.grid.sampled.sample_function` with levels), so the domain is cheap to evaluate on the
@@ -65,6 +66,11 @@ logger = logging.getLogger("bitemesh")
 #: the cavities whose inflow valve points are samples of their walls too (an outflow ring as well would fold the
 #: wall between the two rings into the cavity: a bridge of myocardium across it).
 CAVITY_RINGS = {"LV_ENDO": ("MITRAL_VALVE",), "RV_ENDO": ("TRICUSPID_VALVE",)}
+INFLOW_RINGS = tuple(valve for valves in CAVITY_RINGS.values() for valve in valves)
+#: an epicardium holds every inflow ring point at least this far inside (mm; the thinnest wall the mesher keeps by
+#: default, min_wall): the epicardial contours end short of the annulus, and a wall tapering to nothing there would
+#: leave the ring points mm away from the mesh (up to 4.6 mm on the cine's frame 7).
+RING_WALL = 2.5
 #: no patch of a surface's fit is narrower than this x the median distance between its slices.
 PATCH_PER_GAP = 1.0
 
@@ -244,8 +250,16 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
             rings = _distinct(points, np.flatnonzero(np.isin(labels, CAVITY_RINGS[name])))
             index, normals = np.r_[index, rings], np.vstack([normals, annulus_normals(points[rings], labels[rings])])
         interior = outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
+        min_patch = PATCH_PER_GAP * slice_spacing(points[index], slices[index])
         rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
-                              interior=interior, min_patch=PATCH_PER_GAP * slice_spacing(points[index], slices[index]))
+                              interior=interior, min_patch=min_patch)
+        ring_points = points[np.isin(labels, [valve for valve in outlets.get(name, ()) if valve in INFLOW_RINGS])]
+        thin = ring_points[rbf(ring_points) < RING_WALL] if name in OUTLET_WALL and len(ring_points) else []
+        if len(thin):   # the epicardium holds each inflow ring point a wall inside it: fitted again with them
+            centres, values = interior if interior is not None else (np.zeros((0, 3)), np.zeros(0))
+            interior = (np.vstack([centres, thin]), np.r_[values, np.full(len(thin), RING_WALL)])
+            rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
+                                  interior=interior, min_patch=min_patch)
         functions[name] = _sampled_surface(rbf, points[index], offset, resolution, sub_progress(
             progress, 0.05 + 0.9 * (number + 0.3) / len(fitted), 0.05 + 0.9 * (number + 1) / len(fitted)))
         surface_points[name], surface_normals[name], surface_slices[name] = points[index], normals, slices[index]
