@@ -21,6 +21,8 @@ from .core.fem.coordinates import POINT_ARRAY_FORMATS, with_coordinates
 from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, warn_thin_walls, with_fibres
 from .core.parameters import ImplicitParameters, LabelledParameters
 from .core.progress import ProgressCallback, report, sub_progress
+from .core.sources.contours.cardiac import canonical_labels, is_bivme
+from .io.opencarp import MICROMETRES
 from .core.sources.contours.run import labelled_keywords, labelled_source, run_labelled, two_cells_across
 from .core.sources.points import points_source, run
 from .core.sources.source import Source
@@ -92,7 +94,8 @@ def read_file(path: Path, options: Options) -> Samples | Voxels:
 
 def check_applies(data, options: Options, input) -> None:
     """Refuse options given for another kind of input: the labelled-contour options (and --frame, --config) for
-    anything but labelled contours, the label-map options for anything but a label map."""
+    anything but labelled contours, the label-map options for anything but a label map, a unit other than mm for
+    cardiac guide points."""
     labelled = isinstance(data, Samples) and data.labels is not None
     given = options.given(LabelledParameters)
     contour_options = [flag(name) for name in ("config", "frame") if getattr(options, name) is not None] + \
@@ -106,6 +109,11 @@ def check_applies(data, options: Options, input) -> None:
     if options.label is not None and not isinstance(data, Voxels):
         raise InvalidInputError(f"--label {' '.join(map(str, options.label))} applies to label maps; leave it out "
                                 "to mesh these points")
+    if labelled and options.unit != "mm" and is_bivme(canonical_labels(data.labels)[0]):
+        raise InvalidInputError(
+            f"unit (--unit {options.unit}): cardiac guide points are meshed in mm (the walls, valves and base are "
+            f"measured in mm); give the coordinates in mm (multiply them by {MICROMETRES[options.unit] / 1000:g}) and "
+            "leave --unit out")
 
 
 def contour_keywords(options: Options) -> dict:

@@ -183,3 +183,23 @@ def test_thousands_separators_are_refused(capsys, tmp_path):
     path.write_text("1.000,5;2,5;3,5\n" * 20)
     code, _, err, _ = mesh_cli(capsys, tmp_path, path)
     assert_refused(code, err, "both a decimal point and a comma")
+
+
+def test_labelled_contours_in_micrometres_or_with_another_unit_are_refused_naming_it(capsys, tmp_path, shared_data):
+    """A GPFile in micrometres is named as such before the grid is sized (it asked for 664 TB, then for a radius
+    that gave 1.2 million cells and a refusal); --unit m on a GPFile in metres is answered, not ignored; following
+    either hint (the file in mm, no --unit) meshes."""
+    rows = gpfile_rows(shared_data)
+
+    def scaled(factor, name):
+        path = tmp_path / name
+        path.write_text("\n".join(["\t".join(rows[0])] + ["\t".join([f"{float(value) * factor:.8f}" for value in
+                                                                     row[:3]] + row[3:]) for row in rows[1:]]) + "\n")
+        return path
+
+    code, _, err, _ = mesh_cli(capsys, tmp_path, scaled(1000.0, "microns.txt"))
+    assert_refused(code, err, "in micrometres?", "divide them by 1000")
+    code, _, err, _ = mesh_cli(capsys, tmp_path, scaled(0.001, "metres.txt"), "--unit", "m")
+    assert_refused(code, err, "--unit m", "multiply them by 1000", "leave --unit out")
+    code, _, err, output = mesh_cli(capsys, tmp_path, scaled(1.0, "mm.txt"), "--cells", "8000")
+    assert code == 0 and output.exists(), err

@@ -90,8 +90,9 @@ CARDIAC_RADIUS = 2.0
 #: the walls, from an RV free wall (2 mm) to beyond hypertrophic LV walls (20 mm).
 MYOCARDIAL_VOLUME = (10.0, 800.0)
 WALL_THICKNESS = (1.5, 20.0)
-#: the least span (mm, the diagonal of the contours' bounding box) of a heart: a mouse heart is about 8 mm long.
-SMALLEST_HEART = 5.0
+#: the least and the largest span (mm, the diagonal of the contours' bounding box) of a heart: a mouse heart is
+#: about 8 mm long, a horse's about 250 mm.
+SMALLEST_HEART, LARGEST_HEART = 5.0, 1000.0
 
 
 def canonical_labels(labels):
@@ -126,13 +127,19 @@ def canonical_labels(labels):
 
 
 def check_millimetres(points) -> None:
-    """Refuse cardiac contours (n, 3) too small to be a heart in mm (coordinates in metres), naming their span."""
+    """Refuse cardiac contours (n, 3) too small or too large to be a heart in mm (coordinates in metres or in
+    micrometres), naming their span."""
     span = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
     if span < SMALLEST_HEART:
         raise InvalidInputError(
             f"cardiac contours are read in mm, and a heart spans at least {SMALLEST_HEART:g} mm (a mouse heart is "
             f"about 8 mm long); these span {span:.3g} (the diagonal of their bounding box): in metres? give the "
             "coordinates in mm (multiply them by 1000)")
+    if span > LARGEST_HEART:
+        raise InvalidInputError(
+            f"cardiac contours are read in mm, and a heart spans at most {LARGEST_HEART:g} mm (a horse's is about "
+            f"250 mm long); these span {span:.3g} (the diagonal of their bounding box): in micrometres? give the "
+            "coordinates in mm (divide them by 1000)")
 
 
 def is_bivme(labels) -> bool:
