@@ -65,9 +65,12 @@ def mean_q_printed(stdout: str) -> float:
 
 
 def mesh_cli(capsys, tmp_path, source, *options):
-    """Run ``bitemesh mesh source -o out.vtu --cells 3000 options``: (exit code, stdout, stderr, output path)."""
+    """Run ``bitemesh mesh source -o out.vtu --cells 3000 options`` (without ``--cells 3000`` when the options
+    size the cells themselves): (exit code, stdout, stderr, output path)."""
     output = tmp_path / "out.vtu"
-    code = cli.main(["mesh", str(source), "-o", str(output), *CELLS, *map(str, options)])
+    options = [str(option) for option in options]
+    sizing = [] if {"--radius", "--cells"} & set(options) else CELLS
+    code = cli.main(["mesh", str(source), "-o", str(output), *sizing, *options])
     out, err = capsys.readouterr()
     assert "Traceback" not in err, err
     return code, out, err, output

@@ -32,6 +32,7 @@ from tests.cli.commands import assert_refused, mesh_cli, write_rows
     (["--outliers", "maybe"], []),
     (["--threads", "0"], ["threads (--threads) must be a whole number in [1, ", "got 0",
                           "leave it unset to use every core"]),
+    (["--cells", "50000", "--radius", "0.2"], ["--radius 0.2 and --cells 50000", "give one of them"]),
 ])
 def test_parameters_out_of_range_are_named_at_once(capsys, tmp_path, unit_sphere_samples, options, words):
     path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])

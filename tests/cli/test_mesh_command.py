@@ -87,22 +87,19 @@ def test_cells_given_as_the_default_number_are_honoured_on_data_that_carries_its
     assert all(7000 <= count <= 13000 for count in counts.values()), counts
 
 
-def test_radius_overrides_cells(inputs, reference, tmp_path, capsys):
-    runs = {}
-    for cells in ("2000", "50000"):
-        output = tmp_path / f"r{cells}.vtu"
-        code = cli.main(["mesh", str(inputs["xyz+normals"]), "-o", str(output), "--radius", "0.3", "--cells", cells])
-        assert code == 0
-        assert "radius R = 0.3)" in capsys.readouterr().out
-        runs[cells] = read_mesh(output)
-    # --cells is ignored once --radius is given ...
-    assert np.array_equal(runs["2000"].cells, runs["50000"].cells)
-    assert np.array_equal(runs["2000"].points, runs["50000"].points)
-    # ... and the count follows R: about 5.4 V / R^3 = 840 cells, far fewer than the 2000 of the reference.
-    count = len(runs["2000"].cells)
+def test_radius_sets_the_size_and_cells_with_it_is_refused(inputs, reference, tmp_path, capsys):
+    """--radius alone: the count follows R, about 5.4 V / R^3 = 840 cells, far fewer than the 2000 of the
+    reference; --radius with --cells is refused naming both (--cells was dropped silently before)."""
+    output = tmp_path / "r.vtu"
+    assert cli.main(["mesh", str(inputs["xyz+normals"]), "-o", str(output), "--radius", "0.3"]) == 0
+    assert "radius R = 0.3)" in capsys.readouterr().out
+    count = len(read_mesh(output).cells)
     assert count < 0.6 * len(read_mesh(reference).cells)
     assert 400 <= count <= 1300
-    assert_valid_domain(runs["2000"], euler=2, components=1)
+    assert_valid_domain(read_mesh(output), euler=2, components=1)
+    assert cli.main(["mesh", str(inputs["xyz+normals"]), "-o", str(tmp_path / "both.vtu"), "--radius", "0.3",
+                     "--cells", "2000"]) == 1
+    assert "--radius 0.3 and --cells 2000 both set the size" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("extension", MESH_EXTENSIONS)

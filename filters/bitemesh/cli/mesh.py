@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from dataclasses import fields
 
+from ..core.errors import InvalidInputError
 from ..core.fem.coordinates import CoordinateParameters
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
 from ..meshing import check_output, mesh
@@ -50,7 +51,11 @@ def add_mesh_options(parser) -> None:
 
 
 def options_of(args) -> Options:
-    """The Options of parsed ``bitemesh mesh`` flags (checked by the step dataclasses)."""
+    """The Options of parsed ``bitemesh mesh`` flags (checked by the step dataclasses); --radius and --cells
+    together are refused (radius would set the size alone, and a flag given is not dropped silently)."""
+    if args.radius is not None and args.cells is not None:
+        raise InvalidInputError(f"--radius {args.radius:g} and --cells {args.cells} both set the size of the cells "
+                                "(radius would win); give one of them")
     return Options(**{name: getattr(args, name) for name in OPTION_NAMES})
 
 
