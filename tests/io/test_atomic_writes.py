@@ -3,6 +3,9 @@ format is written whole and replaces the previous file without leftovers.  (The 
 Ctrl-C: tests/cli/test_safe_writing.py.)"""
 from __future__ import annotations
 
+import os
+import time
+
 from pathlib import Path
 
 import numpy as np
@@ -38,20 +41,29 @@ def test_every_format_is_written_whole_and_replaces_the_previous_file(tmp_path, 
     assert leftovers(tmp_path) == []
 
 
+def aged(path, seconds: float = 120.0):
+    """Write ``path`` as a run killed ``seconds`` ago would have left it (its last write then)."""
+    path.write_text("x")
+    then = time.time() - seconds
+    os.utime(path, (then, then))
+    return path
+
+
 def test_the_stale_partials_of_a_file_are_its_own_alone(tmp_path):
     """What atomic writes of p1.vtu left when killed: found; another file's (even p1.v2.vtu's or p10.vtu's), a
-    finished file and a name without the token: not."""
+    finished file, a name without the token and one written a moment ago (another run writing p1.vtu): not."""
     from bitemesh.io import stale_partials
     stale = [tmp_path / ".p1.0a1b2c3d.partial.vtu", tmp_path / ".p1.deadbeef.partial.vtu"]
     others = [tmp_path / ".p1.v2.0a1b2c3d.partial.vtu", tmp_path / ".p10.0a1b2c3d.partial.vtu", tmp_path / "p1.vtu",
               tmp_path / ".p1.0a1b2c3d.partial.msh", tmp_path / ".p1.notahex0.partial.vtu"]
     for path in stale + others:
-        path.write_text("x")
+        aged(path)
+    (tmp_path / ".p1.0a1b2c3e.partial.vtu").write_text("x")   # another run writing p1.vtu now: not stale
     assert stale_partials(tmp_path / "p1.vtu") == sorted(stale)
     assert stale_partials(tmp_path / "absent" / "p1.vtu") == []
-    (tmp_path / ".seg.0a1b2c3d.partial.nii.gz").write_text("x")   # the double extension is kept whole
+    aged(tmp_path / ".seg.0a1b2c3d.partial.nii.gz")   # the double extension is kept whole
     assert stale_partials(tmp_path / "seg.nii.gz") == []
-    (tmp_path / ".seg.nii.0a1b2c3d.partial.nii.gz").write_text("x")
+    aged(tmp_path / ".seg.nii.0a1b2c3d.partial.nii.gz")
     assert stale_partials(tmp_path / "seg.nii.gz") == [tmp_path / ".seg.nii.0a1b2c3d.partial.nii.gz"]
 
 
@@ -107,9 +119,10 @@ def test_an_output_that_is_a_symbolic_link_is_written_through_it(tmp_path):
 
 def test_the_half_written_files_of_a_killed_run_are_removed_with_a_note(tmp_path, caplog):
     path = tmp_path / "heart.msh"
-    stale = tmp_path / ".heart.0a1b2c3d.partial.msh"
-    stale.write_text("$MeshFormat\n")   # a run killed (SIGKILL, out of memory) before it could remove it
+    stale = aged(tmp_path / ".heart.0a1b2c3d.partial.msh")   # a run killed before it could remove it
+    live = tmp_path / ".heart.1b2c3d4e.partial.msh"
+    live.write_text("$MeshFormat\n")   # another run writing heart.msh at this moment: its file is left to it
     with caplog.at_level("INFO", logger="bitemesh"):
         write_mesh(tagged_tetrahedron(), path)
-    assert not stale.exists() and path.is_file()
+    assert not stale.exists() and live.exists() and path.is_file()
     assert "removed 1 half-written file(s) of 'heart.msh'" in caplog.text

@@ -66,9 +66,9 @@ class _Captured(logging.Handler):
 
 def remove_partials(output_dir: Path, case: Case) -> None:
     """Delete what attempts of ``case`` half wrote (its mesh, picture and record) when their worker was killed
-    mid-write: one attempt of a case runs at a time, so those found when it starts are stale."""
+    mid-write: one attempt of a case runs at a time, so those found when it starts are stale, however recent."""
     for path in (output_dir / case.output_name, picture_path(output_dir, case.name), record_path(output_dir, case)):
-        remove_stale_partials(path)
+        remove_stale_partials(path, idle=0.0)
 
 
 def made(case: Case, options: dict, fitting: dict | None):

@@ -12,6 +12,7 @@ import os
 import secrets
 import signal
 import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -69,7 +70,8 @@ def atomic_outputs(paths, what: str = "a mesh", stale=()):
     Ctrl-C and SIGTERM held off until all are done (:func:`signals_held`).  If the block fails or is interrupted,
     every temporary file is removed and every one of ``paths`` keeps what it held before, or stays absent.  A path
     that is a symbolic link is written through it (its target replaced); the half-written files that a killed
-    write of the same path left are removed first, with a note.
+    write of the same path left (untouched for :data:`IDLE_SECONDS`: not those of another run writing it now) are
+    removed first, with a note.
 
     Raises InvalidInputError when a folder does not exist or a rename fails.
     """
@@ -136,22 +138,35 @@ def _temporary_beside(path: Path) -> Path:
     return path.with_name(_partial_name(path, secrets.token_hex(TOKEN_BYTES)))
 
 
-def stale_partials(path) -> list:
+#: a half-written file of an atomic write untouched for this long (s) is a killed run's, not a live writer's (another
+#: run writing the same output at the same time).
+IDLE_SECONDS = 60.0
+
+
+def stale_partials(path, idle: float = IDLE_SECONDS) -> list:
     """The half-written files that atomic writes of ``path`` left beside it when their process was killed before
-    it could remove them (SIGKILL, out of memory); no other file's."""
+    it could remove them (SIGKILL, out of memory), untouched for ``idle`` seconds at least; no other file's."""
     path = Path(path)
     if not path.parent.is_dir():
         return []
     prefix, suffix = _partial_name(path, "*").split("*")
     return sorted(other for other in path.parent.iterdir()
                   if other.name.startswith(prefix) and other.name.endswith(suffix)
-                  and _is_token(other.name[len(prefix):len(other.name) - len(suffix)]))
+                  and _is_token(other.name[len(prefix):len(other.name) - len(suffix)]) and _idle(other) >= idle)
 
 
-def remove_stale_partials(path) -> int:
-    """Remove the :func:`stale_partials` of ``path``; how many were removed."""
+def _idle(path: Path) -> float:
+    """Seconds since ``path`` was last written; 0 when it is gone."""
+    try:
+        return time.time() - path.stat().st_mtime
+    except OSError:
+        return 0.0
+
+
+def remove_stale_partials(path, idle: float = IDLE_SECONDS) -> int:
+    """Remove the :func:`stale_partials` of ``path`` (untouched for ``idle`` seconds); how many were removed."""
     removed = 0
-    for stale in stale_partials(path):
+    for stale in stale_partials(path, idle):
         with contextlib.suppress(OSError):
             stale.unlink()
             removed += 1
