@@ -93,6 +93,21 @@ def test_ctrl_c_that_cuts_an_object_short_prints_no_traceback(points_file, previ
                           "cli._run = run; cli.command()", points_file, previous)
 
 
+@POSIX
+def test_a_second_ctrl_c_while_the_first_unwinds_prints_no_traceback(points_file, previous):
+    """Ctrl-C pressed again while the program cleans up after the first (main's last steps; a storm of SIGINT every
+    2 ms printed a traceback from there): ignored, one line, 130.  Deterministic: the second signal is sent from
+    inside that cleanup."""
+    assert_cancelled_once("import logging\n"
+                          "remove = logging.Logger.removeHandler\n"
+                          "def removing(self, handler):\n"
+                          "    os.kill(os.getpid(), signal.SIGINT)\n"
+                          "    remove(self, handler)\n"
+                          "logging.Logger.removeHandler = removing\n"
+                          "def run(argv): os.kill(os.getpid(), signal.SIGINT)\n"
+                          "cli._run = run; cli.command()", points_file, previous)
+
+
 def assert_cancelled_once(script, points_file, previous):
     """Run ``script`` as the ``bitemesh mesh`` program (after its imports: os, signal, sys, bitemesh.cli as cli):
     exit code 130, the one line "bitemesh: cancelled" on stderr, the previous file kept."""

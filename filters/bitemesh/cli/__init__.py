@@ -101,10 +101,12 @@ def _interrupted(error: BaseException) -> bool:
 
 
 def _interrupt(number=None, frame=None):
-    """The program's Ctrl-C: a KeyboardInterrupt, and from then on the errors of ``__del__`` methods are not shown.
+    """The program's Ctrl-C: a KeyboardInterrupt, and from then on further Ctrl-C and the errors of ``__del__``
+    methods are ignored while the program unwinds (a second Ctrl-C landing in main's cleanup printed a traceback).
     An object whose construction the interrupt cut short (numba's compiler, on a first run) may fail in its
     ``__del__`` as the interrupt unwinds; Python would print "Exception ignored ... Traceback".  The user asked to
     stop."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     sys.unraisablehook = lambda unraisable: None
     raise KeyboardInterrupt
 
