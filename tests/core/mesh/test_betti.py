@@ -76,3 +76,29 @@ def test_a_mesh_with_a_hole_its_grid_lacks_is_refused_naming_it():
     with pytest.warns(BitemeshWarning, match="allow-unfaithful"):
         assert check_topology(mesh, ball, 0.1, allow=True) == "1 hole(s) or tunnel(s)"
     assert check_topology(mesh, (AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16, 0.1, allow=False) == ""
+
+
+def test_a_hole_of_the_mesh_that_f_has_at_its_zero_level_alone_is_refused():
+    """The torus's mesh against a torus's grid at f = 0 but balls a spacing inside and outside it (a hole that
+    appears at the zero level alone, as where sampled surfaces cross): refused naming both levels and the cause; a
+    hole there at both levels (the torus's own) passes; ``around`` is asked only when the mesh has a hole."""
+    mesh = run(*sample_surface(torus(), 0.08), biting=BitingParameters(cells=3000)).mesh
+    torus_grid = (AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16
+    ball = RADIUS < 15
+    with pytest.raises(MeshingError, match=r"1 hole\(s\) or tunnel\(s\) that f > 0 has at its zero level alone.*"
+                                           r"sampled surfaces cross.*outer surface only"):
+        check_topology(mesh, torus_grid, 0.1, allow=False, around=lambda: (ball, ball))
+    assert check_topology(mesh, torus_grid, 0.1, allow=False, around=lambda: (torus_grid, torus_grid)) == ""
+    sphere_mesh = run(*sample_surface(sphere(), 0.08), biting=BitingParameters(cells=3000)).mesh
+    assert check_topology(sphere_mesh, ball, 0.1, allow=False, around=lambda: 1 / 0) == ""
+
+
+def test_parts_that_the_mesh_joins_are_named_as_touching():
+    """Two balls of f that the mesh has as one part with a hole (cells across where they touch): the cause is the
+    touch, not a thin part."""
+    mesh = run(*sample_surface(torus(), 0.08), biting=BitingParameters(cells=3000)).mesh
+    two = (np.linalg.norm(AXES - np.array([8, 0, 0])[:, None, None, None], axis=0) < 6) | \
+        (np.linalg.norm(AXES + np.array([8, 0, 0])[:, None, None, None], axis=0) < 6)
+    with pytest.raises(MeshingError, match=r"cells join parts of f that come closer than R = 0.1 \(objects that "
+                                           r"touch\); lower radius"):
+        check_topology(mesh, two, 0.1, allow=False)

@@ -106,11 +106,11 @@ class SampledGrid:
         """(last - first, n_1, ...) f on the nodes of planes ``first`` to ``last`` - 1 along axis 0."""
         return plane_values(*self._storage, self._shape3, first, last).reshape((last - first, *self.shape[1:]))
 
-    def inside(self) -> np.ndarray:
-        """(n_0, ..., n_{k-1}) bool, f > 0 at the nodes (one byte a node)."""
+    def inside(self, level: float = 0.0) -> np.ndarray:
+        """(n_0, ..., n_{k-1}) bool, f > ``level`` at the nodes (one byte a node)."""
         mask = np.empty(self.shape, dtype=bool)
         for first in range(0, self.shape[0], PLANES):
-            mask[first:first + PLANES] = self.planes(first, min(first + PLANES, self.shape[0])) > 0
+            mask[first:first + PLANES] = self.planes(first, min(first + PLANES, self.shape[0])) > level
         return mask
 
     def inside_volume(self) -> float:

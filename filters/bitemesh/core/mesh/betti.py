@@ -96,17 +96,31 @@ def torn(mesh: Topology, grid: Topology) -> str:
     return ", ".join(extra)
 
 
-def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool) -> str:
+def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, around=None) -> str:
     """Refuse (:class:`MeshingError`; a :class:`BitemeshWarning` when ``allow``) a mesh with parts, handles or voids
-    that the region ``inside`` (f > 0 on the grid I) lacks; what it has more ("" when nothing).  ``radius``: R in
+    that the region ``inside`` (f > 0 on the grid I) lacks, or handles or voids that f > 0 has at its zero level
+    alone: ``around`` () -> (f > -d, f > +d) on the grid I, asked only when the mesh has a handle or a void (d, a
+    grid spacing: a tunnel or a cavity of the shape is there at both levels, one that appears at f = 0 alone is a
+    fold of f where surfaces cross or normals disagree).  What the mesh has more ("" when nothing); ``radius``: R in
     user units, for the message."""
     mine, data = mesh_topology(mesh), grid_topology(inside)
     extra = torn(mine, data)
     if extra:
+        cause = (f"cells join parts of f that come closer than R = {radius:.4g} (objects that touch)"
+                 if mine.parts < data.parts else f"parts thinner than R = {radius:.4g} tear between its nodes")
         text = (f"the mesh has {extra} that the fitted surface does not have (the mesh: {mine.describe()}; f > 0 on "
-                f"the grid: {data.describe()}): parts thinner than R = {radius:.4g} tear between its nodes; lower "
-                "radius (or raise cells) until R is below the thinnest part, or set allow_unfaithful "
-                "(--allow-unfaithful) to keep the mesh anyway")
+                f"the grid: {data.describe()}): {cause}; lower radius (or raise cells) until R is below the "
+                "thinnest part and the narrowest gap")
+    elif around is not None and (mine.handles or mine.voids):
+        levels = [grid_topology(region) for region in around()]
+        steady = Topology(0, max(level.handles for level in levels), max(level.voids for level in levels))
+        extra = torn(Topology(0, mine.handles, mine.voids), steady)
+        text = (f"the mesh has {extra} that f > 0 has at its zero level alone, not a grid spacing inside or outside "
+                f"it (the mesh: {mine.describe()}; f a spacing inside: {levels[0].describe()}, outside: "
+                f"{levels[1].describe()}): f folds where sampled surfaces cross (objects that overlap, each sampled "
+                "whole) or normals disagree; give the samples of the outer surface only, or of each object apart")
+    if extra:
+        text += ", or set allow_unfaithful (--allow-unfaithful) to keep the mesh anyway"
         if not allow:
             raise MeshingError(text)
         warnings.warn(text, BitemeshWarning, stacklevel=2)
