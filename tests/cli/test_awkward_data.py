@@ -93,6 +93,17 @@ def test_far_outliers_are_dropped_and_reported(capsys, tmp_path, unit_sphere_sam
     assert f"dropped {len(far)} outliers" in err
 
 
+def test_a_cluster_of_stray_returns_far_from_a_scanned_object_is_dropped(capsys, tmp_path, unit_sphere_samples):
+    """A sphere of radius 80 mm at scanner coordinates and 50 returns scattered 0.5 mm around a point 3 m along the
+    beam: dropped as outliers, the sphere meshed (refused before as "an opening 705 across", 14 of the 50 dropped)."""
+    points, _ = unit_sphere_samples
+    cluster = [250.0, -180.0, 3000.0] + np.random.default_rng(3).normal(scale=0.5, size=(50, 3))
+    path = write_rows(tmp_path / "scan.xyz", np.vstack([points * 80 + [250.0, -180.0, 0.0], cluster]))
+    code, out, err, output = mesh_cli(capsys, tmp_path, path)
+    assert_follows(code, out, err, output, volume=SPHERE_VOLUME * 80 ** 3)
+    assert "dropped 50 outliers" in err
+
+
 def test_far_outliers_kept_on_request_are_refused_by_the_fidelity_check(capsys, tmp_path, unit_sphere_samples):
     points, _ = unit_sphere_samples
     far = np.random.default_rng(2).uniform(-30, 30, (len(points) // 100, 3))

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bitemesh.core.implicit.samples import find_outliers, near_duplicates
+from bitemesh.core.implicit.samples import find_outliers, near_duplicates, stray_groups
 from bitemesh.core.shapes import sample_surface, sphere
 
 DENSE = sample_surface(sphere(), 0.04)[0]
@@ -51,3 +51,24 @@ def test_a_tight_cluster_of_identical_far_points_is_one_outlier():
     kept = points[first == np.arange(len(points))]
     flagged = find_outliers(kept)
     assert len(kept) == len(DENSE) + 1 and flagged[-1] and not flagged[:-1].any()
+
+
+@given(spread=st.floats(0.05, 0.5), count=st.integers(9, 200), seed=st.integers(0, 2**16))
+@settings(max_examples=15, deadline=None)
+def test_a_tight_cluster_of_distinct_far_points_is_flagged_whole(spread, count, seed):
+    """A scanner's stray returns: 9-200 points scattered (Gaussian, 0.05-0.5 mm: a span of about a sample spacing at
+    most) 3 m along the beam from a sphere of radius 100 mm sampled 4 mm apart: each point's nearest neighbours are
+    in the cluster, so the far rule measures it against itself and kept it (the fit then made an opening of 705 mm
+    of it); the cluster, spanning less than STRAY_SPAN 8th-neighbour distances (about 13 mm), is flagged whole, the
+    sphere not at all."""
+    rng = np.random.default_rng(seed)
+    cluster = [250.0, -180.0, 3000.0] + rng.normal(scale=spread, size=(count, 3))
+    flagged = find_outliers(np.vstack([DENSE * 100, cluster]))
+    assert flagged[len(DENSE):].all() and not flagged[:len(DENSE)].any()
+
+
+def test_two_objects_apart_and_a_sparser_one_are_no_stray_group():
+    """Two spheres 0.5 apart, the second sampled 3 x more sparsely and half the size: separate groups of the
+    neighbour graph, each wider than two spacings: nothing flagged."""
+    small = sample_surface(sphere(), 0.12)[0] * 0.5 + [2.0, 0, 0]
+    assert not stray_groups(np.vstack([DENSE, small])).any()

@@ -1,8 +1,12 @@
 """What the scattered samples themselves say: outliers, spacing and noise, measured before any fit.
 
-Outliers are found by two rules over neighbourhoods (:func:`find_outliers`), calibrated on surfaces sampled
+Outliers are found by three rules over neighbourhoods (:func:`find_outliers`), calibrated on surfaces sampled
 cleanly and noisily (a sphere, a torus, the die with rounded and with sharp edges, the two-cavity shell, the
-Stanford bunny scan, the nut, the biv-me guide points), none of whose points either rule flags:
+Stanford bunny scan, the nut, the biv-me guide points), none of whose points any rule flags:
+
+- **stray groups** (:func:`stray_groups`): a group of points whose nearest neighbours are all in it, spanning less
+  than :data:`STRAY_SPAN` sample spacings (a tight cluster of returns far from the object, which the far rule
+  measures against itself);
 
 - **far**: the distance to the 8th nearest neighbour is more than :data:`FAR_RATIO` times its median over the
   point's :data:`LOCAL_NEIGHBOURS` nearest (at most 2.6 times on those surfaces; 100 times or more for points
@@ -32,6 +36,9 @@ FAR_RATIO = 4.0
 OFF_RATIO, NOISE_RATIO = 1.0, 7.0
 #: neighbours of the far rule and of the plane rule, and those whose far-rule distances are a point's reference.
 FAR_NEIGHBOURS, PLANE_NEIGHBOURS, LOCAL_NEIGHBOURS = 8, 12, 32
+#: a group of samples apart from the rest (no point's 8 nearest neighbours outside it) spanning less than this x the
+#: median distance to the 8th neighbour is no surface the sampling resolves: a scanner's stray returns.
+STRAY_SPAN = 2.0
 #: points nearer each other than this x the median distance to the 8th neighbour are one sample.
 DUPLICATE_SHARE = 0.001
 #: passes of the two rules.
@@ -56,13 +63,14 @@ def _planes(around: np.ndarray):
 
 
 def find_outliers(points: np.ndarray) -> np.ndarray:
-    """(n,) bool, True for the points that the far or the off-surface rule flags (see the module docstring).
+    """(n,) bool, True for the points that the stray-group, the far or the off-surface rule flags (see the module
+    docstring).
 
     Parameters
     ----------
     points : (n, k) float64, samples of a surface (contour in 2D), n > 13
     """
-    outlier = np.zeros(len(points), bool)
+    outlier = stray_groups(points)
     for _ in range(PASSES):
         index = np.flatnonzero(~outlier)
         if len(index) <= PLANE_NEIGHBOURS + 1:
@@ -79,6 +87,26 @@ def find_outliers(points: np.ndarray) -> np.ndarray:
             break
         outlier[flagged] = True
     return outlier
+
+
+def stray_groups(points: np.ndarray) -> np.ndarray:
+    """(n,) bool, the points of the groups that span less than :data:`STRAY_SPAN` x the median distance to the 8th
+    neighbour, a group being a part of the graph that joins each point to its 8 nearest neighbours; never every
+    point."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    distances, neighbours = _neighbourhoods(points, FAR_NEIGHBOURS)
+    rows = np.repeat(np.arange(len(points)), neighbours.shape[1])
+    graph = coo_matrix((np.ones(rows.size), (rows, neighbours.ravel())), shape=(len(points),) * 2)
+    count, group = connected_components(graph, directed=False)
+    if count == 1:
+        return np.zeros(len(points), bool)
+    lower = np.full((count, points.shape[1]), np.inf)
+    upper = np.full((count, points.shape[1]), -np.inf)
+    np.minimum.at(lower, group, points)
+    np.maximum.at(upper, group, points)
+    stray = np.linalg.norm(upper - lower, axis=1) < STRAY_SPAN * float(np.median(distances[:, -1]))
+    return stray[group] if not stray.all() else np.zeros(len(points), bool)
 
 
 def near_duplicates(points: np.ndarray) -> np.ndarray:
