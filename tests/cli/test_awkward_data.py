@@ -167,6 +167,22 @@ def test_a_plate_thinner_than_its_sampling_is_refused_with_a_cause(capsys, tmp_p
         assert code == 1 and "bitemesh: error:" in err and not output.exists()
 
 
+def test_a_plate_thinner_than_its_sampling_with_its_normals_meshes(capsys, tmp_path):
+    """A plate 0.95 x 0.95 x 0.02 sampled 0.05 apart on its two faces: without normals refused with "pass normals"
+    (its neighbourhoods hold both faces), and with them it was refused as "normals are inconsistent; omit normals",
+    its faces' neighbours pointing away from each other; now meshed, one part, its volume within 10 % (the open
+    rim rounds off: about its perimeter x thickness x R / 2, 4 %)."""
+    grid = np.arange(0.025, 1.0, 0.05)
+    x, y = (axis.ravel() for axis in np.meshgrid(grid, grid))
+    faces = [np.c_[x, y, np.zeros_like(x), np.zeros((len(x), 2)), -np.ones_like(x)],
+             np.c_[x, y, np.full_like(x, 0.02), np.zeros((len(x), 2)), np.ones_like(x)]]
+    code, _, err, _ = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "plate.xyz", np.vstack(faces)[:, :3]))
+    assert_refused(code, err, "two sheets", "pass normals")
+    code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "plate_n.xyz", np.vstack(faces)),
+                                      "--cells", "10000")   # the default: R 0.019, a cell across
+    assert_follows(code, out, err, output, volume=0.95 ** 2 * 0.02, tolerance=0.1)
+
+
 @pytest.mark.slow
 def test_a_densely_sampled_thin_plate_meshes_at_a_radius_that_resolves_it():
     """A plate 1 x 1 x 0.02 sampled every 0.005 on all its faces, with normals, at radius 0.01 (two node spacings

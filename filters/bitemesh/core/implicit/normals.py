@@ -19,6 +19,9 @@ logger = logging.getLogger("bitemesh")
 _CHECK_NEIGHBOURS = 6
 #: a neighbour pair counts for check_normals when its edge is within 30 degrees of the tangent plane.
 _TANGENT_SINE = 0.5
+#: ... unless each lies behind the other's normal by this sine at least: the two faces of a wall thinner than the
+#: sampling, pointing away from each other.
+_WALL_SINE = 0.1
 #: check_normals refuses normals when more than this fraction of those pairs differ by more than 120 degrees.
 _CONTRADICTION_LIMIT = 0.1
 
@@ -212,7 +215,8 @@ def check_normals(points, normals) -> np.ndarray:
     Normals pointing inward overall (negative flux sum_i n_i . (p_i - centroid)) are all flipped, with a warning on
     the "bitemesh" logger.  Inconsistent normals are refused: among each point's 6 nearest neighbours, only pairs
     whose edge lies within 30 degrees of the point's tangent plane are compared (neighbours across a thin wall lie
-    along the normal and are skipped; across a sharp cube edge the normals differ by 90 degrees, which is allowed);
+    along the normal and are skipped, and so are two that each lie behind the other's normal: the faces of a wall
+    thinner than the sampling; across a sharp cube edge the normals differ by 90 degrees, which is allowed);
     more than 10 % of those pairs differing by more than 120 degrees (n_i . n_j < -0.5) means that the signs are
     not consistent.
 
@@ -236,6 +240,10 @@ def check_normals(points, normals) -> np.ndarray:
             sine = np.abs(np.einsum("nkd,nd->nk", edge, normals)) / distance
         tangent = sine < _TANGENT_SINE   # NaN for duplicate points: not compared
         opposed = np.einsum("nkd,nd->nk", normals[near], normals) < -0.5
+        with np.errstate(invalid="ignore", divide="ignore"):   # each behind the other: two faces of a thin wall
+            facing_away = ((np.einsum("nkd,nd->nk", edge, normals) < -_WALL_SINE * distance)
+                           & (np.einsum("nkd,nkd->nk", edge, normals[near]) > _WALL_SINE * distance))
+        opposed &= ~facing_away
         pairs = int(tangent.sum())
         if pairs and np.count_nonzero(opposed & tangent) > _CONTRADICTION_LIMIT * pairs:
             raise InvalidInputError(
