@@ -117,6 +117,23 @@ def test_an_output_that_is_a_symbolic_link_is_written_through_it(tmp_path):
     assert link.is_symlink() and target.is_file() and len(read_mesh(link).cells) == 1
 
 
+@pytest.mark.parametrize("extension", [".vtu", ".xdmf"])
+def test_a_mesh_written_through_a_link_has_its_companions_beside_its_target(tmp_path, extension):
+    """latest.vtu -> meshes/heart.vtu: heart_facets.vtu (heart.h5 and heart_facets.* for XDMF) go beside the target,
+    so the target and the link read the same mesh with its tags (the companions went beside the link, named after
+    it, and the target read alone lost its tags without a word)."""
+    target = tmp_path / "meshes" / f"heart{extension}"
+    target.parent.mkdir()
+    link = tmp_path / f"latest{extension}"
+    link.symlink_to(target)
+    mesh = tagged_tetrahedron()
+    write_mesh(mesh, link)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["latest" + extension, "meshes"]
+    for path in (target, link):
+        back = read_mesh(path)
+        assert back.tag_names == mesh.tag_names and len(back.facets) == len(mesh.facets)
+
+
 def test_the_half_written_files_of_a_killed_run_are_removed_with_a_note(tmp_path, caplog):
     path = tmp_path / "heart.msh"
     stale = aged(tmp_path / ".heart.0a1b2c3d.partial.msh")   # a run killed before it could remove it

@@ -25,6 +25,8 @@ as ``Region``.
 """
 from __future__ import annotations
 
+import os
+
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -61,7 +63,7 @@ def mesh_files(path, with_facets: bool = True) -> list:
     """The files :func:`write_mesh` writes for ``path``, ``path`` first: ``m.xdmf`` adds ``m.h5``; with facets,
     ``m.vtu`` adds ``m_facets.vtu`` and ``m.xdmf`` adds ``m_facets.xdmf`` and ``m_facets.h5``; ``m.pts`` adds
     ``m.elem``, ``m.lon`` and ``m_tags.json`` (and the surfaces: :func:`~.opencarp.opencarp_files`)."""
-    path = Path(path)
+    path = through_link(path)
     suffix = path.suffix.lower()
     if suffix == ".pts":   # and a .surf and .vtx file a tagged surface, named by the mesh's tags
         return opencarp_files(path, {}, 3)
@@ -74,8 +76,16 @@ def mesh_files(path, with_facets: bool = True) -> list:
 
 
 def facet_file(path: Path) -> Path:
-    """``m_facets.vtu`` for ``m.vtu``."""
+    """``m_facets.vtu`` for ``m.vtu`` (beside the file a symbolic link ``m.vtu`` points to)."""
+    path = through_link(path)
     return path.with_name(f"{path.stem}_facets{path.suffix}")
+
+
+def through_link(path) -> Path:
+    """``path``, or the file it points to when it is a symbolic link: a mesh written through a link has its
+    companions beside its target, named after it, so that the target and the link read the same."""
+    path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
 def write_mesh(mesh: Mesh, path) -> None:
