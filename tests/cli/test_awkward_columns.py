@@ -69,6 +69,10 @@ def test_binary_data_is_no_table(capsys, tmp_path):
 def test_labelled_contours_without_z_and_in_metres_are_refused_with_their_cause(capsys, tmp_path, shared_data):
     code, _, err, _ = mesh_cli(capsys, tmp_path, gpfile_without_column(shared_data, tmp_path / "noz.txt", 2))
     assert_refused(code, err, "names no z column", "restore the z column")
+    headless = tmp_path / "noz_noheader.txt"   # and without its header: the label is in column 3, not a colour
+    headless.write_text("".join((tmp_path / "noz.txt").read_text().splitlines(keepends=True)[1:]))
+    code, _, err, _ = mesh_cli(capsys, tmp_path, headless)
+    assert_refused(code, err, "column 3 of line 1 holds text", "a coordinate column is missing before it")
     rows = gpfile_rows(shared_data)
     metres = tmp_path / "metres.txt"
     metres.write_text("\n".join(["\t".join(rows[0])] + ["\t".join([f"{float(value) / 1000:.8f}" for value in row[:3]]

@@ -216,6 +216,13 @@ def column_roles(table: Table, columns: str | None = None, *, labelled: bool = F
             table.fail(f"line {table.lines[0]} has {table.width} fields; a labelled point needs x y z label [slice] "
                        "(or a header naming the columns)")
         return ["x", "y", "z", "label"] + (["slice"] if table.width > 4 else []) + ["skip"] * (table.width - 5)
+    text = [number for number, field in enumerate(table.rows[0]) if field.strip() and not is_number(field, True)]
+    if text:   # a label where a coordinate belongs: labelled contours read the label from the fourth column
+        fix = ("a coordinate column is missing before it (a GPFile without its z column?); restore it" if text[0] < 3
+               else "say which column is which with --columns")
+        table.fail(f"column {text[0] + 1} of line {table.lines[0]} holds text ({table.rows[0][text[0]]!r}) where a "
+                   f"number belongs, and labelled points carry their label in column 4 (x y z label ...): {fix}, or "
+                   "give a header naming the columns (x, y, z, label, ...)")
     if table.width not in WIDTHS:
         table.fail(f"line {table.lines[0]} has {table.width} columns; expected 2 (x y), 3 (x y z), 4 (x y nx ny) or "
                    "6 (x y z nx ny nz), or a header naming the columns, or --columns (e.g. "
