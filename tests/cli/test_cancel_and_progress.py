@@ -92,6 +92,26 @@ def test_progress_bar_draws_percentages_and_ends_the_line():
     assert terminal_view(text)[0].rstrip() == "[####################] 100% done"
 
 
+def test_a_note_while_the_bar_draws_gets_a_line_of_its_own(capsys):
+    """A note or a warning printed while the bar is drawn ends the bar's line first (they were appended to the
+    bar's line), and the bar goes on below it."""
+    import logging
+    import warnings
+
+    from bitemesh.cli import _Notes, _show_warning
+    bar = ProgressBar(delay=0, width=10)
+    bar(0.3, "fitting")
+    _Notes().emit(logging.LogRecord("bitemesh", logging.INFO, "", 0, "merged 3 points", None, None))
+    bar(0.6, "biting")
+    _show_warning(warnings.WarningMessage("the optimiser could not", UserWarning, "", 0).message, UserWarning, "", 0)
+    bar(1.0, "done")
+    bar.close()
+    lines = terminal_view(capsys.readouterr().err)
+    assert [line.split("]")[0] if line.startswith("[") else line for line in lines if line] == [
+        "[###       ", "bitemesh: note: merged 3 points", "[######    ",
+        "bitemesh: warning: the optimiser could not", "[##########"]
+
+
 def test_progress_bar_leaves_no_trace_of_a_longer_message():
     stream = io.StringIO()
     bar = ProgressBar(stream=stream, delay=0)

@@ -36,11 +36,15 @@ class _Notes(logging.Handler):
     """The "bitemesh" logger's records on stderr, one line each: ``bitemesh: note: ...``."""
 
     def emit(self, record):
+        from .options import ProgressBar
         kind = "note" if record.levelno < logging.WARNING else "warning"
+        ProgressBar.end_line()
         print(f"bitemesh: {kind}: {record.getMessage()}", file=sys.stderr)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
+    from .options import ProgressBar
+    ProgressBar.end_line()
     print(f"bitemesh: warning: {message}", file=sys.stderr)
 
 

@@ -86,6 +86,9 @@ def parameters_from_args(args, parameter_classes=STEP_PARAMETERS) -> list:
 class ProgressBar:
     """A one-line progress bar on stderr, shown once a run has taken more than ``delay`` seconds."""
 
+    #: the bar whose line the cursor is at the end of: a note printed now ends that line first (:meth:`end_line`)
+    drawing = None
+
     def __init__(self, stream=None, delay: float = 1.0, width: int = 30):
         # sys.stderr looked up now, not at import: redirections made after import (tests, callers) apply.
         self.stream = sys.stderr if stream is None else stream
@@ -108,11 +111,21 @@ class ProgressBar:
         self.stream.write(f"\r{line:<{self.length}}")
         self.length = len(line)
         self.stream.flush()
+        ProgressBar.drawing = self
+
+    @classmethod
+    def end_line(cls) -> None:
+        """End the line a bar is drawing, so that what is printed next starts a line of its own (the bar goes on
+        below it)."""
+        bar, cls.drawing = cls.drawing, None
+        if bar is not None:
+            bar.stream.write("\n")
+            bar.stream.flush()
+            bar.length, bar.last = 0, None
 
     def close(self) -> None:
-        if self.shown:
-            self.stream.write("\n")
-            self.stream.flush()
+        if ProgressBar.drawing is self:
+            ProgressBar.end_line()
 
 
 def write_and_report(result, output, note: str = "") -> None:

@@ -158,6 +158,13 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
                          spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
                          fidelity or FidelityParameters())
     result = replace(result, function=result.function.moved(source.frame.shift))
+    if min_wall is None and thinnest_wall(result.radius) > MIN_WALL and is_myocardium(source.function):
+        note = (f"at R = {result.radius:.3g} the thinnest wall kept is {thinnest_wall(result.radius):.3g} (about a "
+                f"cell): walls traced thinner (an RV free wall, 2 to 5 mm) are that thick in the mesh, and the "
+                f"myocardium larger than the contours' own; for walls as traced give radius <= "
+                f"{MIN_WALL / WALL_PER_RADIUS:.3g} (or min_wall down to {MIN_WALL:g})")
+        logger.info(note)
+        result = replace(result, notes=result.notes + (note,))
     if is_myocardium(source.function):
         with timed(seconds, "plausibility"):
             check_heart(result.mesh, result.function, result.radius, result.fidelity,
