@@ -251,9 +251,19 @@ def test_a_domain_naming_an_unknown_surface_lists_the_known_ones(shell):
 
 
 def test_several_surfaces_need_a_domain_and_labels_must_match_points(shell):
+    """Unknown labels need a domain; the example the refusal gives puts the widest surface first (it gave 'BAR -
+    FOO' for a FOO holding BAR, whose domain is empty), and followed, it gives the shell."""
+    import re
     points, labels, slices = shell
-    with pytest.raises(InvalidInputError, match=r"the points have 3 surfaces \(EPI, LV_ENDO, RV_ENDO\): give domain"):
+    with pytest.raises(InvalidInputError, match=r"the points have 3 surfaces \(EPI, .*\): give domain") as refused:
         labelled_implicit(points, labels, slices=slices)
+    example = re.search(r"such as '([^']+)'", str(refused.value)).group(1)
+    assert example.startswith("EPI - ")
+    function, lower, upper = labelled_implicit(points, labels, example, BASE, slices=slices)
+    shell_function, _, _ = labelled_implicit(points, labels, "EPI - LV_ENDO - RV_ENDO", BASE, slices=slices)
+    probes = np.random.default_rng(0).uniform(lower, upper, (2000, 3))
+    np.testing.assert_allclose(function(probes), shell_function(probes), rtol=0, atol=1e-9)
+    assert (function(probes) > 0).any()
     with pytest.raises(InvalidInputError, match=r"labels must hold one label per point"):
         labelled_implicit(points, labels[:-1], SHELL_DOMAIN)
 

@@ -118,16 +118,18 @@ def _checked_surfaces(surfaces, labels) -> dict:
     return checked
 
 
-def _default_domain(surfaces: dict, labels) -> tuple:
+def _default_domain(surfaces: dict, labels, points) -> tuple:
     """The domain expression for these labels, and a note."""
     if is_bivme(labels):
         return bivme_domain(labels)
     present = [name for name, members in surfaces.items() if np.isin(labels, members).any()]
     if len(present) == 1:
         return present[0], ()
+    span = {name: float(np.linalg.norm(np.ptp(points[np.isin(labels, surfaces[name])], axis=0))) for name in present}
+    present.sort(key=lambda name: -span[name])   # the widest first: what holds the others
     raise InvalidInputError(
         f"the points have {len(present)} surfaces ({', '.join(present)}): give domain, a CSG expression of them "
-        f"such as {' - '.join(present[:3])!r}")
+        f"such as {' - '.join(present[:3])!r} (the widest first: the cavities it holds subtracted from it)")
 
 
 def _distinct(points, index) -> np.ndarray:
@@ -192,7 +194,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         notes += unused_labels_note(labels)
     surfaces = _checked_surfaces(surfaces, labels)
     if domain is None:
-        expression, note = _default_domain(surfaces, labels)
+        expression, note = _default_domain(surfaces, labels, points)
         notes += note
     else:
         expression = domain
