@@ -97,7 +97,7 @@ def test_ctrl_c_between_the_two_renames_of_a_vtu_waits_until_both_are_new(monkey
     monkeypatch.setattr(files.os, "replace", interrupted)
     before = signal.signal(signal.SIGINT, signal.default_int_handler)   # Python's own, whatever ran before
     try:
-        with pytest.raises(KeyboardInterrupt):
+        with pytest.raises(KeyboardInterrupt, match=f"a mesh was written to '{path}' first"):
             write_mesh(tagged_tetrahedron(shift=5.0), path)
     finally:
         signal.signal(signal.SIGINT, before)

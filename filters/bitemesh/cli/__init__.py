@@ -79,8 +79,8 @@ def main(argv=None) -> int:
             if _held_back:
                 _interrupt()
         return _run(argv)
-    except KeyboardInterrupt:
-        print("\nbitemesh: cancelled", file=sys.stderr)
+    except KeyboardInterrupt as interrupt:
+        print(f"\nbitemesh: cancelled{f' ({interrupt})' if str(interrupt) else ''}", file=sys.stderr)
         return 130
     except SystemError as error:
         if not _interrupted(error):

@@ -86,13 +86,16 @@ def atomic_outputs(paths, what: str = "a mesh", stale=()):
     replaced = []
     try:
         yield temporaries
-        with signals_held():
-            for temporary, path in zip(temporaries, paths):
-                os.replace(temporary, path)
-                replaced.append(path.name)
-            for path in stale:
-                with contextlib.suppress(FileNotFoundError):
-                    Path(path).unlink()
+        try:
+            with signals_held():
+                for temporary, path in zip(temporaries, paths):
+                    os.replace(temporary, path)
+                    replaced.append(path.name)
+                for path in stale:
+                    with contextlib.suppress(FileNotFoundError):
+                        Path(path).unlink()
+        except KeyboardInterrupt:   # held off until every file was in place: say so
+            raise KeyboardInterrupt(f"{what} was written to '{paths[0]}' first") from None
     except OSError as error:
         kept = (f"only {', '.join(replaced)} replaced" if replaced else
                 f"the previous file{'s' if len(paths) > 1 else ''}, if any, unchanged")
