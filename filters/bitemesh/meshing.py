@@ -22,7 +22,6 @@ from .core.fem.fibres import FIBRE_ARRAYS, FibreParameters, warn_thin_walls, wit
 from .core.parameters import ImplicitParameters, LabelledParameters
 from .core.progress import ProgressCallback, report, sub_progress
 from .core.sources.contours.cardiac import canonical_labels, is_bivme
-from .io.opencarp import MICROMETRES
 from .core.sources.contours.run import labelled_keywords, labelled_source, run_labelled, two_cells_across
 from .core.sources.points import points_source, run
 from .core.sources.source import Source
@@ -30,6 +29,7 @@ from .core.steps.spine import MeshingResult
 from .io import (LABEL_MAP_EXTENSIONS, LABELLED_EXTENSIONS, MESH_EXTENSIONS, NO_CELL_ARRAYS, POINT_EXTENSIONS,
                  LabelMap, looks_labelled, read_label_map, read_labelled_config, read_labelled_points, read_points,
                  write_mesh)
+from .io.opencarp import MICROMETRES
 from .labelmap import label_grid_source, mesh_label_grid
 from .options import Options, as_options, flag
 

@@ -216,7 +216,7 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
                                         None if unsampled is None else lambda x: unsampled.evaluate(x) > 0.5)
             check_fidelity(fidelity, bounds)
             add_field_values(output, asdict(fidelity), "Fidelity")
-        check_topology(domain, grid.inside(), radius, bool(bounds.allow_unfaithful))
+        check_topology(domain, grid.inside(), radius, bool(bounds.allow_unfaithful), around=grid.inside_offsets)
 
 
 @with_parameters(QualityParameters)

@@ -26,7 +26,6 @@ as ``Region``.
 from __future__ import annotations
 
 import os
-
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 

@@ -113,6 +113,12 @@ class SampledGrid:
             mask[first:first + PLANES] = self.planes(first, min(first + PLANES, self.shape[0])) > level
         return mask
 
+    def inside_offsets(self) -> tuple:
+        """(f > -h, f > +h) at the nodes, h the largest grid spacing: the region a spacing outside and inside f = 0
+        (a tunnel or cavity of the shape is in both)."""
+        step = float(np.max(self.spacing))
+        return self.inside(-step), self.inside(step)
+
     def inside_volume(self) -> float:
         """Measure (area in 2D, volume in 3D) of {f > 0}, counted on the nodes."""
         count = sum(np.count_nonzero(self.planes(first, min(first + PLANES, self.shape[0])) > 0)

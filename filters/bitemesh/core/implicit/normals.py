@@ -237,13 +237,13 @@ def check_normals(points, normals) -> np.ndarray:
         distance, near = distance[:, 1:], near[:, 1:]
         edge = points[near] - points[:, None]
         with np.errstate(invalid="ignore", divide="ignore"):
-            sine = np.abs(np.einsum("nkd,nd->nk", edge, normals)) / distance
+            along = np.einsum("nkd,nd->nk", edge, normals)
+            sine = np.abs(along) / distance
         tangent = sine < _TANGENT_SINE   # NaN for duplicate points: not compared
-        opposed = np.einsum("nkd,nd->nk", normals[near], normals) < -0.5
-        with np.errstate(invalid="ignore", divide="ignore"):   # each behind the other: two faces of a thin wall
-            facing_away = ((np.einsum("nkd,nd->nk", edge, normals) < -_WALL_SINE * distance)
-                           & (np.einsum("nkd,nkd->nk", edge, normals[near]) > _WALL_SINE * distance))
-        opposed &= ~facing_away
+        # opposed, unless each lies behind the other's normal: the two faces of a thin wall
+        facing_away = (along < -_WALL_SINE * distance) & (np.einsum("nkd,nkd->nk", edge, normals[near]) >
+                                                           _WALL_SINE * distance)
+        opposed = (np.einsum("nkd,nd->nk", normals[near], normals) < -0.5) & ~facing_away
         pairs = int(tangent.sum())
         if pairs and np.count_nonzero(opposed & tangent) > _CONTRADICTION_LIMIT * pairs:
             raise InvalidInputError(

@@ -99,10 +99,10 @@ def torn(mesh: Topology, grid: Topology) -> str:
 def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, around=None) -> str:
     """Refuse (:class:`MeshingError`; a :class:`BitemeshWarning` when ``allow``) a mesh with parts, handles or voids
     that the region ``inside`` (f > 0 on the grid I) lacks, or handles or voids that f > 0 has at its zero level
-    alone: ``around`` () -> (f > -d, f > +d) on the grid I, asked only when the mesh has a handle or a void (d, a
-    grid spacing: a tunnel or a cavity of the shape is there at both levels, one that appears at f = 0 alone is a
-    fold of f where surfaces cross or normals disagree).  What the mesh has more ("" when nothing); ``radius``: R in
-    user units, for the message."""
+    alone: ``around`` () -> (f > -d, f > +d) on the grid I (SampledGrid.inside_offsets), asked only when the mesh
+    has a handle or a void (d, a grid spacing: a tunnel or a cavity of the shape is there at both levels, one that
+    appears at f = 0 alone is a fold of f where surfaces cross or normals disagree).  What the mesh has more (""
+    when nothing); ``radius``: R in user units, for the message."""
     mine, data = mesh_topology(mesh), grid_topology(inside)
     extra = torn(mine, data)
     if extra:

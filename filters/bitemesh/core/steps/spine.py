@@ -385,9 +385,8 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
         scattered = source.locate is None and source.open_boundary is None   # not contours: a rim means an opening
         check_fidelity(measured, fidelity, where=where, unsupported=unsupported if scattered else None)
     with timed(seconds, "topology"):
-        step = float(np.max(grid.spacing))
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful),
-                       around=lambda: (grid.inside(-step), grid.inside(step)))
+                       around=grid.inside_offsets)
     report(progress, 1.0, "done")
     return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
                          radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,

@@ -82,6 +82,9 @@ DERIVED_EPI_TAGS = {"LV_EPI": ("EPI", 1), "RV_EPI": ("EPI", 1), "LV_ENDO": ("LV_
                     "RV_ENDO": ("RV_ENDO", 3), "BASE": ("BASE", 4)}
 #: the RV free wall thickness (mm) an RV epicardium is derived with: normal adult RV walls are 2 to 5 mm thick.
 RV_WALL = LabelledParameters.rv_wall
+#: the thinnest wall the domain keeps by default (min_wall, input units): the RV free wall of adult hearts is 2 to
+#: 5 mm thick.
+MIN_WALL = 2.5
 #: the node spacing R (mm) of a cardiac mesh when neither radius nor cells is given: about 100,000 cells for an
 #: adult biventricular myocardium, two to five cells across the LV wall.
 CARDIAC_RADIUS = 2.0

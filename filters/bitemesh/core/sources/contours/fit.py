@@ -41,6 +41,7 @@ from __future__ import annotations
 import logging
 import re
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -51,7 +52,7 @@ from ...parameters import LabelledParameters
 from ...progress import ProgressCallback, report, sub_progress
 from ...implicit.samples import slice_spacing
 from .base import choose_base
-from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
+from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, MIN_WALL, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
                       check_millimetres, default_surfaces, grown, is_bivme, needs_derived_epicardium,
                       short_axis_stack, unused_labels_note)
 from .csg import domain_names, parse_domain
@@ -68,9 +69,9 @@ logger = logging.getLogger("bitemesh")
 CAVITY_RINGS = {"LV_ENDO": ("MITRAL_VALVE",), "RV_ENDO": ("TRICUSPID_VALVE",)}
 INFLOW_RINGS = tuple(valve for valves in CAVITY_RINGS.values() for valve in valves)
 #: an epicardium holds every inflow ring point at least this far inside (mm; the thinnest wall the mesher keeps by
-#: default, min_wall): the epicardial contours end short of the annulus, and a wall tapering to nothing there would
-#: leave the ring points mm away from the mesh (up to 4.6 mm on the cine's frame 7).
-RING_WALL = 2.5
+#: default): the epicardial contours end short of the annulus, and a wall tapering to nothing there would leave the
+#: ring points mm away from the mesh (up to 4.6 mm on the cine's frame 7).
+RING_WALL = MIN_WALL
 #: no patch of a surface's fit is narrower than this x the median distance between its slices.
 PATCH_PER_GAP = 1.0
 
@@ -253,15 +254,14 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
             index, normals = np.r_[index, rings], np.vstack([normals, annulus_normals(points[rings], labels[rings])])
         interior = outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
         min_patch = PATCH_PER_GAP * slice_spacing(points[index], slices[index])
-        rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
-                              interior=interior, min_patch=min_patch)
+        fit_surface = partial(fit_contour_rbf, points[index], normals, kernel=kernel, offset=offset,
+                              smoothing=smoothing, min_patch=min_patch)
+        rbf = fit_surface(interior=interior)
         ring_points = points[np.isin(labels, [valve for valve in outlets.get(name, ()) if valve in INFLOW_RINGS])]
         thin = ring_points[rbf(ring_points) < RING_WALL] if name in OUTLET_WALL and len(ring_points) else []
         if len(thin):   # the epicardium holds each inflow ring point a wall inside it: fitted again with them
             centres, values = interior if interior is not None else (np.zeros((0, 3)), np.zeros(0))
-            interior = (np.vstack([centres, thin]), np.r_[values, np.full(len(thin), RING_WALL)])
-            rbf = fit_contour_rbf(points[index], normals, kernel=kernel, offset=offset, smoothing=smoothing,
-                                  interior=interior, min_patch=min_patch)
+            rbf = fit_surface(interior=(np.vstack([centres, thin]), np.r_[values, np.full(len(thin), RING_WALL)]))
         functions[name] = _sampled_surface(rbf, points[index], offset, resolution, sub_progress(
             progress, 0.05 + 0.9 * (number + 0.3) / len(fitted), 0.05 + 0.9 * (number + 1) / len(fitted)))
         surface_points[name], surface_normals[name], surface_slices[name] = points[index], normals, slices[index]

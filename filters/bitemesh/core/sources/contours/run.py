@@ -18,17 +18,16 @@ from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
 from ...mesh.tags import DOMAIN, MYOCARDIUM, renamed_tags, surface_tags
 from .cardiac import (BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, DERIVED_EPI_TAGS, LV_DOMAIN, LV_REGION,
-                      LV_TAGS, check_heart)
+                      LV_TAGS, MIN_WALL, check_heart)
 from .fit import labelled_implicit
 from .function import LabelledImplicit
 
 logger = logging.getLogger("bitemesh")
 
 
-#: the thinnest wall is at least this x R (so that a wall is about one cell thick) when min_wall is not given.
+#: the thinnest wall is at least this x R (so that a wall is about one cell thick), and at least MIN_WALL, when
+#: min_wall is not given.
 WALL_PER_RADIUS = 1.25
-#: and at least this (input units): the RV free wall of adult hearts is 2 to 5 mm thick.
-MIN_WALL = 2.5
 
 
 def thinnest_wall(radius: float) -> float:
