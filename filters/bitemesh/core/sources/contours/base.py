@@ -6,10 +6,11 @@ and pulmonary valves sit higher than the mitral and tricuspid, and the long-axis
 through the valves' centres cuts the basal myocardium off (guide points 10 to 18 mm above the mesh).  So the base of
 biv-me contours is a height field over the short-axis plane, h(u, v), through the valve points and the upper ends of
 the long-axis wall contours (:func:`annulus_points`), 2 mm above the valve points and 1 mm above the contours' ends,
-and over every wall guide point: the myocardium reaches each annulus.  Between them h is linear on the Delaunay
-triangles of those anchors (:class:`PiecewiseLinear`): a smooth interpolant (a thin-plate spline) through annulus
-points a few millimetres apart at heights 10 mm apart swings 20-30 mm beyond them, and does so differently for the
-same contours sampled more densely; a linear one stays between them.  Its value, (h(u, v) - height) /
+and over every wall guide point, staying as high within a wall's thickness of each (:func:`_plateau`): the
+myocardium reaches each annulus.  Between them h is linear on the Delaunay triangles of those anchors
+(:class:`PiecewiseLinear`): a smooth interpolant (a thin-plate spline) through annulus points a few millimetres
+apart at heights 10 mm apart swings 20-30 mm beyond them, and does so differently for the same contours sampled more
+densely; a linear one stays between them.  Its value, (h(u, v) - height) /
 sqrt(1 + |grad h|^2), is about the distance below it.
 """
 from __future__ import annotations
@@ -38,9 +39,17 @@ ABOVE_ANNULUS = 1.0
 #: 2 mm higher brings every frame's mitral points within 3.1 mm but moves the myocardium's volume by up to 3 % for
 #: a small change of the input (the grid I follows the base), where 1 mm keeps it within 0.1 %.
 ABOVE_VALVES = 2.0
-#: the base is raised over the wall and valve points it leaves less than this (mm) below it, at most this many
-#: rounds; of the points it passes over, the highest in each square of this side (mm) of the base's plane.
+#: the base is raised over each wall and valve point it passes less than its height above it (ABOVE_ANNULUS,
+#: ABOVE_VALVES) minus this (mm) above, at most this many rounds; of the annulus points it starts from, the highest
+#: of those within this distance (mm) of each other in the base's plane (:func:`_highest_within`).
 ENVELOPE_TOLERANCE, ENVELOPE_ROUNDS, ANCHOR_CELL = 0.5, 4, 5.0
+#: a point the base passes too near gets an anchor of its own, or raises one nearer than this (mm) in the plane.
+ANCHOR_MERGE = 1.0
+#: the base stays at an anchor's height or above within this (mm) of it in its plane: the thinnest wall.
+PLATEAU = 2.5
+#: the anchor such a point gets stands its clearance over the cosine of the base's slope there above it (the slope
+#: counted up to 60 deg).
+STEEPEST = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,29 +217,69 @@ def annulus_surface(points, labels, slices, planes):
     base = BaseSurface.plane(anchors.mean(axis=0), axis)
     covered = [label for members in BIVME_SURFACES.values() for label in members] + list(BIVME_VALVES)
     wall = points[np.isin(labels, covered)]
-    anchors = _highest_per_cell(anchors + lift[:, None] * axis, base)
-    for _ in range(ENVELOPE_ROUNDS):
+    clearance = np.where(np.isin(labels[np.isin(labels, covered)], BIVME_VALVES), ABOVE_VALVES, ABOVE_ANNULUS)
+    anchors = _highest_within(anchors + lift[:, None] * axis, base, ANCHOR_CELL)
+    anchors = _with_anchors(anchors, _plateau(anchors, base), base)
+    for round_ in range(ENVELOPE_ROUNDS + 1):
         in_plane = (anchors - base.point) @ base.axes.T
         spread = np.linalg.svd(in_plane - in_plane.mean(axis=0), compute_uv=False)
         if spread[1] <= 0.05 * spread[0]:   # on one line: only the plane through them, perpendicular to the stack
             return base, ()
         surface = replace(base, heights=PiecewiseLinear.through(in_plane, (anchors - base.point) @ axis))
-        above = wall[surface.below(wall) < ENVELOPE_TOLERANCE]
-        if not len(above):
-            break
-        anchors = _highest_per_cell(np.vstack([anchors, above + ABOVE_ANNULUS * axis]), base)
-    return surface, ()
+        short = surface.below(wall) < clearance - ENVELOPE_TOLERANCE
+        if not short.any() or round_ == ENVELOPE_ROUNDS:
+            return surface, ()
+        slope = surface.heights.gradient((wall[short] - base.point) @ base.axes.T)
+        lift = clearance[short] * np.minimum(np.sqrt(1.0 + np.einsum("ij,ij->i", slope, slope)), STEEPEST)
+        added = _highest_within(wall[short] + lift[:, None] * axis, base, ANCHOR_MERGE)
+        anchors = _with_anchors(anchors, np.vstack([added, _plateau(added, surface)]), base)
 
 
-def _highest_per_cell(anchors: np.ndarray, base: BaseSurface) -> np.ndarray:
-    """The highest of (k, 3) anchors (along the base's normal) in each :data:`ANCHOR_CELL` square of the base's
-    plane: the base must pass over all of them, and anchors nearer than that at other heights would only make it
-    swing between them."""
+def _highest_within(anchors: np.ndarray, base: BaseSurface, radius: float) -> np.ndarray:
+    """Of (k, 3) anchors, each that no higher one (along the base's normal) kept before it stands within ``radius``
+    (mm) of in the base's plane: the base passes over all of them, and a lower anchor so near a higher one would
+    only make it fall steeply between them (a long-axis contour's end 3 mm short of its mitral point, 2 mm below
+    it, gave a cliff that left a roof of wall thinner than a cell over the point)."""
     offset = anchors - base.point
-    cells = np.floor(offset @ base.axes.T / ANCHOR_CELL).astype(np.int64)
-    order = np.lexsort((-(offset @ base.normal), cells[:, 1], cells[:, 0]))
-    first = np.r_[True, (np.diff(cells[order], axis=0) != 0).any(axis=1)]
-    return anchors[order[first]]
+    order = np.argsort(-(offset @ base.normal), kind="stable")
+    in_plane = offset[order] @ base.axes.T
+    tree = cKDTree(in_plane)
+    kept = np.zeros(len(anchors), bool)
+    for rank, neighbours in enumerate(tree.query_ball_point(in_plane, radius)):
+        kept[rank] = not kept[[n for n in neighbours if n < rank]].any()
+    return anchors[order[kept]]
+
+
+def _plateau(anchors: np.ndarray, surface: BaseSurface) -> np.ndarray:
+    """(6 k, 3) anchors around each of (k, 3) anchors, :data:`PLATEAU` from it in the base's plane, at its height or
+    the base's (``surface``) where that is higher: the base stays at least as high over the wall around the point
+    as over the point.  (A long-axis contour that runs up the RV outflow tract projects to a short segment of the
+    base's plane: through its highest point alone, the base fell in a cliff beside it, 0.25 mm from its lower points
+    along the slope, and the RV free wall under it was lost, 11.8 mm from the mesh.)"""
+    angle = np.linspace(0.0, 2.0 * np.pi, 6, endpoint=False)
+    ring = PLATEAU * np.column_stack([np.cos(angle), np.sin(angle)]) @ surface.axes              # (6, 3)
+    around = (anchors[:, None, :] + ring).reshape(-1, 3)
+    if surface.heights is not None:
+        offset = around - surface.point
+        rise = np.maximum(surface.heights(offset @ surface.axes.T) - offset @ surface.normal, 0.0)
+        around += rise[:, None] * surface.normal
+    return around
+
+
+def _with_anchors(anchors: np.ndarray, added: np.ndarray, base: BaseSurface) -> np.ndarray:
+    """(k, 3) anchors and (a, 3) more that the base must pass through: each added one kept where it stands (the
+    highest within :data:`ANCHOR_MERGE`), or, within :data:`ANCHOR_MERGE` of an anchor, raising that anchor to its
+    height (a second anchor so near at another height would tilt the base steeply between them).  An added anchor is
+    never dropped for a higher one of its :data:`ANCHOR_CELL` square: the base interpolated between that one and
+    the next dipped to within 1 mm of a mitral point, leaving a wedge of wall thinner than a cell there."""
+    added = _highest_within(added, base, ANCHOR_MERGE)
+    distance, nearest = cKDTree((anchors - base.point) @ base.axes.T).query((added - base.point) @ base.axes.T)
+    near = distance < ANCHOR_MERGE
+    anchors = anchors.copy()
+    rise = np.zeros(len(anchors))
+    np.maximum.at(rise, nearest[near], (added[near] - anchors[nearest[near]]) @ base.normal)
+    anchors += rise[:, None] * base.normal
+    return np.vstack([anchors, added[~near]])
 
 
 def choose_base(base_plane, points, labels, surface_points, slices, planes):

@@ -17,8 +17,9 @@ a label naming the contour it was drawn on (biv-me's ``SAX_LV_ENDOCARDIAL``, ...
    plate r^2 log r and MPU): it passes through the points and bends least between slices, with the fewest
    spurious bubbles where short- and long-axis contours disagree.  A cavity also gets a point inside it at the
    centre of each of its valves (:data:`BIVME_OUTLETS`), so that it opens through the base instead of closing in
-   a dome just above the last short-axis slice; the epicardium holds each inflow ring point :data:`RING_WALL`
-   inside (fitted again with those it left nearer).  The points are thinned to 1.6 mm apart and, beyond 1,200
+   a dome just above the last short-axis slice, and its wall runs on :data:`RING_RISE` above each inflow ring point,
+   through the base; the epicardium holds each inflow ring point :data:`RING_WALL` inside (fitted again with those
+   it left nearer).  The points are thinned to 1.6 mm apart and, beyond 1,200
    constraints, the RBF is a partition of unity of RBFs on overlapping patches (:mod:`bitemesh.core.implicit.rbf`),
    so that denser contours cost about linearly.  Each RBF is sampled once on a fine grid, exactly near its zero
    level (:func:`bitemesh.core.grid.sampled.sample_function` with levels), so the domain is cheap to evaluate on the
@@ -51,7 +52,7 @@ from ...grid.sampled import ImplicitGrid, sample_function
 from ...parameters import LabelledParameters
 from ...progress import ProgressCallback, report, sub_progress
 from ...implicit.samples import slice_spacing
-from .base import choose_base
+from .base import ABOVE_VALVES, choose_base
 from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, MIN_WALL, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
                       check_millimetres, default_surfaces, grown, is_bivme, needs_derived_epicardium,
                       short_axis_stack, unused_labels_note)
@@ -72,6 +73,10 @@ INFLOW_RINGS = tuple(valve for valves in CAVITY_RINGS.values() for valve in valv
 #: default): the epicardial contours end short of the annulus, and a wall tapering to nothing there would leave the
 #: ring points mm away from the mesh (up to 4.6 mm on the cine's frame 7).
 RING_WALL = MIN_WALL
+#: a cavity's wall runs on this far (mm) above each inflow ring point, through the base that passes ABOVE_VALVES
+#: above it: fitted through the ring alone, the cavity closed in a dome just above it, under a roof of wall thinner
+#: than a cell that the mesh lost, mitral points up to 8 mm from the mesh.
+RING_RISE = 2 * ABOVE_VALVES
 #: no patch of a surface's fit is narrower than this x the median distance between its slices.
 PATCH_PER_GAP = 1.0
 
@@ -252,9 +257,14 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         if name in CAVITY_RINGS:   # a cavity's inflow annulus lies on its wall, its normal away from the valve's centre
             rings = _distinct(points, np.flatnonzero(np.isin(labels, CAVITY_RINGS[name])))
             index, normals = np.r_[index, rings], np.vstack([normals, annulus_normals(points[rings], labels[rings])])
+        fitted_points, fitted_normals = points[index], normals
+        if name in CAVITY_RINGS and base is not None and len(rings):   # the wall runs on up through the base
+            risen = points[rings] + RING_RISE * base.outward(points[rings])
+            fitted_points = np.vstack([fitted_points, risen])
+            fitted_normals = np.vstack([fitted_normals, normals[-len(rings):]])
         interior = outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
         min_patch = PATCH_PER_GAP * slice_spacing(points[index], slices[index])
-        fit_surface = partial(fit_contour_rbf, points[index], normals, kernel=kernel, offset=offset,
+        fit_surface = partial(fit_contour_rbf, fitted_points, fitted_normals, kernel=kernel, offset=offset,
                               smoothing=smoothing, min_patch=min_patch)
         rbf = fit_surface(interior=interior)
         ring_points = points[np.isin(labels, [valve for valve in outlets.get(name, ()) if valve in INFLOW_RINGS])]
