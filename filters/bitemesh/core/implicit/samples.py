@@ -109,13 +109,13 @@ def stray_groups(points: np.ndarray) -> np.ndarray:
     return stray[group] if not stray.all() else np.zeros(len(points), bool)
 
 
-def near_duplicates(points: np.ndarray) -> np.ndarray:
+def near_duplicates(points: np.ndarray, share: float = DUPLICATE_SHARE) -> np.ndarray:
     """(n,) int64: for each of (n, k) points the index of the first point of its group of near-duplicates (points
-    within :data:`DUPLICATE_SHARE` x the median distance to the 8th neighbour, chained); itself when alone."""
+    within ``share`` x the median distance to the 8th neighbour, chained); itself when alone."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     distances, _ = _neighbourhoods(points, FAR_NEIGHBOURS)
-    tolerance = DUPLICATE_SHARE * float(np.median(distances[:, -1]))
+    tolerance = share * float(np.median(distances[:, -1]))
     pairs = cKDTree(points).query_pairs(tolerance, output_type="ndarray")
     if not len(pairs):
         return np.arange(len(points))
