@@ -11,6 +11,7 @@ from itertools import combinations, permutations
 import numpy as np
 
 from ..compiled import kernel
+from ..errors import InvalidInputError
 from .simplicial import facet_corners, facet_of
 
 #: the neighbour recorded for a facet held by its cell alone (on the boundary), and by three cells or more.
@@ -28,10 +29,27 @@ EDGE_OTHERS = np.array([next(rest for rest in permutations(set(range(4)) - {i, j
                         for i, j in EDGE_PAIRS])
 
 
+#: a cell of a k-D mesh (k >= 4) has facets of k vertices, keyed by their sorted indices of this many bits each.
+KEY_BITS = 21
+
+
 @kernel
 def _facet_key(cells: np.ndarray, c: int, skip: int):
     """The facet of cell c opposite its vertex ``skip`` by its sorted vertices, in two words: the lowest, then
-    (triangles) the middle one times 2^32 plus the highest, or (edges) the highest."""
+    (triangles) the middle one times 2^32 plus the highest, or (edges) the highest; a facet of 4 or 5 vertices
+    (4-D, 5-D) packs them :data:`KEY_BITS` bits each, three in the first word."""
+    if cells.shape[1] > 4:
+        ids = np.empty(cells.shape[1] - 1, np.int64)
+        n = 0
+        for j in range(cells.shape[1]):
+            if j != skip:
+                ids[n] = cells[c, j]
+                n += 1
+        ids.sort()
+        rest = np.int64(0)
+        for j in range(3, n):
+            rest = (rest << KEY_BITS) | ids[j]
+        return (((ids[0] << KEY_BITS) | ids[1]) << KEY_BITS) | ids[2], rest
     low, high, total = np.int64(1 << 62), np.int64(-1), np.int64(0)
     for j in range(cells.shape[1]):
         if j != skip:
@@ -82,6 +100,10 @@ def cell_neighbours(cells: np.ndarray) -> np.ndarray:
     is held by cell c alone, ``NON_MANIFOLD`` (-2) where by three cells or more."""
     if len(cells) == 0:
         return np.zeros((0, cells.shape[1]), np.int64)
+    if cells.shape[1] > 4 and cells.max() >= 1 << KEY_BITS:
+        raise InvalidInputError(f"a mesh of {cells.shape[1] - 1}-D cells may hold at most {1 << KEY_BITS} points "
+                                f"(its facets are keyed by {KEY_BITS}-bit indices), got {int(cells.max()) + 1}; "
+                                "mesh it coarser (a larger radius)")
     rows = cells.size
     size = 1 << max(1, (rows - 1).bit_length())   # at least one slot per facet row: at most half full inside
     return _neighbours(np.ascontiguousarray(cells, dtype=np.int64),

@@ -3,8 +3,9 @@
 :mod:`bitemesh.core.mesh.validity`, re-exported here (``from bitemesh.core.mesh.quality import check_valid_domain``
 works as before).
 
-Dimension-generic: triangles in 2D, tetrahedra in 3D.  The quality criterion is the paper's (section 5)
-``Q = k r_in / R_circ`` (k = 2 or 3), 1 for the regular simplex and 0 for a degenerate one.
+Dimension-generic: triangles in 2D, tetrahedra in 3D (closed forms, compiled), simplices of any dimension k by the
+general formulas (:func:`radius_ratios_any`, :func:`dihedral_angles_any`).  The quality criterion is the paper's
+(section 5) ``Q = k r_in / R_circ``, 1 for the regular simplex and 0 for a degenerate one.
 
 Topology is computed exactly with integers: every facet or edge becomes an integer key of its sorted vertex
 indices, and ``np.unique`` groups equal keys.
@@ -13,12 +14,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import combinations
+from math import factorial
 
 import numpy as np
 
 from ..compiled import kernel
 from ..errors import InvalidInputError, check_number
-from .simplicial import Mesh, facets_of, signed_measures
+from .simplicial import Mesh, circumspheres, facet_corners, facets_of, signed_measures
 from .topology import (distinct_faces)
 from .validity import _check_cells, _check_mesh
 
@@ -87,8 +89,26 @@ def signed_radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """
     points = np.ascontiguousarray(points, dtype=np.float64)
     flat = np.ascontiguousarray(cells, dtype=np.int64).reshape(-1, points.shape[1] + 1)
-    kernel = _radius_ratios_2d if points.shape[1] == 2 else _radius_ratios_3d
+    kernel = {2: _radius_ratios_2d, 3: _radius_ratios_3d}.get(points.shape[1], radius_ratios_any)
     return kernel(points, flat).reshape(np.shape(cells)[:-1])
+
+
+def radius_ratios_any(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """:func:`signed_radius_ratio` of (m, k + 1) cells in any dimension k (the closed forms of 2D and 3D are
+    specialisations of it): r_in = k |V| / (sum of the facets' measures), R_circ from :func:`circumspheres`,
+    V = det(edges) / k!, a facet's measure sqrt(det(Gram matrix of its edges)) / (k - 1)!."""
+    k = points.shape[1]
+    corners = points[cells]                                                   # (m, k + 1, k)
+    volume = np.linalg.det(corners[:, 1:] - corners[:, :1]) / factorial(k)
+    facets = corners[:, facet_corners(k + 1)]                                 # (m, k + 1, k, k)
+    sides = facets[:, :, 1:] - facets[:, :, :1]
+    gram = np.einsum("mfik,mfjk->mfij", sides, sides)
+    area = np.sqrt(np.maximum(np.linalg.det(gram), 0.0)).sum(axis=1) / factorial(k - 1)
+    _, radius = circumspheres(points, cells)
+    ratio = np.zeros(len(cells))
+    fine = (area > 0) & np.isfinite(radius) & (volume != 0)
+    ratio[fine] = k * k * volume[fine] / (area[fine] * radius[fine])
+    return ratio
 
 
 @kernel
@@ -160,6 +180,8 @@ def dihedral_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     if points.shape[1] == 3:
         return _dihedral_angles_3d(np.ascontiguousarray(points, dtype=np.float64),
                                    np.ascontiguousarray(cells, dtype=np.int64))
+    if points.shape[1] > 3:
+        return dihedral_angles_any(points, cells)
     normals = facet_normals(points, cells)
     pairs = _ridge_facets(cells.shape[1])
     a, b = normals[:, pairs[:, 0]], normals[:, pairs[:, 1]]
@@ -168,6 +190,26 @@ def dihedral_angles(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     angles = np.degrees(np.arctan2(sine, -np.einsum("mrk,mrk->mr", a, b)))
     zero = (np.linalg.norm(a, axis=-1) == 0) | (np.linalg.norm(b, axis=-1) == 0)
     angles[zero] = np.nan
+    return angles
+
+
+def dihedral_angles_any(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m, (k + 1) k / 2) :func:`dihedral_angles` of (m, k + 1) cells in any dimension k, degrees: facet i's
+    outward normal is -grad lambda_i (lambda the barycentric coordinates: grad lambda_1..k the columns of the
+    inverse of the edges from vertex 0, grad lambda_0 minus their sum), the angle at a ridge 180 minus that between
+    its two facets' normals (arccos(1 / k) for the regular simplex); NaN for a flat cell."""
+    corners = points[cells]
+    edges = corners[:, 1:] - corners[:, :1]
+    flat = np.abs(np.linalg.det(edges)) <= 1e-300
+    edges[flat] = np.eye(points.shape[1])
+    gradient = np.linalg.inv(edges).transpose(0, 2, 1)                           # (m, k, k): rows grad lambda_j
+    normals = -np.concatenate([-gradient.sum(axis=1, keepdims=True), gradient], axis=1)
+    pairs = _ridge_facets(cells.shape[1])
+    a, b = normals[:, pairs[:, 0]], normals[:, pairs[:, 1]]
+    cosine = np.einsum("mrk,mrk->mr", a, b)
+    sine = np.sqrt(np.maximum(np.einsum("mrk,mrk->mr", a, a) * np.einsum("mrk,mrk->mr", b, b) - cosine**2, 0.0))
+    angles = np.degrees(np.arctan2(sine, -cosine))
+    angles[flat] = np.nan
     return angles
 
 

@@ -9,6 +9,10 @@ import numpy as np
 from ..compiled import kernel
 
 
+#: the largest dimension of a mesh: qhull's Delaunay triangulation grows as n^(k/2) and loses precision beyond.
+MAX_DIMENSION = 5
+
+
 @dataclass(frozen=True, eq=False)
 class Mesh:
     """A simplicial mesh.
@@ -74,8 +78,24 @@ def circumspheres(points: np.ndarray, cells: np.ndarray):
     (2 a . (b x c)), 2D ((|a|^2 b_y - |b|^2 a_y), (|b|^2 a_x - |a|^2 b_x)) / (2 (a_x b_y - a_y b_x)).
     """
     points = np.ascontiguousarray(points, dtype=np.float64)
-    spheres = _circumspheres(points, np.ascontiguousarray(cells, dtype=np.int64).reshape(-1, points.shape[1] + 1))
+    cells = np.ascontiguousarray(cells, dtype=np.int64).reshape(-1, points.shape[1] + 1)
+    if points.shape[1] > 3:
+        return _circumspheres_any(points, cells)
+    spheres = _circumspheres(points, cells)
     return spheres[:, :-1], spheres[:, -1]
+
+
+def _circumspheres_any(points: np.ndarray, cells: np.ndarray):
+    """:func:`circumspheres` in any dimension k: the centre's offset c from vertex 0 solves 2 E c = |e_i|^2, E the
+    (k, k) edges from vertex 0 (the closed forms of 2D and 3D are Cramer's rule of it)."""
+    corners = points[cells]
+    edges = corners[:, 1:] - corners[:, :1]
+    solvable = np.abs(np.linalg.det(edges)) > 1e-300
+    offset = np.full((len(cells), points.shape[1]), np.inf)
+    squared = np.einsum("mij,mij->mi", edges, edges)[solvable, :, None]
+    offset[solvable] = np.linalg.solve(2.0 * edges[solvable], squared)[:, :, 0]
+    radii = np.where(solvable, np.linalg.norm(np.where(solvable[:, None], offset, 0.0), axis=1), np.inf)
+    return corners[:, 0] + offset, radii
 
 
 @kernel

@@ -17,16 +17,16 @@ from scipy.sparse import csgraph
 
 from ..errors import InvalidInputError, check_number
 from .adjacency import BOUNDARY, NON_MANIFOLD, cell_neighbours, same_side_pairs
-from .simplicial import Mesh, facet_of, signed_measures
-from .topology import boundary_facets, distinct_faces, euler_characteristic, neighbour_pairs, unique_rows
+from .simplicial import MAX_DIMENSION, Mesh, facet_of, signed_measures
+from .topology import boundary_facets, distinct_faces, euler_characteristic, face_groups, neighbour_pairs, unique_rows
 
 
 def _check_cells(cells, name: str = "cells") -> np.ndarray:
     array = np.asarray(cells)
-    if array.ndim != 2 or array.shape[1] not in (3, 4) or not np.issubdtype(array.dtype, np.integer):
+    if array.ndim != 2 or not 3 <= array.shape[1] <= MAX_DIMENSION + 1 or not np.issubdtype(array.dtype, np.integer):
         raise InvalidInputError(
-            f"{name} must be an (m, 3) or (m, 4) integer array of vertex indices, "
-            f"got shape {array.shape} and dtype {array.dtype}")
+            f"{name} must be an (m, k + 1) integer array of vertex indices, k = 2 to {MAX_DIMENSION} (triangles, "
+            f"tetrahedra, ...), got shape {array.shape} and dtype {array.dtype}")
     if array.size and array.min() < 0:
         raise InvalidInputError(f"{name} holds negative vertex indices (first at cell {int(np.argmin(array.min(1)))})")
     return array.astype(np.int64, copy=False)
@@ -34,8 +34,9 @@ def _check_cells(cells, name: str = "cells") -> np.ndarray:
 
 def _check_mesh(mesh: Mesh, name: str = "mesh"):
     points = np.asarray(mesh.points, dtype=np.float64)
-    if points.ndim != 2 or points.shape[1] not in (2, 3):
-        raise InvalidInputError(f"{name}.points must be an (n, 2) or (n, 3) array, got shape {points.shape}")
+    if points.ndim != 2 or not 2 <= points.shape[1] <= MAX_DIMENSION:
+        raise InvalidInputError(f"{name}.points must be an (n, k) array, k = 2 to {MAX_DIMENSION}, got shape "
+                                f"{points.shape}")
     cells = _check_cells(mesh.cells, f"{name}.cells")
     if cells.shape[1] != points.shape[1] + 1:
         raise InvalidInputError(
@@ -80,42 +81,49 @@ def _found(count: int, what: str, first: str) -> str:
     return f"{count} {what} (first: {first})"
 
 
+#: the names of the faces of a boundary by their vertex count: plural, singular.
+_FACES = {1: ("vertices", "point"), 2: ("edges", "edge"), 3: ("triangles", "triangle"),
+          4: ("tetrahedra", "tetrahedron"), 5: ("4-simplices", "4-simplex")}
+
+
 def _manifold_problems(facets: np.ndarray, n_points: int) -> list:
-    """Problems of the boundary ``facets`` (oriented, (b, k)) as a closed (k-1)-manifold."""
+    """Problems of the boundary ``facets`` (oriented, (b, k)) as a closed (k-1)-manifold: each of its ridges (the
+    facets' faces of k - 1 vertices: vertices in 2D, edges in 3D) in exactly two boundary facets, and the boundary
+    facets at each vertex one star, joined across the ridges through the vertex (in 3D a fan)."""
     problems = []
-    if facets.shape[1] == 2:
-        degree = np.bincount(facets.ravel(), minlength=n_points)
-        bad = np.flatnonzero((degree != 0) & (degree != 2))
-        if len(bad):
-            problems.append(_found(len(bad), "boundary vertices not in exactly two boundary edges "
-                                   "(non-manifold boundary)", f"point {bad[0]} in {degree[bad[0]]}"))
-        return problems
-    # each boundary edge in exactly two boundary triangles
-    local = np.array([(0, 1), (1, 2), (2, 0)])
-    ends = facets[:, local].reshape(-1, 2)  # occurrence 3 t + e: edge e of triangle t
-    unique, inverse, counts = unique_rows(ends)
+    size = facets.shape[1]
+    (facet_name, _), (ridge_name, ridge_one) = _FACES[size], _FACES[size - 1]
+    corners = np.array(list(combinations(range(size), size - 1)))
+    ridges, inverse, counts = face_groups(facets, corners)
     bad = np.flatnonzero(counts != 2)
     if len(bad):
-        problems.append(_found(len(bad), "boundary edges not in exactly two boundary triangles "
-                               "(non-manifold boundary)", f"edge {tuple(unique[bad[0]].tolist())} in {counts[bad[0]]}"))
-    # each boundary vertex: its triangles form one fan.  Nodes of the graph are corners (3 t + j: vertex j of
-    # triangle t); two triangles sharing an edge join their corners at both ends of the edge.
-    corner = 3 * np.repeat(np.arange(len(facets)), 3)[:, None] + np.tile(local, (len(facets), 1))
-    swap = ends[:, 0] > ends[:, 1]
-    corner[swap] = corner[swap, ::-1]  # corner[:, 0] at the lower vertex of the edge
-    a, b = neighbour_pairs(inverse)
-    links = np.concatenate([corner[a], corner[b]], axis=1)  # (low a, high a, low b, high b)
-    graph = sparse.coo_matrix((np.ones(2 * len(a)), (np.r_[links[:, 0], links[:, 1]], np.r_[links[:, 2], links[:, 3]])),
-                              shape=(3 * len(facets),) * 2)
-    n_fans, labels = csgraph.connected_components(graph, directed=False)
-    vertex_of_fan = np.empty(n_fans, dtype=np.int64)
-    vertex_of_fan[labels] = facets.ravel()
-    fans = np.bincount(vertex_of_fan, minlength=n_points)
-    bad = np.flatnonzero(fans > 1)
+        first = ridges[bad[0]].tolist()
+        problems.append(_found(len(bad), f"boundary {ridge_name} not in exactly two boundary {facet_name} "
+                               "(non-manifold boundary)",
+                               f"{ridge_one} {first[0] if size == 2 else tuple(first)} in {counts[bad[0]]}"))
+    if size == 2 or not len(facets):
+        return problems
+    # Nodes of the graph are corners (size t + j: vertex j of facet t); two facets sharing a ridge join their
+    # corners at each of its vertices.
+    a, b = neighbour_pairs(inverse.ravel())
+    joined = []
+    for row in (a, b):
+        facet, ridge = row // len(corners), row % len(corners)
+        position = corners[ridge]                                                  # (p, size - 1)
+        order = np.argsort(facets[facet[:, None], position], axis=1, kind="stable")   # by vertex: aligned
+        joined.append(size * facet[:, None] + np.take_along_axis(position, order, axis=1))
+    links = np.stack([joined[0].ravel(), joined[1].ravel()])
+    graph = sparse.coo_matrix((np.ones(links.shape[1]), (links[0], links[1])), shape=(size * len(facets),) * 2)
+    n_stars, labels = csgraph.connected_components(graph, directed=False)
+    vertex_of_star = np.empty(n_stars, dtype=np.int64)
+    vertex_of_star[labels] = facets.ravel()
+    stars = np.bincount(vertex_of_star, minlength=n_points)
+    bad = np.flatnonzero(stars > 1)
     if len(bad):
-        problems.append(_found(len(bad), "boundary vertices whose boundary triangles form more than one fan "
+        shape = "fan" if size == 3 else "star"
+        problems.append(_found(len(bad), f"boundary vertices whose boundary {facet_name} form more than one {shape} "
                                "(non-manifold boundary, e.g. cells touching at a vertex)",
-                               f"point {bad[0]} with {fans[bad[0]]} fans"))
+                               f"point {bad[0]} with {stars[bad[0]]} {shape}s"))
     return problems
 
 

@@ -5,18 +5,19 @@ import numpy as np
 from scipy.spatial import Delaunay, QhullError
 
 from ..errors import InvalidInputError, check_points
-from ..mesh.simplicial import signed_measures
+from ..mesh.simplicial import MAX_DIMENSION, signed_measures
 
 
 def delaunay(nodes: np.ndarray) -> np.ndarray:
-    """Triangulate (n, k) nodes (k = 2 or 3), centred first so that coordinates far from the origin keep their
-    precision.
+    """Triangulate (n, k) nodes (k = 2 to :data:`MAX_DIMENSION`) with qhull, centred first so that coordinates far
+    from the origin keep their precision.
 
     Returns
     -------
-    cells : (m, k + 1) int64, triangles or tetrahedra with positive signed measure (qhull's flat simplices dropped)
+    cells : (m, k + 1) int64, triangles, tetrahedra, ... with positive signed measure (qhull's flat simplices
+        dropped)
     """
-    nodes = check_points(nodes, "nodes")
+    nodes = check_points(nodes, "nodes", dims=range(2, MAX_DIMENSION + 1))
     if len(nodes) < nodes.shape[1] + 1:
         raise InvalidInputError(f"nodes must hold at least {nodes.shape[1] + 1} points, got {len(nodes)}")
     centred = nodes - 0.5 * (nodes.min(axis=0) + nodes.max(axis=0))   # qhull's tolerances are absolute
