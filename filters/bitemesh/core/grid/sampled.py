@@ -197,6 +197,56 @@ class BandedGrid(SampledGrid):
                           coarse=self.coarse * factor, slots=self.slots, bricks=self.bricks * factor)
 
 
+@dataclass(frozen=True, eq=False)
+class FunctionGrid(SampledGrid):
+    """The grid I of a function kept as the function: f evaluated at the nodes and points the steps ask for, nothing
+    stored (in more than three dimensions the grid's nodes are too many to hold f at each: the steps keep the
+    biting's masks, one byte a node).  Any dimension k.
+
+    Attributes
+    ----------
+    function : maps (m, k) points to (m,) values, f > 0 inside
+    origin, spacing : (k,) float64, as :class:`ImplicitGrid`'s; shape : (n_0, ..., n_{k-1}) the node counts
+    """
+
+    function: Callable[[np.ndarray], np.ndarray]
+    origin: np.ndarray
+    spacing: np.ndarray
+    shape: tuple
+
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
+        """(m,) f at (m, k) points."""
+        return np.asarray(self.function(self._points(points)), dtype=np.float64)
+
+    def gradient(self, points: np.ndarray) -> np.ndarray:
+        """(m, k) central differences of f, a thousandth of a grid spacing apart."""
+        points = self._points(points)
+        step = 1e-3 * self._spacing
+        return np.stack([(self.evaluate(points + step[d] * axis) - self.evaluate(points - step[d] * axis))
+                         / (2.0 * step[d]) for d, axis in enumerate(np.eye(self.dim))], axis=1)
+
+    def project(self, points: np.ndarray, steps: int = 4) -> np.ndarray:
+        """As :meth:`SampledGrid.project`: Newton steps along grad f onto f = 0, each at most a grid spacing."""
+        points = self._points(points).copy()
+        reach, settled = float(np.min(self.spacing)), SETTLED * float(np.min(self.spacing))
+        moving = np.arange(len(points))
+        for _ in range(steps):
+            gradient = self.gradient(points[moving])
+            squared = np.maximum(np.einsum("ij,ij->i", gradient, gradient), 1e-300)
+            step = -(self.evaluate(points[moving]) / squared)[:, None] * gradient
+            length = np.linalg.norm(step, axis=1)
+            points[moving] += step * np.minimum(1.0, reach / np.maximum(length, 1e-300))[:, None]
+            moving = moving[length >= settled]
+        return points
+
+    def node_values(self, flat_indices: np.ndarray) -> np.ndarray:
+        return self.evaluate(self.node_coordinates(np.asarray(flat_indices, np.int64).ravel()))
+
+    def planes(self, first: int, last: int) -> np.ndarray:
+        plane = int(np.prod(self.shape[1:]))
+        return self.node_values(np.arange(first * plane, last * plane)).reshape((last - first, *self.shape[1:]))
+
+
 def grid_shape_unchecked(lower, upper, spacing) -> tuple:
     """Node counts of a grid with the given spacing from ``lower`` that reaches ``upper`` (to rounding)."""
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
@@ -246,7 +296,8 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
                     margin: float = 0.0, max_memory_mb: float = 4096.0, chunk: int = 1 << 18,
                     exact_within: float | None = None, levels: int = 1,
                     progress: ProgressCallback = None) -> SampledGrid:
-    """Sample ``function`` on a grid over [lower - margin, upper + margin].
+    """Sample ``function`` on a grid over [lower - margin, upper + margin]; in more than three dimensions, the grid
+    of the function itself (:class:`FunctionGrid`).
 
     Parameters
     ----------
@@ -270,6 +321,8 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
     for value in spacing_array:
         check_number(value, "grid_spacing", low=0, low_open=True)
     shape = grid_shape(lower, upper, spacing_array, max_memory_mb=max_memory_mb)
+    if len(shape) > 3:
+        return FunctionGrid(function, lower, spacing_array, shape)
     if exact_within is None:
         values = np.empty(int(np.prod(shape)))
         _evaluate_nodes(function, lower, spacing_array, shape, range(len(values)), values, chunk, progress)

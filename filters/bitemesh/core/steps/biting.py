@@ -77,15 +77,17 @@ def _order_runs(order, key, tie) -> None:
 
 @kernel
 def _bite_block(ordered, start, stop, shape, padded_shape, pads, alive, offsets):
-    """SelectNode and KillNodes over ``ordered[start:stop]`` (C-order flat indices of a grid of ``shape`` (3,)): the
-    positions in ``ordered`` of the nodes still Alive in ``alive``, the flat padded grid (``pads`` (3,) nodes added
-    on each side of each axis), each killing the Alive nodes at ``offsets`` from it."""
+    """SelectNode and KillNodes over ``ordered[start:stop]`` (C-order flat indices of a grid of ``shape`` (k,)): the
+    positions in ``ordered`` of the nodes still Alive in ``alive``, the flat padded grid (``pads`` (k,) nodes added
+    on each side of each axis, ``padded_shape`` (k,)), each killing the Alive nodes at ``offsets`` from it."""
     selected = np.empty(stop - start, np.int64)
     count = 0
     for position in range(start, stop):
-        x, rest = divmod(ordered[position], shape[1] * shape[2])
-        y, z = divmod(rest, shape[2])
-        node = ((x + pads[0]) * padded_shape[1] + y + pads[1]) * padded_shape[2] + z + pads[2]
+        rest, node, stride = ordered[position], 0, 1
+        for axis in range(len(shape) - 1, -1, -1):
+            rest, index = divmod(rest, shape[axis])
+            node += (index + pads[axis]) * stride
+            stride *= padded_shape[axis]
         if alive[node]:
             selected[count] = position
             count += 1
@@ -152,13 +154,12 @@ def bite(grid: SampledGrid, radius: float, *, order: str = "boundary", seed: int
     border = alive & ~ndimage.binary_erosion(alive, border_value=0)
     between = None if interfaces is None else interface_border(grid, alive, interfaces)
     ordered = selection_order(grid, alive, border if between is None else border | between, order, rng)
-    missing = 3 - alive.ndim   # the kernel sees a 2D grid as 3D, with a last axis of one node and no padding
-    shape3, padded3 = (np.array(a.shape + (1,) * missing, np.int64) for a in (alive, padded))
-    pads = np.array([pad] * alive.ndim + [0] * missing, np.int64)
+    shape, padded_shape = (np.array(a.shape, np.int64) for a in (alive, padded))
+    pads = np.full(alive.ndim, pad, np.int64)
     selected, chunk = [], 1 << 20
     for start in range(0, ordered.size, chunk):
         report(progress, start / ordered.size, "biting")
-        selected.append(_bite_block(ordered, start, min(start + chunk, ordered.size), shape3, padded3, pads,
+        selected.append(_bite_block(ordered, start, min(start + chunk, ordered.size), shape, padded_shape, pads,
                                     padded.ravel(), offsets))
     report(progress, 1.0, "biting")
     chosen = ordered[np.concatenate(selected)]

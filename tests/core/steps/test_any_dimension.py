@@ -1,0 +1,104 @@
+"""The method in 4-D and 5-D (issue 36): the grid I of the function, the biting, qhull's Delaunay, the spurious-cell
+rule and the validity check of the 2-D and 3-D path, on balls and a solid torus with known measure and topology."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+
+from bitemesh.core.grid.sampled import FunctionGrid, sample_function
+from bitemesh.core.mesh.simplicial import circumspheres, signed_measures
+from bitemesh.core.mesh.topology import boundary_facets, euler_characteristic
+from bitemesh.core.mesh.validity import (boundary_euler_characteristic, check_valid_domain,
+                                         count_boundary_components)
+from bitemesh.core.parameters import BitingParameters, OptimizeParameters
+from bitemesh.core.steps.spine import mesh_from_grid
+
+#: the unit k-ball's measure: pi^2 / 2 in 4-D, 8 pi^2 / 15 in 5-D.
+BALL = {4: np.pi**2 / 2, 5: 8 * np.pi**2 / 15}
+
+
+def ball(x):
+    return 1.0 - np.linalg.norm(x, axis=1)
+
+
+def solid_torus(x):
+    """S^1 x B^3 in 4-D: the points within 0.4 of the unit circle in the (x0, x1) plane."""
+    ring = np.hypot(x[:, 0], x[:, 1]) - 1.0
+    return 0.4 - np.sqrt(ring**2 + np.sum(x[:, 2:] ** 2, axis=1))
+
+
+@lru_cache(maxsize=None)
+def meshed(shape: str, k: int, radius: float, seed: int = 0):
+    function, reach = (ball, 1.0) if shape == "ball" else (solid_torus, 1.4)
+    lower = -np.full(k, reach)
+    if shape == "torus":
+        lower[2:] = -0.4
+    grid = sample_function(function, lower, -lower, radius / 4, margin=radius / 2)
+    return grid, mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed), optimize=OptimizeParameters())
+
+
+@pytest.mark.parametrize("k, radius", [(4, 0.3), (5, 0.45)])
+def test_the_k_ball_is_a_valid_domain_inscribed_in_it(k, radius):
+    """The 4-ball and the 5-ball: a valid domain (no zero-volume cell) on a grid that keeps no f, one boundary, an
+    S^(k-1) (Euler characteristic 0, 2), the domain a ball (1); the mesh is the hull of its nodes, every node in the
+    ball and the boundary nodes on its sphere, so its measure lies between the ball's and that of the ball of radius
+    sqrt(1 - r^2) that the hull's facets (circumradius at most r) leave inside."""
+    grid, result = meshed("ball", k, radius)
+    mesh = result.mesh
+    assert isinstance(grid, FunctionGrid)
+    assert check_valid_domain(mesh) == []
+    assert (signed_measures(mesh.points, mesh.cells) > 0).all()
+    assert count_boundary_components(mesh) == 1
+    assert boundary_euler_characteristic(mesh) == 1 + (-1) ** (k - 1)
+    assert euler_characteristic(mesh.cells) == 1
+    volume = signed_measures(mesh.points, mesh.cells).sum()
+    assert volume == pytest.approx(ConvexHull(mesh.points).volume, rel=1e-9)
+    assert np.linalg.norm(mesh.points, axis=1).max() <= 1.0 + 1e-6
+    facets = boundary_facets(mesh.cells)
+    assert np.allclose(np.linalg.norm(mesh.points[np.unique(facets)], axis=1), 1.0, atol=1e-4)
+    corners = mesh.points[facets]
+    offsets = corners[:, 1:] - corners[:, :1]   # each facet's circumradius within its own (k-1)-plane
+    gram = np.einsum("fik,fjk->fij", offsets, offsets)
+    centre = np.linalg.solve(2 * gram, np.einsum("fii->fi", gram)[:, :, None])[:, :, 0]
+    facet_radius = np.linalg.norm(np.einsum("fi,fik->fk", centre, offsets), axis=1).max()
+    assert BALL[k] * (1 - facet_radius**2) ** (k / 2) <= volume <= BALL[k]
+
+
+def test_a_solid_torus_in_4d_has_the_topology_of_a_circle():
+    """S^1 x B^3: valid, one boundary (S^1 x S^2, Euler characteristic 0), the domain's Euler characteristic that
+    of a circle (0; a ball's is 1), and its measure at most 2 pi x (4/3) pi r^3 (r = 0.4: the nodes lie in it) and
+    at least that of the tube of radius sqrt(r^2 - R^2) that facets about R wide leave inside."""
+    _, result = meshed("torus", 4, 0.2)
+    mesh = result.mesh
+    assert check_valid_domain(mesh) == []
+    assert count_boundary_components(mesh) == 1 and boundary_euler_characteristic(mesh) == 0
+    assert euler_characteristic(mesh.cells) == 0
+    exact = 2 * np.pi * 4 / 3 * np.pi * 0.4**3
+    assert exact * (1 - (0.2 / 0.4) ** 2) ** 1.5 <= signed_measures(mesh.points, mesh.cells).sum() <= exact
+
+
+def test_the_same_seed_gives_the_same_k_d_mesh_and_another_seed_another():
+    """Deterministic: the 4-ball meshed twice with seed 0 is the same bit for bit; seed 1 moves the nodes."""
+    _, first = meshed("ball", 4, 0.3)
+    grid = sample_function(ball, -np.ones(4), np.ones(4), 0.075, margin=0.15)
+    again = mesh_from_grid(grid, BitingParameters(radius=0.3), optimize=OptimizeParameters(optimize=0)).mesh
+    assert np.array_equal(again.points, first.mesh.points) and np.array_equal(again.cells, first.mesh.cells)
+    _, other = meshed("ball", 4, 0.3, seed=1)
+    assert not np.array_equal(other.mesh.points[:10], first.mesh.points[:10])
+
+
+def test_the_grid_of_a_function_evaluates_and_projects_as_a_sampled_one():
+    """FunctionGrid: f itself at nodes and points, its gradient the unit radial direction of the ball's distance to
+    1e-6, and points a spacing off projected onto f = 0 to within a thousandth of a spacing."""
+    grid = sample_function(ball, -np.ones(4), np.ones(4), 0.1)
+    points = np.random.default_rng(0).normal(size=(50, 4))
+    points *= np.linspace(0.9, 1.1, 50)[:, None] / np.linalg.norm(points, axis=1, keepdims=True)   # a spacing off
+    assert np.allclose(grid.evaluate(points), ball(points))
+    assert np.allclose(grid.gradient(points), -points / np.linalg.norm(points, axis=1, keepdims=True), atol=1e-6)
+    assert np.abs(ball(grid.project(points))).max() < 1e-4
+    assert grid.inside().shape == grid.shape and grid.node_values(np.array([0]))[0] == ball(grid.origin[None])[0]
+    centres, _ = circumspheres(points[:5], np.arange(5)[None])
+    assert np.isfinite(grid.evaluate(centres)).all()
