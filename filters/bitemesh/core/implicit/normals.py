@@ -20,6 +20,9 @@ logger = logging.getLogger("bitemesh")
 #: the neighbours of one of them: five copies of a scan, each moved by 1e-4 of its size, filled every point's 12
 #: neighbours with copies of two or three positions, and the normals across the torus's hole came out at random.
 SAME_POSITION_SHARE = 0.1
+#: ... when more than this share of the points are such copies (random sampling puts about 8 % within that of
+#: another; two surfaces in contact a few: their points keep their own normals, or one sphere's take the other's).
+COPIED_SHARE = 0.25
 #: neighbours compared per point by check_normals.
 _CHECK_NEIGHBOURS = 6
 #: a neighbour pair counts for check_normals when its edge is within 30 degrees of the tangent plane.
@@ -90,10 +93,18 @@ def estimate_normals(points, *, neighbours: int = 12) -> np.ndarray:
             f"give at least {neighbours + 1} points or pass normals")
     check_spans_space(points)
     first = near_duplicates(points, SAME_POSITION_SHARE)
-    kept = np.flatnonzero(first == np.arange(count))
-    if neighbours < len(kept) < count:   # one normal a position: copies would fill the neighbourhoods
-        rank = np.searchsorted(kept, first)
-        return estimate_normals(points[kept], neighbours=neighbours)[rank]
+    if np.mean(np.bincount(first, minlength=count)[first] > 1) <= COPIED_SHARE:
+        return _estimated(points, neighbours)
+    kept = np.flatnonzero(first == np.arange(count))   # copies of a scan: one normal a position
+    if len(kept) < neighbours + 1:
+        raise InvalidInputError(
+            f"points: {len(kept)} distinct positions (of {count} points) are too few to estimate normals from "
+            f"{neighbours} neighbours each; give at least {neighbours + 1} or pass normals")
+    return _estimated(points[kept], neighbours)[np.searchsorted(kept, first)]
+
+
+def _estimated(points: np.ndarray, neighbours: int) -> np.ndarray:
+    """:func:`estimate_normals` of checked points, each its own neighbourhood's."""
     distance, near = cKDTree(points).query(points, k=neighbours + 1)
     local = points[near] - points[near].mean(axis=1, keepdims=True)
     spread, axes = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
