@@ -2,12 +2,13 @@
 legacy VTK 5.1): what each holds is :mod:`.meshes`' docstring."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import InvalidInputError, check_points
-from ..core.mesh.simplicial import Mesh, signed_measures
+from ..core.mesh.simplicial import MAX_DIMENSION, Mesh, signed_measures
 from .abaqus import read_abaqus_tags
 from .files import existing_file, meshio_warnings, native
 from .folders import read_folder
@@ -50,6 +51,8 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
                           orient, unit=unit)
     path = existing_file(path, "a mesh", MESH_EXTENSIONS)
     suffix = path.suffix.lower()
+    if suffix == ".npz":
+        return _read_npz(path, orient)
     if suffix == ".pts":
         points, cells, cell_data, facets, tags, names = read_opencarp(path)
         return _read_mesh(path, check_points(points, f"points of '{path}'"), cells, cell_data, facets, tags, names,
@@ -97,6 +100,26 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
                   if suffix in (".vtu", ".vtk", ".xdmf") and len(array) == len(points)} if data.point_data else {}
     return _read_mesh(path, points, cells, cell_data, facets, tags, names, orient, point_data,
                       xdmf_unit(path) if suffix == ".xdmf" else "mm")
+
+
+def _read_npz(path: Path, orient: bool) -> Mesh:
+    """The mesh of a ``.npz`` file written by :func:`~.meshes.write_mesh` (any dimension)."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+        points = check_points(arrays.pop("points"), f"points of '{path}'", dims=range(2, MAX_DIMENSION + 1))
+        cells, facets = arrays.pop("cells").astype(np.int64), arrays.pop("facets").astype(np.int64)
+        tags, names = arrays.pop("facet_tags").astype(np.int32), json.loads(str(arrays.pop("tag_names")))
+        unit = str(arrays.pop("unit"))
+    except (OSError, ValueError, KeyError, EOFError) as error:
+        raise InvalidInputError(f"cannot read a mesh from '{path}': not a bitemesh .npz mesh ({error})") from error
+    if cells.ndim != 2 or cells.shape[1] != points.shape[1] + 1:
+        raise InvalidInputError(f"cannot read a mesh from '{path}': cells of shape {cells.shape} for "
+                                f"{points.shape[1]}-D points")
+    data = {kind: {name.split("/", 1)[1]: array for name, array in arrays.items() if name.startswith(kind + "/")}
+            for kind in ("cell_data", "point_data")}
+    return _read_mesh(path, points, cells, data["cell_data"], facets, tags,
+                      {name: tuple(value) for name, value in names.items()}, orient, data["point_data"], unit)
 
 
 def xdmf_unit(path: Path) -> str:

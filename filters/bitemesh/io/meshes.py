@@ -19,12 +19,16 @@ facets; the tag names; in 2D the cells are triangles and the facets edges):
   Mesh, Cell tags, Facet tags), ``m/markers.json``, ``m/info.json`` (:mod:`.folders`); no cell array.
 - ``.pts``, openCARP (``carp_txt``): ``m.pts`` in micrometres (the mesh in mm), ``m.elem`` with the regions,
   ``m.lon`` with Fibre and Sheet, ``m_NAME.surf`` and ``m_NAME.vtx`` a surface, ``m_tags.json`` (:mod:`.opencarp`).
+- ``.npz``, numpy's zip of arrays, for meshes of any dimension k = 2..5 (the only one for k > 3: VTK, gmsh, XDMF
+  and the solvers' formats have no 4-simplex): ``points`` (n, k), ``cells`` (m, k + 1), ``facets``,
+  ``facet_tags``, ``cell_data/NAME`` and ``point_data/NAME`` for each array, ``tag_names`` (JSON) and ``unit``.
 
 Reading (:mod:`.mesh_reading`) joins what writing split (``m.vtu`` with ``m_facets.vtu``) and gives the regions back
 as ``Region``.
 """
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -32,14 +36,14 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from ..core.errors import InvalidInputError, check_points
-from ..core.mesh.simplicial import Mesh
+from ..core.mesh.simplicial import MAX_DIMENSION, Mesh
 from .abaqus import abaqus_sets
 from .folders import folder_files, write_folder
 from .opencarp import MICROMETRES, opencarp_files, write_opencarp
 from .files import atomic_outputs, meshio_warnings, native, supported
 from .xdmf import write_grid
 
-MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf", ".pts")
+MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf", ".pts", ".npz")
 #: the mesh formats that keep no cell arrays but the regions (openCARP: the fibres only): the fibres (or any cell
 #: vector) cannot go there.
 NO_CELL_ARRAYS = (".msh", ".inp", ".mesh")
@@ -121,7 +125,11 @@ def write_mesh(mesh: Mesh, path) -> None:
     if suffix == ".xdmf" and ":" in path.name:
         raise InvalidInputError(f"cannot write a mesh to '{path}': an XDMF file names its HDF5 file as 'file:path', "
                                 "so the file name cannot hold ':'; choose another name")
-    mesh, regions = _checked_mesh(mesh)
+    mesh, regions = _checked_mesh(mesh, any_dimension=suffix == ".npz")
+    if suffix == ".npz":
+        with atomic_outputs([path]) as temporaries:
+            _write_npz(mesh, temporaries[0])
+        return
     if suffix == "":
         if path.exists() and not path.is_dir():
             raise InvalidInputError(f"cannot write a cardiac-geometries folder to '{path}': it is a file; give "
@@ -207,12 +215,28 @@ def _write_xdmf(mesh: Mesh, regions, suffix: str, temporaries: list, files: list
                    {FACET_ARRAY: mesh.facet_tags}, mesh.tag_names, unit=mesh.unit)
 
 
-def _checked_mesh(mesh):
+def _write_npz(mesh: Mesh, path: Path) -> None:
+    """``mesh`` (checked) as the arrays of a ``.npz`` file (see the module docstring)."""
+    arrays = {"points": mesh.points, "cells": mesh.cells, "facets": mesh.facets, "facet_tags": mesh.facet_tags,
+              "tag_names": np.array(json.dumps({name: list(value) for name, value in mesh.tag_names.items()})),
+              "unit": np.array(mesh.unit)}
+    arrays.update({f"cell_data/{name}": array for name, array in mesh.cell_data.items()})
+    arrays.update({f"point_data/{name}": array for name, array in mesh.point_data.items()})
+    with open(path, "wb") as stream:
+        np.savez_compressed(stream, **arrays)
+
+
+def _checked_mesh(mesh, any_dimension: bool = False):
     """The mesh with checked, normalised arrays (facets (0, k) when it has none) and its (m,) int32 regions or
-    None."""
+    None; points of 2 or 3 dimensions, or up to :data:`MAX_DIMENSION` with ``any_dimension`` (``.npz``)."""
     if not all(hasattr(mesh, name) for name in ("points", "cells", "cell_data")):
         raise InvalidInputError(f"mesh must be a bitemesh Mesh (points, cells, cell_data), got {type(mesh).__name__}")
-    points = check_points(mesh.points, "mesh.points")
+    dimension = np.shape(mesh.points)[-1] if np.ndim(mesh.points) == 2 else 3
+    if not any_dimension and 3 < dimension <= MAX_DIMENSION:
+        raise InvalidInputError(f"a {dimension}-D mesh can be written to .npz only (VTK, gmsh, XDMF, Abaqus, MEDIT "
+                                "and openCARP hold 2-D and 3-D cells); give a path ending in .npz, or write its "
+                                "3-D sections (slice_mesh)")
+    points = check_points(mesh.points, "mesh.points", dims=range(2, MAX_DIMENSION + 1) if any_dimension else (2, 3))
     dim = points.shape[1]
     cells = _checked_indices(mesh.cells, "mesh.cells", "m", dim + 1, f"cells for {dim}D points", len(points))
     cell_data = {}

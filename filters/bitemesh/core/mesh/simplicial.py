@@ -1,4 +1,4 @@
-"""The simplicial mesh every step hands on: triangles in 2D, tetrahedra in 3D."""
+"""The simplicial mesh every step hands on: triangles in 2D, tetrahedra in 3D, k-simplices up to 5-D."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace

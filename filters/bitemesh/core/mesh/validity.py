@@ -1,5 +1,5 @@
-"""Validity checks of a simplicial mesh (triangles in 2D, tetrahedra in 3D): is it a valid finite-element domain
-(:func:`check_valid_domain`), and its boundary's topology (:func:`count_boundary_components`,
+"""Validity checks of a simplicial mesh (triangles in 2D, tetrahedra in 3D, k-simplices up to 5-D): is it a valid
+finite-element domain (:func:`check_valid_domain`), and its boundary's topology (:func:`count_boundary_components`,
 :func:`boundary_euler_characteristic`); also the checks of a mesh's arrays that every measure makes.  The element
 quality is :mod:`bitemesh.core.mesh.quality`, which re-exports these names.
 
