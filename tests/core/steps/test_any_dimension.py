@@ -109,8 +109,8 @@ def test_the_grid_of_a_function_evaluates_and_projects_as_a_sampled_one():
 def test_a_section_of_the_4_ball_is_a_valid_3_ball_and_the_sections_add_up_to_it():
     """slice_mesh: the 4-ball's mesh cut at x3 = 0.05 is a valid conforming 3-D mesh (one boundary, Euler
     characteristic 2), inside the section's ball; cut through a node and 1e-12 beside it, still valid; and the
-    measures of 801 sections integrate (trapezoids, Cavalieri) to the 4-D measure within 1e-4 (the sections'
-    measure is piecewise cubic in the cut: the rule's error at that step is about 1e-5)."""
+    measures of 201 sections integrate (trapezoids, Cavalieri) to the 4-D measure within 1e-3 (the sections'
+    measure is piecewise cubic in the cut: the rule's error at that step, 0.01, is about 1e-4)."""
     _, result = meshed("ball", 4, 0.3)
     mesh = result.mesh
     section = slice_mesh(mesh, 0.05)
@@ -120,9 +120,9 @@ def test_a_section_of_the_4_ball_is_a_valid_3_ball_and_the_sections_add_up_to_it
     node = mesh.points[np.argmin(np.linalg.norm(mesh.points, axis=1)), 3]
     for value in (node, node + 1e-12, node - 1e-12):
         assert check_valid_domain(slice_mesh(mesh, value)) == []
-    cuts = np.linspace(-1.0, 1.0, 801)
+    cuts = np.linspace(-1.0, 1.0, 201)
     measures = [signed_measures(s.points, s.cells).sum() for s in (slice_mesh(mesh, cut) for cut in cuts)]
-    assert np.trapezoid(measures, cuts) == pytest.approx(signed_measures(mesh.points, mesh.cells).sum(), rel=1e-4)
+    assert np.trapezoid(measures, cuts) == pytest.approx(signed_measures(mesh.points, mesh.cells).sum(), rel=1e-3)
     assert len(slice_mesh(mesh, 1.5).cells) == 0
 
 
