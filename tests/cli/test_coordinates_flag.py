@@ -14,7 +14,7 @@ from tests.cli.test_fibres_flag import forbidden, meshed_as_the_shell
 from tests.fibrecheck import tagged_shell
 
 
-@pytest.mark.parametrize("extension", [".vtu", ".xdmf"])
+@pytest.mark.parametrize("extension", [".vtu", ".xdmf", ".npz"])
 def test_mesh_coordinates_writes_point_and_cell_arrays(tmp_path, monkeypatch, capsys, extension):
     meshed_as_the_shell(monkeypatch)
     output = tmp_path / f"heart{extension}"

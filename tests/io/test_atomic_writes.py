@@ -108,10 +108,11 @@ def test_ctrl_c_between_the_two_renames_of_a_vtu_waits_until_both_are_new(monkey
     assert leftovers(tmp_path) == []
 
 
-def test_an_output_that_is_a_symbolic_link_is_written_through_it(tmp_path):
-    target = tmp_path / "meshes" / "heart.msh"
+@pytest.mark.parametrize("extension", [".msh", ".npz"])
+def test_an_output_that_is_a_symbolic_link_is_written_through_it(tmp_path, extension):
+    target = tmp_path / "meshes" / f"heart{extension}"
     target.parent.mkdir()
-    link = tmp_path / "latest.msh"
+    link = tmp_path / f"latest{extension}"
     link.symlink_to(target)
     write_mesh(tagged_tetrahedron(), link)
     assert link.is_symlink() and target.is_file() and len(read_mesh(link).cells) == 1

@@ -8,6 +8,7 @@ space-time domain is the slab of {f > 0} from ``beyond`` before the first frame 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import InvalidInputError, check_number
