@@ -86,18 +86,19 @@ def test_the_chain_checks_the_fidelity_at_the_spurious_filter(samples, vtk_error
 def test_overlapping_objects_each_sampled_whole_are_refused_by_the_filters(samples, vtk_errors):
     """Two unit spheres 1.8 apart, each sampled whole: f folds where the surfaces cross and the domain has tunnels
     f > 0 has at its zero level alone; refused by MeshFromPoints and by the chain's SpuriousCellFilter alike (the
-    chain checked topology against f at 0 only), the output empty."""
+    chain checked topology against f at 0 only; on some machines its mesh has no handle, 8 % short of the union, while
+    f > 0 on the grid has the handles at the zero level alone), the output empty."""
     points = np.vstack([samples[0] - [0.9, 0, 0], samples[0] + [0.9, 0, 0]])
     algorithm = MeshFromPoints()
     algorithm.SetInputData(polydata(points))
     algorithm.SetCells(3000)
-    with pytest.raises(MeshingError, match="at its zero level alone"):
+    with pytest.raises(MeshingError, match="at f's zero level alone"):
         algorithm.update()
     steps = chain(polydata(points), cells=3000)
-    with pytest.raises(MeshingError, match="at its zero level alone"):
+    with pytest.raises(MeshingError, match="at f's zero level alone"):
         steps.quality.update()
     assert output(steps.quality).GetNumberOfCells() == 0
-    assert "SpuriousCellFilter: the mesh has" in vtk_errors.text()
+    assert "SpuriousCellFilter: " in vtk_errors.text() and "at f's zero level alone" in vtk_errors.text()
 
 
 def test_the_chain_puts_the_fidelity_in_the_field_data(samples):

@@ -81,16 +81,29 @@ def test_a_mesh_with_a_hole_its_grid_lacks_is_refused_naming_it():
 def test_a_hole_of_the_mesh_that_f_has_at_its_zero_level_alone_is_refused():
     """The torus's mesh against a torus's grid at f = 0 but balls a spacing inside and outside it (a hole that
     appears at the zero level alone, as where sampled surfaces cross): refused naming both levels and the cause; a
-    hole there at both levels (the torus's own) passes; ``around`` is asked only when the mesh has a hole."""
+    hole there at both levels (the torus's own) passes; ``around`` is asked only when the mesh or the grid has a
+    hole."""
     mesh = run(*sample_surface(torus(), 0.08), biting=BitingParameters(cells=3000)).mesh
     torus_grid = (AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16
     ball = RADIUS < 15
-    with pytest.raises(MeshingError, match=r"1 hole\(s\) or tunnel\(s\) that f > 0 has at its zero level alone.*"
-                                           r"sampled surfaces cross.*outer surface only"):
+    with pytest.raises(MeshingError, match=r"the mesh has 1 hole\(s\) or tunnel\(s\) that appear at f's zero level "
+                                           r"alone.*sampled surfaces cross or touch.*outer surface only"):
         check_topology(mesh, torus_grid, 0.1, allow=False, around=lambda: (ball, ball))
     assert check_topology(mesh, torus_grid, 0.1, allow=False, around=lambda: (torus_grid, torus_grid)) == ""
     sphere_mesh = run(*sample_surface(sphere(), 0.08), biting=BitingParameters(cells=3000)).mesh
     assert check_topology(sphere_mesh, ball, 0.1, allow=False, around=lambda: 1 / 0) == ""
+
+
+def test_a_hole_of_f_at_its_zero_level_alone_is_refused_when_the_mesh_has_none():
+    """A ball's mesh against a grid whose f > 0 has a hole at the zero level alone (balls a spacing inside and
+    outside): the mesh follows a fold of f and may miss part of the shape without a hole of its own (two
+    overlapping spheres sampled whole, meshed by the VTK chain: 8 % of the union missing); refused, naming f."""
+    sphere_mesh = run(*sample_surface(sphere(), 0.08), biting=BitingParameters(cells=3000)).mesh
+    torus_grid = (AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16
+    ball = RADIUS < 15
+    with pytest.raises(MeshingError, match=r"f > 0 on the grid has 1 hole\(s\) or tunnel\(s\) that appear at "
+                                           r"f's zero level alone"):
+        check_topology(sphere_mesh, torus_grid, 0.1, allow=False, around=lambda: (ball, ball))
 
 
 def test_parts_that_the_mesh_joins_are_named_as_touching():
