@@ -241,9 +241,10 @@ def unstructured_to_mesh(grid: vtkUnstructuredGrid) -> Mesh:
 #: :data:`UNSAMPLED_ARRAY`.
 SAMPLE_ARRAYS = ("Samples",)
 #: the field-data array that carries the spine's plan down the VTK chain: one tuple, a named component each: R
-#: (user units), 1 for a myocardium (its handles removed), the samples' noise and gap (user units); NaN: not set.
+#: (user units), 1 for a myocardium (its handles removed), the samples' noise and gap (user units), 1 for one fit
+#: of scattered points (Source.one_fit); NaN: not set.
 PLAN_ARRAY = "BitemeshPlan"
-PLAN = ("Radius", "Myocardium", "SampleNoise", "SampleGap")
+PLAN = ("Radius", "Myocardium", "SampleNoise", "SampleGap", "OneFit")
 #: a point array of the implicit image, 1 where the boundary near a node is made by the method rather than the
 #: data (a heart's base, a derived surface), left out of the fidelity's boundary-to-samples measure.
 UNSAMPLED_ARRAY = "Unsampled"

@@ -108,8 +108,9 @@ class PointsToImplicit(BitemeshAlgorithm):
         grid, radius, source = self.grid_of(vtkDataSet.GetData(inInfo[0]))
         output = vtkImageData.GetData(outInfo)
         grid_to_image(grid, output)
-        # the plan: R, and for a myocardium SpuriousCellFilter's Handles "auto" removes handles
-        attach_plan(output, Radius=radius, Myocardium=float(source.handles == "remove"))
+        # the plan: R, for a myocardium SpuriousCellFilter's Handles "auto" removes handles, and for one fit of
+        # scattered points it refuses a fold of f that the mesh does not show
+        attach_plan(output, Radius=radius, Myocardium=float(source.handles == "remove"), OneFit=float(source.one_fit))
         frame = source.frame
         attach_samples(output, frame.to_user(source.samples), source.noise * frame.scale, source.gap * frame.scale,
                        source.unsampled_on(grid))
@@ -216,7 +217,8 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
                                         None if unsampled is None else lambda x: unsampled.evaluate(x) > 0.5)
             check_fidelity(fidelity, bounds)
             add_field_values(output, asdict(fidelity), "Fidelity")
-        check_topology(domain, grid.inside(), radius, bool(bounds.allow_unfaithful), around=grid.inside_offsets)
+        check_topology(domain, grid.inside(), radius, bool(bounds.allow_unfaithful), around=grid.inside_offsets,
+                       one_fit=bool(plan_of(vtkImageData.GetData(inInfo[1])).get("OneFit")))
 
 
 @with_parameters(QualityParameters)

@@ -96,14 +96,18 @@ def torn(mesh: Topology, grid: Topology) -> str:
     return ", ".join(extra)
 
 
-def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, around=None) -> str:
+def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, around=None,
+                   one_fit: bool = False) -> str:
     """Refuse (:class:`MeshingError`; a :class:`BitemeshWarning` when ``allow``) a mesh with parts, handles or voids
     that the region ``inside`` (f > 0 on the grid I) lacks, or handles or voids that f > 0 has at its zero level
-    alone, in the mesh or on the grid: ``around`` () -> (f > -d, f > +d) on the grid I (SampledGrid.inside_offsets),
-    asked only when the mesh or the grid has a handle or a void (d, a grid spacing: a tunnel or a cavity of the
-    shape is there at one level at least, one that appears at f = 0 alone is a fold of f where surfaces cross or
-    normals disagree; the mesh of a folded f may have none of them and still miss part of the shape).  What the
-    mesh or f has more (""  when nothing); ``radius``: R in user units, for the message."""
+    alone: ``around`` () -> (f > -d, f > +d) on the grid I (SampledGrid.inside_offsets), asked only when the mesh
+    (or, with ``one_fit``, the grid) has a handle or a void (d, a grid spacing: a tunnel or a cavity of the shape is
+    there at one level at least, one that appears at f = 0 alone is a fold of f where surfaces cross or normals
+    disagree).  When f is ``one_fit`` of every sample (scattered points), a fold of f > 0 on the grid is refused
+    too, whether the mesh shows it or not (the mesh of a folded f may miss part of the shape with no handle of its
+    own); a function built otherwise (labelled contours, a label map) may have small handles at its zero level that
+    no mesh at R has.  What the mesh or f has more ("" when nothing); ``radius``: R in user units, for the
+    message."""
     mine, data = mesh_topology(mesh), grid_topology(inside)
     extra = torn(mine, data)
     if extra:
@@ -112,18 +116,17 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
         text = (f"the mesh has {extra} that the fitted surface does not have (the mesh: {mine.describe()}; f > 0 on "
                 f"the grid: {data.describe()}): {cause}; lower radius (or raise cells) until R is below the "
                 "thinnest part and the narrowest gap")
-    elif around is not None and (mine.handles or mine.voids or data.handles or data.voids):
+    elif around is not None and (mine.handles or mine.voids or one_fit and (data.handles or data.voids)):
         levels = [grid_topology(region) for region in around()]
         steady = Topology(0, max(level.handles for level in levels), max(level.voids for level in levels))
-        folded = [(what, torn(Topology(0, shape.handles, shape.voids), steady))
-                  for what, shape in (("the mesh", mine), ("f > 0 on the grid", data))]
+        shapes = [("the mesh", mine)] + ([("f > 0 on the grid", data)] if one_fit else [])
+        folded = [(what, torn(Topology(0, shape.handles, shape.voids), steady)) for what, shape in shapes]
         what, extra = next(((what, extra) for what, extra in folded if extra), ("", ""))
         text = (f"{what} has {extra} that appear at f's zero level alone, not a grid spacing inside or outside "
                 f"it (the mesh: {mine.describe()}; f > 0 on the grid: {data.describe()}; f a spacing inside: "
                 f"{levels[0].describe()}, outside: {levels[1].describe()}): f folds where sampled surfaces cross or "
                 "touch (objects that overlap or touch, each sampled whole) or normals disagree, and the mesh "
-                "follows the fold; "
-                "give the samples of the outer surface only, or of each object apart")
+                "follows the fold; give the samples of the outer surface only, or of each object apart")
     if extra:
         text += ", or set allow_unfaithful (--allow-unfaithful) to keep the mesh anyway"
         if not allow:

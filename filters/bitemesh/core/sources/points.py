@@ -87,7 +87,7 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         gap = max(gap, contour_gap(local, slices))
         caps = beyond_slices(local, slices)
     return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local, noise=noise_level(distinct),
-                  gap=gap, open_boundary=caps, notes=tuple(notes))
+                  gap=gap, open_boundary=caps, notes=tuple(notes), one_fit=slices is None)
 
 
 def _enough_points(points) -> np.ndarray:

@@ -132,6 +132,9 @@ class Source:
         (:func:`~bitemesh.core.mesh.tags.component_tags`)
     interfaces : regions whose interfaces the biting samples like the boundary (a label map of several labels:
         :class:`~bitemesh.core.mesh.interfaces.LabelRegions`), or None
+    one_fit : f is one fit of every sample (scattered points): a handle or void at its zero level alone is a fold
+        where samples cross, refused even where the mesh does not show it
+        (:func:`~bitemesh.core.mesh.betti.check_topology`)
     locate : callable (indices into ``samples``) -> a sentence saying where those samples lie, with a hint that
         fits ("" when it cannot tell), for a refusal of samples far from the mesh; or None
     """
@@ -154,6 +157,7 @@ class Source:
     tagging: Optional[Callable[[Mesh, Callable], Mesh]] = None
     interfaces: Optional[object] = None
     locate: Optional[Callable[[np.ndarray], str]] = None
+    one_fit: bool = False
 
     @property
     def size(self) -> float:
