@@ -15,6 +15,7 @@ from bitemesh.core.errors import InvalidInputError
 from bitemesh.core.mesh.quality import (dihedral_angles, dihedral_angles_any, radius_ratio, radius_ratios_any,
                                         signed_radius_ratio)
 from bitemesh.core.mesh.simplicial import Mesh, _circumspheres_any, circumspheres, signed_measures
+from bitemesh.core.mesh.topology import non_manifold_faces
 from bitemesh.core.mesh.validity import (boundary_euler_characteristic, check_valid_domain,
                                          count_boundary_components)
 from bitemesh.core.steps.delaunay import delaunay
@@ -98,6 +99,17 @@ def test_the_checks_name_what_is_wrong_in_any_dimension(k):
     assert any("inverted" in p for p in check_valid_domain(Mesh(points, inverted)))
     shell = cells[np.linalg.norm(points[cells].mean(axis=1), axis=1) > 0.35]
     assert any("non-manifold boundary" in p for p in check_valid_domain(Mesh(points, shell)))
+
+
+@pytest.mark.parametrize(("k", "shared"), [(3, 1), (4, 1), (4, 2), (5, 1), (5, 2), (5, 3)])
+def test_two_cells_that_share_a_face_below_a_ridge_alone_are_pinched_there(k, shared):
+    """Two k-simplices with ``shared`` vertices in common (a vertex, an edge or a triangle, below the ridges: their
+    link is two balls, Euler characteristic 2 where a boundary face's is 1): that face is found, and nothing in a
+    triangulated ball."""
+    cells = np.array([np.arange(k + 1), np.r_[np.arange(shared), np.arange(k + 1, 2 * k + 2 - shared)]])
+    assert [faces.tolist() for faces in non_manifold_faces(cells, 2 * k + 2 - shared)] == [[list(range(shared))]]
+    points, ball = ball_delaunay(k)
+    assert non_manifold_faces(ball, len(points)) == []
 
 
 def test_a_mesh_of_more_than_five_dimensions_is_refused_by_name():

@@ -61,12 +61,34 @@ def test_the_k_ball_is_a_valid_domain_inscribed_in_it(k, radius):
     assert np.linalg.norm(mesh.points, axis=1).max() <= 1.0 + 1e-6
     facets = boundary_facets(mesh.cells)
     assert np.allclose(np.linalg.norm(mesh.points[np.unique(facets)], axis=1), 1.0, atol=1e-4)
-    corners = mesh.points[facets]
-    offsets = corners[:, 1:] - corners[:, :1]   # each facet's circumradius within its own (k-1)-plane
+    facet_radius = largest_facet_circumradius(mesh.points[facets])
+    assert BALL[k] * (1 - facet_radius**2) ** (k / 2) <= volume <= BALL[k]
+
+
+def largest_facet_circumradius(corners: np.ndarray) -> float:
+    """The largest circumradius of the (f, k, k) facets, each within its own (k-1)-plane."""
+    offsets = corners[:, 1:] - corners[:, :1]
     gram = np.einsum("fik,fjk->fij", offsets, offsets)
     centre = np.linalg.solve(2 * gram, np.einsum("fii->fi", gram)[:, :, None])[:, :, 0]
-    facet_radius = np.linalg.norm(np.einsum("fi,fik->fk", centre, offsets), axis=1).max()
-    assert BALL[k] * (1 - facet_radius**2) ** (k / 2) <= volume <= BALL[k]
+    return float(np.linalg.norm(np.einsum("fi,fik->fk", centre, offsets), axis=1).max())
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_4d_shell_one_cell_thick_is_a_valid_domain_between_its_spheres(seed):
+    """The shell 0.6 <= |x| <= 1 in 4-D at R = 0.4, its wall one R thick (as a heart's walls are in space-time):
+    its Delaunay domain was pinched at boundary vertices (their boundary tetrahedra two stars) that the repair did
+    not see, refused; now valid, bounded by two 3-spheres (Euler characteristic 0 each), its measure between that of
+    the outer polytope's inner ball less the inner ball, and the outer ball less the inner polytope's inner ball
+    (facets of circumradius rho inscribed in a sphere of radius a hold the ball of radius sqrt(a^2 - rho^2))."""
+    radius = 0.4
+    grid = sample_function(lambda x: 0.2 - np.abs(np.linalg.norm(x, axis=1) - 0.8), -np.ones(4), np.ones(4),
+                           radius / 4, margin=radius / 2)
+    mesh = mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed), optimize=OptimizeParameters()).mesh
+    assert check_valid_domain(mesh) == []
+    assert count_boundary_components(mesh) == 2 and boundary_euler_characteristic(mesh) == 0
+    rho = largest_facet_circumradius(mesh.points[boundary_facets(mesh.cells)])
+    volume = signed_measures(mesh.points, mesh.cells).sum()
+    assert BALL[4] * ((1 - rho**2) ** 2 - 0.6**4) <= volume <= BALL[4] * (1 - max(0.36 - rho**2, 0) ** 2)
 
 
 def test_a_solid_torus_in_4d_has_the_topology_of_a_circle():

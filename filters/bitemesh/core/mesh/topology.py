@@ -231,7 +231,7 @@ def euler_characteristic(simplices: np.ndarray) -> int:
 
 def non_manifold_faces(cells: np.ndarray, n_points: int) -> list:
     """The faces (arrays of (b, size) vertex ids) at which the domain is not a manifold with boundary: the
-    pinched ridges, then (3D) the pinched vertices (see :meth:`CellComplex.non_manifold_faces`)."""
+    pinched ridges, then the pinched lower faces, larger first (see :meth:`CellComplex.non_manifold_faces`)."""
     return CellComplex(cells, n_points).non_manifold_faces(np.ones(len(cells), bool))
 
 
@@ -277,6 +277,7 @@ class CellComplex:
                             for i in range(k + 1)])   # the cell's ridges on the facet opposite vertex i
         self._facet_ridges = self.cell_ridges[(row // (k + 1))[:, None], without[row % (k + 1)]]
         self.incidence = vertex_incidence(n_points, cells)
+        self._lower, self._subs = {}, {}   # face tables below the ridges, and faces' sub-faces, made when asked
 
     def facet_counts(self, keep: np.ndarray) -> np.ndarray:
         """(u,) how many of the kept cells hold each facet (1: on their boundary, 2: inside)."""
@@ -298,20 +299,64 @@ class CellComplex:
         """The faces at which the kept cells are not a manifold with boundary, as :func:`non_manifold_faces`.
 
         Pinched ridges: around a ridge the kept cells are linked through the interior facets that hold it; a
-        closed ring (#cells = #facets) or a single open fan (#cells = #facets + 1) is manifold.  Pinched vertices
-        (3D): the link's Euler characteristic, #edges - #triangles + #cells holding the vertex, is 2 inside and 1
-        on the boundary.
+        closed ring (#cells = #facets) or a single open fan (#cells = #facets + 1) is manifold.  Pinched lower faces
+        (vertices in 3D; edges and vertices in 4D): a face's link is a sphere inside the domain and a ball on its
+        boundary, so its Euler characteristic, the alternating count of the kept faces that hold it, must be
+        1 + (-1)^(k - size) inside and 1 on the boundary (two parts, or an annulus, fail it).
         """
         counts = self.facet_counts(keep)
         around = np.bincount(self.cell_ridges[keep].ravel(), minlength=len(self.ridges))
         pairs = np.repeat(np.maximum(counts - 1, 0), self._facet_ridges.shape[1])   # interior facets, per ridge
         linked = np.bincount(self._facet_ridges.ravel(), pairs, minlength=len(self.ridges))
         found = [self.ridges[around - linked >= 2]]
-        if self.cells.shape[1] == 4:
-            def holding(faces):
-                return np.bincount(faces.ravel(), minlength=self.n_points)
-            in_cells = holding(self.cells[keep])
-            euler = holding(self.ridges[around > 0]) - holding(self.facets[counts > 0]) + in_cells
-            on_boundary = holding(self.facets[counts == 1]) > 0
-            found.append(np.flatnonzero((in_cells > 0) & (euler != np.where(on_boundary, 1, 2)))[:, None])
+        k = self.cells.shape[1] - 1
+        for size in range(k - 2, 0, -1):
+            faces, in_cells = self._faces(size), self._holding(k + 1, size, keep)
+            euler = sum((-1) ** (larger - size - 1) * self._holding(larger, size, keep)
+                        for larger in range(size + 1, k + 2))
+            on_boundary = np.bincount(self._sub_faces(k, size)[counts == 1].ravel(), minlength=len(faces)) > 0
+            found.append(faces[(in_cells > 0) & (euler != np.where(on_boundary, 1, 1 + (-1) ** (k - size)))])
         return [faces for faces in found if len(faces)]
+
+    def _corners(self, size: int) -> np.ndarray:
+        """(f, size) the positions in a cell of its faces with ``size`` vertices, in the order of their tables."""
+        corners = self.cells.shape[1]
+        if size == corners - 1:
+            return facet_corners(corners)
+        return np.array(list(combinations(range(corners), size)), np.int64).reshape(-1, size)
+
+    def _faces(self, size: int) -> np.ndarray:
+        """(u, size) the distinct faces with ``size`` vertices (the cells, the facets, the ridges, or lower)."""
+        return self._table(size)[0]
+
+    def _table(self, size: int):
+        """(distinct faces (u, size), the face ids of each cell (m, f)) for faces with ``size`` vertices."""
+        k = self.cells.shape[1] - 1
+        if size == k + 1:
+            return self.cells, np.arange(len(self.cells))[:, None]
+        if size == k:
+            return self.facets, self.facet_ids
+        if size == k - 1:
+            return self.ridges, self.cell_ridges
+        if size not in self._lower:
+            self._lower[size] = face_groups(self.cells, self._corners(size))[:2]
+        return self._lower[size]
+
+    def _sub_faces(self, size: int, sub: int) -> np.ndarray:
+        """(u, C(size, sub)) the ids of the faces with ``sub`` vertices of each distinct face with ``size``."""
+        if (size, sub) not in self._subs:
+            ids, sub_ids = self._table(size)[1], self._table(sub)[1]
+            position = {tuple(sorted(corner)): q for q, corner in enumerate(self._corners(sub).tolist())}
+            local = np.array([[position[tuple(sorted(c))] for c in combinations(corner, sub)]
+                              for corner in self._corners(size).tolist()], np.int64)
+            row = np.zeros(int(ids.max()) + 1, np.int64)
+            row[ids.ravel()] = np.arange(ids.size)   # a (cell, face) of each distinct face (any will do)
+            cell, face = np.divmod(row, ids.shape[1])
+            self._subs[size, sub] = sub_ids[cell[:, None], local[face]]
+        return self._subs[size, sub]
+
+    def _holding(self, size: int, sub: int, keep: np.ndarray) -> np.ndarray:
+        """(u_sub,) how many of the kept cells' distinct faces with ``size`` vertices hold each face with ``sub``."""
+        held = np.zeros(len(self._faces(size)), bool)
+        held[self._table(size)[1][keep].ravel()] = True
+        return np.bincount(self._sub_faces(size, sub)[held].ravel(), minlength=len(self._faces(sub)))
