@@ -112,6 +112,17 @@ def test_two_cells_that_share_a_face_below_a_ridge_alone_are_pinched_there(k, sh
     assert non_manifold_faces(ball, len(points)) == []
 
 
+def test_a_vertex_whose_link_is_a_disk_and_an_annulus_is_pinched():
+    """Tetrahedra around vertex 0 over a triangle and over a triangulated annulus apart from it: the link's Euler
+    characteristic is 1 + 0, a boundary vertex's, but its boundary triangles form three fans (in 4-D, a ball and a
+    solid torus around a space-time heart's vertex): found, by the validity check's test of stars."""
+    outer, inner = [4, 5, 6], [7, 8, 9]
+    annulus = [[outer[i], outer[(i + 1) % 3], inner[i]] for i in range(3)] + \
+        [[outer[(i + 1) % 3], inner[(i + 1) % 3], inner[i]] for i in range(3)]
+    cells = np.array([[0, 1, 2, 3]] + [[0, *triangle] for triangle in annulus])
+    assert [faces.tolist() for faces in non_manifold_faces(cells, 10)] == [[[0]]]
+
+
 def test_a_mesh_of_more_than_five_dimensions_is_refused_by_name():
     with pytest.raises(InvalidInputError, match="k = 2 to 5"):
         check_valid_domain(Mesh(np.zeros((7, 6)), np.arange(7)[None]))

@@ -235,6 +235,31 @@ def non_manifold_faces(cells: np.ndarray, n_points: int) -> list:
     return CellComplex(cells, n_points).non_manifold_faces(np.ones(len(cells), bool))
 
 
+def boundary_stars(facets: np.ndarray, n_points: int, ridges=None) -> np.ndarray:
+    """(n_points,) how many stars the boundary ``facets`` (b, k) form at each vertex: the facets holding it, joined
+    across the ridges (k - 1 vertices) that hold it too; 1 on a manifold boundary (a fan in 3D), 0 off it.
+    ``ridges``: (corners (f, k - 1), inverse (b, f)) of :func:`face_groups` on the facets, when at hand."""
+    size = facets.shape[1]
+    if ridges is None:
+        corners = np.array(list(combinations(range(size), size - 1)))
+        ridges = corners, face_groups(facets, corners)[1]
+    corners, inverse = ridges
+    # Nodes of the graph are corners (size t + j: vertex j of facet t); two facets sharing a ridge join their
+    # corners at each of its vertices.
+    joined = []
+    for row in neighbour_pairs(inverse.ravel()):
+        facet, ridge = row // len(corners), row % len(corners)
+        position = corners[ridge]                                                  # (p, size - 1)
+        order = np.argsort(facets[facet[:, None], position], axis=1, kind="stable")   # by vertex: aligned
+        joined.append(size * facet[:, None] + np.take_along_axis(position, order, axis=1))
+    links = np.stack([joined[0].ravel(), joined[1].ravel()])
+    graph = sparse.coo_matrix((np.ones(links.shape[1]), (links[0], links[1])), shape=(size * len(facets),) * 2)
+    n_stars, labels = csgraph.connected_components(graph, directed=False)
+    vertex_of_star = np.empty(n_stars, dtype=np.int64)
+    vertex_of_star[labels] = facets.ravel()
+    return np.bincount(vertex_of_star, minlength=n_points)
+
+
 def vertex_incidence(n_points: int, cells: np.ndarray) -> sparse.csr_matrix:
     """(n_points, m) sparse, 1 where a point is a vertex of a cell."""
     return sparse.csr_matrix((np.ones(cells.size), (cells.ravel(), np.repeat(np.arange(len(cells)), cells.shape[1]))),
@@ -302,7 +327,9 @@ class CellComplex:
         closed ring (#cells = #facets) or a single open fan (#cells = #facets + 1) is manifold.  Pinched lower faces
         (vertices in 3D; edges and vertices in 4D): a face's link is a sphere inside the domain and a ball on its
         boundary, so its Euler characteristic, the alternating count of the kept faces that hold it, must be
-        1 + (-1)^(k - size) inside and 1 on the boundary (two parts, or an annulus, fail it).
+        1 + (-1)^(k - size) inside and 1 on the boundary (two parts, or an annulus, fail it).  When nothing else is
+        found, boundary vertices whose boundary facets form more than one star (a link in pieces whose Euler
+        characteristics add up right, as a ball and a solid torus in 4-D: the validity check's test).
         """
         counts = self.facet_counts(keep)
         around = np.bincount(self.cell_ridges[keep].ravel(), minlength=len(self.ridges))
@@ -316,7 +343,11 @@ class CellComplex:
                         for larger in range(size + 1, k + 2))
             on_boundary = np.bincount(self._sub_faces(k, size)[counts == 1].ravel(), minlength=len(faces)) > 0
             found.append(faces[(in_cells > 0) & (euler != np.where(on_boundary, 1, 1 + (-1) ** (k - size)))])
-        return [faces for faces in found if len(faces)]
+        found = [faces for faces in found if len(faces)]
+        if not found and k > 2:   # a link of the right Euler characteristic in pieces (a ball and a solid torus)
+            stars = boundary_stars(self.facets[counts == 1], self.n_points)
+            found = [np.flatnonzero(stars > 1)[:, None]] if (stars > 1).any() else []
+        return found
 
     def _corners(self, size: int) -> np.ndarray:
         """(f, size) the positions in a cell of its faces with ``size`` vertices, in the order of their tables."""

@@ -18,7 +18,8 @@ from scipy.sparse import csgraph
 from ..errors import InvalidInputError, check_number
 from .adjacency import BOUNDARY, NON_MANIFOLD, cell_neighbours, same_side_pairs
 from .simplicial import MAX_DIMENSION, Mesh, facet_of, signed_measures
-from .topology import boundary_facets, distinct_faces, euler_characteristic, face_groups, neighbour_pairs, unique_rows
+from .topology import (boundary_facets, boundary_stars, distinct_faces, euler_characteristic, face_groups,
+                       unique_rows)
 
 
 def _check_cells(cells, name: str = "cells") -> np.ndarray:
@@ -103,21 +104,7 @@ def _manifold_problems(facets: np.ndarray, n_points: int) -> list:
                                f"{ridge_one} {first[0] if size == 2 else tuple(first)} in {counts[bad[0]]}"))
     if size == 2 or not len(facets):
         return problems
-    # Nodes of the graph are corners (size t + j: vertex j of facet t); two facets sharing a ridge join their
-    # corners at each of its vertices.
-    a, b = neighbour_pairs(inverse.ravel())
-    joined = []
-    for row in (a, b):
-        facet, ridge = row // len(corners), row % len(corners)
-        position = corners[ridge]                                                  # (p, size - 1)
-        order = np.argsort(facets[facet[:, None], position], axis=1, kind="stable")   # by vertex: aligned
-        joined.append(size * facet[:, None] + np.take_along_axis(position, order, axis=1))
-    links = np.stack([joined[0].ravel(), joined[1].ravel()])
-    graph = sparse.coo_matrix((np.ones(links.shape[1]), (links[0], links[1])), shape=(size * len(facets),) * 2)
-    n_stars, labels = csgraph.connected_components(graph, directed=False)
-    vertex_of_star = np.empty(n_stars, dtype=np.int64)
-    vertex_of_star[labels] = facets.ravel()
-    stars = np.bincount(vertex_of_star, minlength=n_points)
+    stars = boundary_stars(facets, n_points, ridges=(corners, inverse))
     bad = np.flatnonzero(stars > 1)
     if len(bad):
         shape = "fan" if size == 3 else "star"
