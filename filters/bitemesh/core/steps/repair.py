@@ -176,7 +176,13 @@ def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, para
         keep = drop_small_components(delaunay, keep, parameters.min_component)
         pinched = delaunay.complex.non_manifold_faces(keep)
         if not pinched:
-            break
+            voids = enclosed_inside_voids(grid, delaunay, keep)
+            if not voids.any():
+                break
+            # filled, and checked again: two voids meeting at a vertex (the 25-frame space-time heart's), one of
+            # them filled, pinch the domain there
+            keep = keep | voids
+            continue
         # each size of face may be mended by filling in its first rounds, then only by removing: the rounds that
         # only remove cannot cycle.  Beyond 3-D the largest pinched faces first (ridges, then edges, then vertices),
         # whose mending changes the links below: all at once, the fills of a 6-frame space-time heart's edges and
@@ -193,8 +199,7 @@ def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, para
     else:
         raise MeshingError(f"the boundary is still not a manifold after {MAX_REPAIR_ROUNDS} rounds of repair; "
                            "try a smaller radius or a finer grid_spacing")
-    # filling a whole enclosed void of a manifold domain leaves it a manifold
-    return keep | enclosed_inside_voids(grid, delaunay, keep)
+    return keep
 
 
 def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
