@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..compiled import kernel
 from ..grid.sampled import ImplicitGrid
 from ..mesh.simplicial import signed_measures
 from ..mesh.topology import CellComplex, boundary_facets, connected_components, euler_change, euler_characteristic
@@ -42,88 +43,97 @@ def handle_count(cells: np.ndarray) -> int:
 
 @dataclass(frozen=True)
 class _Complex:
-    """Every Delaunay cell's vertices, edge ids, facet ids and facet neighbours (-1: the convex hull), as lists for
-    the growth's scalar loop; the facet and edge ids as arrays too."""
+    """Every Delaunay cell's vertices (m, 4), edge ids (m, 6, in the order of ``TETRAHEDRON_EDGES``), facet ids
+    (m, 4) and facet neighbours (m, 4; -1: the convex hull), int64, for the compiled growth."""
 
-    vertices: list
-    edges: list
-    facets: list
-    neighbours: list
-    facet_ids: np.ndarray
+    vertices: np.ndarray
+    edges: np.ndarray
+    facets: np.ndarray
+    neighbours: np.ndarray
     facet_counts: np.ndarray
-    edge_ids: np.ndarray
 
     @classmethod
     def of(cls, complex_: CellComplex) -> _Complex:
         """From the tables of all the cells (its ridges are the edges, in the order of ``TETRAHEDRON_EDGES``)."""
-        cells, facet_ids, edge_ids = complex_.cells, complex_.facet_ids.ravel(), complex_.cell_ridges
+        cells = complex_.cells
         first, second = complex_.neighbour_rows
         neighbours = np.full(cells.size, -1, dtype=np.int64)
         neighbours[first], neighbours[second] = second // 4, first // 4
-        return cls(cells.tolist(), edge_ids.tolist(), complex_.facet_ids.tolist(),
-                   neighbours.reshape(-1, 4).tolist(), facet_ids, complex_.hull_counts, edge_ids)
+        return cls(np.ascontiguousarray(cells, np.int64), np.ascontiguousarray(complex_.cell_ridges, np.int64),
+                   np.ascontiguousarray(complex_.facet_ids, np.int64), neighbours.reshape(-1, 4),
+                   complex_.hull_counts)
 
 
 class _Growth:
     """A set of cells grown one simple cell at a time; counts of how many grown cells hold each face."""
 
     def __init__(self, complex_: _Complex, n_points: int):
-        self.vertices, self.edges, self.facets = complex_.vertices, complex_.edges, complex_.facets
-        self.neighbours = complex_.neighbours
-        self.vertex_count = [0] * n_points
-        self.edge_count = [0] * (int(complex_.edge_ids.max()) + 1)
-        self.facet_count = [0] * len(complex_.facet_counts)
-        self.grown = bytearray(len(self.vertices))
+        self.complex = complex_
+        self.vertex_count = np.zeros(n_points, np.int64)
+        self.edge_count = np.zeros(int(complex_.edges.max()) + 1, np.int64)
+        self.facet_count = np.zeros(len(complex_.facet_counts), np.int64)
+        self.grown = np.zeros(len(complex_.vertices), np.bool_)
 
-    def take_faces(self, vertices, edges, facets) -> None:
-        """Count these faces as part of the set (the convex hull, for the outside)."""
-        for v in vertices:
-            self.vertex_count[v] += 1
-        for e in edges:
-            self.edge_count[e] += 1
-        for f in facets:
-            self.facet_count[f] += 1
-
-    def is_simple(self, cell: int) -> bool:
-        """Whether adding ``cell`` keeps the set's homotopy type: its boundary's part in the set is contractible
-        (on the boundary sphere of a tetrahedron: nonempty, connected, Euler characteristic 1)."""
-        inside = [self.vertex_count[v] > 0 for v in self.vertices[cell]]
-        n_vertices = sum(inside)
-        if n_vertices == 0:
-            return False
-        edges = [self.edge_count[e] > 0 for e in self.edges[cell]]
-        n_edges = sum(edges)
-        n_facets = sum(self.facet_count[f] > 0 for f in self.facets[cell])
-        if n_vertices - n_edges + n_facets != 1 or n_edges < n_vertices - 1:
-            return False
-        if n_vertices == 4:   # 3 edges among 4 vertices: connected unless a triangle and a lone vertex
-            touched = {vertex for k, pair in enumerate(TETRAHEDRON_EDGES) if edges[k] for vertex in pair}
-            return len(touched) == 4
-        return True
-
-    def add(self, cell: int) -> None:
-        self.grown[cell] = 1
-        self.take_faces(self.vertices[cell], self.edges[cell], self.facets[cell])
+    def take_faces(self, vertices: np.ndarray, edges: np.ndarray, facets: np.ndarray) -> None:
+        """Count these faces (distinct ids) as part of the set (the convex hull, for the outside)."""
+        self.vertex_count[vertices] += 1
+        self.edge_count[edges] += 1
+        self.facet_count[facets] += 1
 
     def grow(self, allowed: np.ndarray, priority: np.ndarray, start=(), *, seeds=()) -> np.ndarray:
         """Grow over the ``allowed`` cells, highest ``priority`` first, from the ``seeds`` (taken as they are) and
         the cells ``start`` (taken when simple, as every cell after them; a cell that is not is tried again when a
         neighbour joins).  Returns (m,) bool, the grown cells."""
-        allowed, priority = allowed.tolist(), priority.tolist()
-        heap = [(-priority[cell], cell) for cell in start]
-        for seed in seeds:
-            self.add(seed)
-            heap += [(-priority[cell], cell) for cell in self.neighbours[seed] if cell >= 0 and allowed[cell]]
-        heapq.heapify(heap)
-        while heap:
-            _, cell = heapq.heappop(heap)
-            if self.grown[cell] or not self.is_simple(cell):
-                continue
-            self.add(cell)
-            for neighbour in self.neighbours[cell]:
-                if neighbour >= 0 and allowed[neighbour] and not self.grown[neighbour]:
-                    heapq.heappush(heap, (-priority[neighbour], neighbour))
-        return np.frombuffer(bytes(self.grown), dtype=np.uint8).astype(bool)
+        c = self.complex
+        _grow(c.vertices, c.edges, c.facets, c.neighbours, self.vertex_count, self.edge_count, self.facet_count,
+              self.grown, np.asarray(allowed, np.bool_), np.asarray(priority, np.float64),
+              np.asarray(start, np.int64), np.asarray(seeds, np.int64), np.array(TETRAHEDRON_EDGES, np.int64))
+        return self.grown.copy()
+
+
+@kernel
+def _grow(vertices, edges, facets, neighbours, vertex_count, edge_count, facet_count, grown, allowed, priority,
+          start, seeds, tetrahedron_edges):
+    """:meth:`_Growth.grow`: a heap of (-priority, cell), a cell taken when simple (adding it keeps the set's
+    homotopy type: its boundary's part in the set is nonempty, connected and of Euler characteristic 1)."""
+    heap = [(-priority[cell], cell) for cell in start]
+    for seed in seeds:
+        _take(seed, vertices, edges, facets, vertex_count, edge_count, facet_count, grown)
+        for neighbour in neighbours[seed]:
+            if neighbour >= 0 and allowed[neighbour]:
+                heap.append((-priority[neighbour], neighbour))
+    heapq.heapify(heap)
+    while len(heap):
+        _, cell = heapq.heappop(heap)
+        if grown[cell]:
+            continue
+        n_vertices = n_edges = n_facets = 0
+        for q in range(4):
+            n_vertices += vertex_count[vertices[cell, q]] > 0
+            n_facets += facet_count[facets[cell, q]] > 0
+        touched = np.zeros(4, np.bool_)
+        for q in range(6):
+            if edge_count[edges[cell, q]] > 0:
+                n_edges += 1
+                touched[tetrahedron_edges[q, 0]] = touched[tetrahedron_edges[q, 1]] = True
+        if n_vertices == 0 or n_vertices - n_edges + n_facets != 1 or n_edges < n_vertices - 1:
+            continue
+        if n_vertices == 4 and not touched.all():   # 3 edges among 4 vertices: a triangle and a lone vertex
+            continue
+        _take(cell, vertices, edges, facets, vertex_count, edge_count, facet_count, grown)
+        for neighbour in neighbours[cell]:
+            if neighbour >= 0 and allowed[neighbour] and not grown[neighbour]:
+                heapq.heappush(heap, (-priority[neighbour], neighbour))
+
+
+@kernel
+def _take(cell, vertices, edges, facets, vertex_count, edge_count, facet_count, grown):
+    grown[cell] = True
+    for q in range(4):
+        vertex_count[vertices[cell, q]] += 1
+        facet_count[facets[cell, q]] += 1
+    for q in range(6):
+        edge_count[edges[cell, q]] += 1
 
 
 def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex, keep: np.ndarray,
@@ -186,15 +196,14 @@ def _grown_outside(complex_: _Complex, cells: np.ndarray, n_points: int, keep: n
                    value: np.ndarray) -> np.ndarray:
     """The dropped cells grown from the convex hull (the outside, a ball in the 3-sphere), farthest out first."""
     growth = _Growth(complex_, n_points)
-    facet_ids, facet_counts, edge_ids = complex_.facet_ids, complex_.facet_counts, complex_.edge_ids
-    hull = np.flatnonzero(facet_counts[facet_ids] == 1)   # rows c * 4 + i: facet i (opposite vertex i) of cell c
+    facet_ids, edge_ids = complex_.facets.ravel(), complex_.edges
+    hull = np.flatnonzero(complex_.facet_counts[facet_ids] == 1)   # rows c * 4 + i: facet i (opposite vertex i)
     hull_cells, opposite = hull // 4, hull % 4
     edges_without = np.array([[k for k, pair in enumerate(TETRAHEDRON_EDGES) if i not in pair] for i in range(4)])
-    growth.take_faces(np.unique(cells[hull_cells][np.arange(4) != opposite[:, None]]).tolist(),
-                      np.unique(edge_ids[hull_cells[:, None], edges_without[opposite]]).tolist(),
-                      facet_ids[hull].tolist())
+    growth.take_faces(np.unique(cells[hull_cells][np.arange(4) != opposite[:, None]]),
+                      np.unique(edge_ids[hull_cells[:, None], edges_without[opposite]]), facet_ids[hull])
     on_hull = np.unique(hull_cells)
-    return growth.grow(~keep, -value, on_hull[~keep[on_hull]].tolist())
+    return growth.grow(~keep, -value, on_hull[~keep[on_hull]])
 
 
 def _clusters(points, cells, members: np.ndarray, value: np.ndarray, *, fill: bool) -> list:
