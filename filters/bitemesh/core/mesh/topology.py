@@ -296,13 +296,9 @@ class CellComplex:
         self.facets, self.facet_ids, self.hull_counts = face_groups(cells, facet_corners(k + 1))
         self.neighbour_rows = neighbour_pairs(self.facet_ids.ravel())
         self.ridges, self.cell_ridges, _ = face_groups(cells, list(combinations(range(k + 1), k - 1)))
-        row = np.zeros(len(self.facets), np.int64)
-        row[self.facet_ids.ravel()] = np.arange(self.facet_ids.size)   # a row of each distinct facet (any will do)
-        without = np.array([[j for j, ridge in enumerate(combinations(range(k + 1), k - 1)) if i not in ridge]
-                            for i in range(k + 1)])   # the cell's ridges on the facet opposite vertex i
-        self._facet_ridges = self.cell_ridges[(row // (k + 1))[:, None], without[row % (k + 1)]]
         self.incidence = vertex_incidence(n_points, cells)
         self._lower, self._subs = {}, {}   # face tables below the ridges, and faces' sub-faces, made when asked
+        self._facet_ridges = self._sub_faces(k, k - 1)   # the ridges of each distinct facet
 
     def facet_counts(self, keep: np.ndarray) -> np.ndarray:
         """(u,) how many of the kept cells hold each facet (1: on their boundary, 2: inside)."""
