@@ -48,6 +48,7 @@ from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.io import read_labelled_points
 from paraview import servermanager, simple
 from paraview.simple import CSVReader, LoadPlugin, ProgrammableFilter, SaveData, TableToPoints, TrivialProducer
+from distances import boundary_hausdorff
 from pvbatch_checks import (check, checks, environment, facts, guarded, properties, same_mesh, timed, updated,
                             valid_sphere)
 from vtkmodules.util import numpy_support
@@ -105,15 +106,6 @@ def one_shot(points_proxy, xyz: np.ndarray, args, out: Path) -> None:
     same_mesh("one-shot = plain VTK MeshFromPoints", mesh, unstructured_to_mesh(vtk_filter.update()))
     facts["one_shot"] = {"points": len(mesh.points), "cells": len(mesh.cells), "radius": radius,
                          "file": "one_shot.vtu"}
-
-
-def boundary_hausdorff(first, second) -> float:
-    """The symmetric Hausdorff distance between two meshes' boundary surfaces, taken at their boundary nodes: the
-    largest distance from a boundary node of either mesh to the other's boundary triangles (exact:
-    :func:`bitemesh.core.steps.fidelity.distances_to_facets`)."""
-    return max(float(distances_to_facets(mesh.points[np.unique(boundary_facets(mesh.cells))],
-                                         other.points[boundary_facets(other.cells)]).max())
-               for mesh, other in ((first, second), (second, first)))
 
 
 @guarded("five-filter chain")

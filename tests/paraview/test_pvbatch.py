@@ -28,6 +28,7 @@ from bitemesh.core.mesh.simplicial import signed_measures
 from bitemesh.core.parameters import BitingParameters, ImplicitParameters
 from bitemesh.core.sources.points import run
 
+from tests.paraview.distances import boundary_hausdorff
 from tests.builders import SHELL_DOMAIN, SHELL_VOLUME, closed_shell_contours, labelled_polydata, sphere_samples
 from tests.meshcheck import assert_valid_domain
 
@@ -217,15 +218,6 @@ def test_a_gpfile_read_as_a_table_gives_the_myocardium_of_run_labelled(pvbatch_r
     assert abs(len(mesh.cells) / len(expected.cells) - 1) < 0.05 and abs(volumes[0] / volumes[1] - 1) < 0.01
     radius = pvbatch_run["results"]["facts"]["gpfile"]["radius"]
     assert boundary_hausdorff(mesh, expected) < 1.5 * radius
-
-
-def boundary_hausdorff(first, second) -> float:
-    """The symmetric Hausdorff distance between two meshes' boundaries, taken at their boundary nodes."""
-    from bitemesh.core.mesh.topology import boundary_facets
-    from bitemesh.core.steps.fidelity import distances_to_facets
-    return max(float(distances_to_facets(mesh.points[np.unique(boundary_facets(mesh.cells))],
-                                         other.points[boundary_facets(other.cells)]).max())
-               for mesh, other in ((first, second), (second, first)))
 
 
 def test_template_fit_in_paraview_fits_the_mesh_to_its_own_guide_points(pvbatch_run):
