@@ -94,6 +94,23 @@ def test_ctrl_c_that_cuts_an_object_short_prints_no_traceback(points_file, previ
 
 
 @POSIX
+def test_a_ctrl_c_whose_interrupt_was_swallowed_still_cancels(points_file, previous):
+    """A KeyboardInterrupt raised inside a ``__del__`` is lost, and one inside numba's compiler leaves it half done
+    (CI: its cache write failed with "RuntimeError: no compiled object yet", a traceback and exit 1): an error that
+    follows a Ctrl-C is the cancel, and the next progress report cancels a run that went on."""
+    swallow = ("\ndef swallowed():\n"
+               "    try:\n"
+               "        os.kill(os.getpid(), signal.SIGINT)\n"
+               "    except KeyboardInterrupt:\n"
+               "        pass\n")
+    assert_cancelled_once(swallow + "def run(argv): swallowed(); raise RuntimeError('no compiled object yet')\n"
+                          "cli._run = run; cli.command()", points_file, previous)
+    assert_cancelled_once(swallow + "from bitemesh.cli.options import ProgressBar\n"
+                          "def run(argv): swallowed(); ProgressBar()(0.5); return 0\n"
+                          "cli._run = run; cli.command()", points_file, previous)
+
+
+@POSIX
 def test_a_second_ctrl_c_while_the_first_unwinds_prints_no_traceback(points_file, previous):
     """Ctrl-C pressed again while the program cleans up after the first (main's last steps; a storm of SIGINT every
     2 ms printed a traceback from there): ignored, one line, 130.  Deterministic: the second signal is sent from

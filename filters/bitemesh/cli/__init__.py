@@ -26,6 +26,9 @@ _held_back = [] if _starts_the_program() else None
 if _held_back is not None:
     _signal.signal(_signal.SIGINT, lambda number, frame: _held_back.append(number))
 
+#: The Ctrl-C signals main's handler received (see :func:`cancel_requested`).
+_cancels = []
+
 import logging  # noqa: E402  (after the Ctrl-C hold-back above)
 import os  # noqa: E402
 import signal  # noqa: E402
@@ -79,18 +82,24 @@ def main(argv=None) -> int:
             if _held_back:
                 _interrupt()
         return _run(argv)
-    except KeyboardInterrupt as interrupt:
-        print(f"\nbitemesh: cancelled{f' ({interrupt})' if str(interrupt) else ''}", file=sys.stderr)
-        return 130
-    except SystemError as error:
-        if not _interrupted(error):
+    except BaseException as error:   # noqa: B036 (the interrupt, whatever it became on its way out, is a cancel)
+        if not (cancel_requested() or _interrupted(error)):
             raise
-        print("\nbitemesh: cancelled", file=sys.stderr)
+        said = str(error) if isinstance(error, KeyboardInterrupt) else ""   # "... was written to ... first"
+        print(f"\nbitemesh: cancelled{f' ({said})' if said else ''}", file=sys.stderr)
         return 130
     finally:
         logger.removeHandler(handler)
         logger.setLevel(previous_level)
         warnings.showwarning = shown
+
+
+def cancel_requested() -> bool:
+    """Whether the user pressed Ctrl-C in this program.  The KeyboardInterrupt may not reach main as itself: one
+    raised inside a ``__del__`` is swallowed, one inside numba's compiler leaves it half done (its cache write then
+    fails with "RuntimeError: no compiled object yet"); the progress bar raises it again and main treats any error
+    that follows as the cancel."""
+    return bool(_cancels)
 
 
 def _interrupted(error: BaseException) -> bool:
@@ -110,6 +119,7 @@ def _interrupt(number=None, frame=None):
     An object whose construction the interrupt cut short (numba's compiler, on a first run) may fail in its
     ``__del__`` as the interrupt unwinds; Python would print "Exception ignored ... Traceback".  The user asked to
     stop."""
+    _cancels.append(number)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     sys.unraisablehook = lambda unraisable: None
     raise KeyboardInterrupt
@@ -153,6 +163,8 @@ def _run(argv) -> int:
         print("\nbitemesh: cancelled", file=sys.stderr)
         return 130
     except BitemeshError as error:
+        if cancel_requested():
+            raise
         print(f"bitemesh: error: {error}", file=sys.stderr)
         return 1
     return 0

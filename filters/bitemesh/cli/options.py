@@ -11,6 +11,7 @@ from ..core.mesh.quality import quality_summary
 from ..core.parameters import AUTOMATIC, STEP_PARAMETERS, is_optional
 from ..meshing import write
 from ..options import Options
+from . import cancel_requested
 
 
 def describe(metadata: dict, default) -> str:
@@ -99,6 +100,8 @@ class ProgressBar:
         self.length = 0  # characters of the line last drawn
 
     def __call__(self, fraction: float, message: str = "") -> None:
+        if cancel_requested():   # a Ctrl-C whose KeyboardInterrupt was swallowed on its way (see there)
+            raise KeyboardInterrupt
         if not self.shown and time.perf_counter() - self.start < self.delay:
             return
         self.shown = True
