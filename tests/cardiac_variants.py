@@ -231,6 +231,16 @@ def sparse_base(gp: dict) -> dict:
     return subset(gp, ~((right & (height > 0)) | np.isin(gp["labels"], OUTFLOW_VALVES)))
 
 
+def stray_mitral_point(gp: dict, depth: float = 12.0) -> dict:
+    """The first mitral point placed ``depth`` mm inside the LV cavity, towards the LV endocardial points' centre (a
+    valve point clicked off the annulus, as biv-me's test patient_1 has one 11 mm from its view's contours' ends)."""
+    points = gp["points"].copy()
+    row = np.flatnonzero(gp["labels"] == "MITRAL_VALVE")[0]
+    towards = points[np.char.find(gp["labels"].astype(str), "LV_ENDOCARDIAL") >= 0].mean(axis=0) - points[row]
+    points[row] += depth * towards / np.linalg.norm(towards)
+    return {**gp, "points": points}
+
+
 def thinned_contours(gp: dict, step: int = 3) -> dict:
     """Every ``step``-th point of each contour (a sparser export), the valves and landmarks kept."""
     keep = np.ones(len(gp["labels"]), bool)
@@ -253,6 +263,7 @@ CLASSES = {
     "long-axis view shifted 5 mm": lambda folder, frame: (long_axis_view_shifted(read_frame(folder, frame)), None),
     "sparse base": lambda folder, frame: (sparse_base(read_frame(folder, frame)), None),
     "sparser 3x": lambda folder, frame: (thinned_contours(read_frame(folder, frame)), None),
+    "stray mitral point": lambda folder, frame: (stray_mitral_point(read_frame(folder, frame)), None),
     "denser 4x": lambda folder, frame: (denser(read_frame(folder, frame)), None),
     "no RV epicardium": lambda folder, frame: (without(read_frame(folder, frame), RV_EPICARDIUM), None),
     "frames merged": lambda folder, frame: (merged(read_frame(folder, frame), read_frame(folder, (frame + 8) % 25)),

@@ -15,7 +15,7 @@ from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, BIVME_VALVES
 from bitemesh.core.sources.contours.fit import labelled_implicit
 from bitemesh.core.sources.contours.registration import register_slices
 from bitemesh.core.sources.contours.slices import contour_normals, slice_planes
-from bitemesh.core.sources.contours.valves import annulus_normals
+from bitemesh.core.sources.contours.valves import annulus_normals, ring_normals, rings_off_the_mesh
 from bitemesh.core.errors import MeshingError
 from bitemesh.core.steps.fidelity import Fidelity, check_fidelity
 from bitemesh.core.parameters import FidelityParameters
@@ -215,6 +215,36 @@ def test_the_annulus_normals_point_away_from_the_valves_centre_in_its_plane():
     normals = annulus_normals(points, labels)
     np.testing.assert_allclose(normals[:6], (ring - ring.mean(axis=0)) / 12, atol=1e-12)
     assert np.isnan(normals[6:]).all()
+
+
+def test_a_valve_seen_in_one_view_takes_the_normals_of_its_slices_wall():
+    """Two tricuspid points of one long-axis view (no ring to take a centre of): each takes the normal of the nearest
+    point of its cavity's contours in its own slice, not a nearer one of another slice (biv-me's patient_2: the
+    tricuspid point 3.6 mm from the mesh without it, 1.0 mm with it); a ring of six keeps its radial normals, and a
+    point whose slice has no contour keeps none."""
+    angles = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    ring = 12 * np.c_[np.cos(angles), np.sin(angles), np.zeros(6)]
+    rings = np.vstack([ring, [[0.0, 0, 0], [0, 20, 0]]])
+    ring_labels = np.array(["MITRAL_VALVE"] * 6 + ["TRICUSPID_VALVE"] * 2)
+    wall = np.array([[0.0, -2, -1], [0, 22, -1], [0, 0.5, 0]])
+    wall_slices = np.array([9, 9, 3])
+    wall_normals = np.array([[0.0, -1, 0], [0, 0.6, 0.8], [1, 0, 0]])
+    normals = ring_normals(rings, ring_labels, np.array([1] * 6 + [9, 9]), wall, wall_slices, wall_normals)
+    np.testing.assert_allclose(normals[:6], ring / 12, atol=1e-12)
+    np.testing.assert_array_equal(normals[6:], wall_normals[:2])
+    alone = ring_normals(rings[6:], ring_labels[6:], np.array([4, 4]), wall, wall_slices, wall_normals)
+    assert np.isnan(alone).all()
+
+
+def test_ring_points_off_the_mesh_are_named_with_their_slice_and_its_contours_reach():
+    """A note per inflow ring point beyond the bound, none for the others nor for outflow valves."""
+    points = np.array([[0.0, 0, 0], [10, 0, 0], [0, 30, 0], [20, 20, 0]])
+    labels = np.array(["MITRAL_VALVE", "LAX_LV_ENDOCARDIAL", "AORTA_VALVE", "TRICUSPID_VALVE"])
+    slices = np.array([3, 3, 3, 2])
+    notes = rings_off_the_mesh(np.array([9.2, 0.0, 12.0, 2.0]), points, labels, slices, bound=2.5)
+    assert len(notes) == 1
+    assert notes[0].startswith("the MITRAL_VALVE point at (0.0, 0.0, 0.0) (slice 3) lies 9.2 mm from the mesh")
+    assert "its slice's LV_ENDO contours end 10.0 mm from it" in notes[0]
 
 
 # --- refusals that name the slice -------------------------------------------------------------------------------------

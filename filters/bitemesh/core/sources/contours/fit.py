@@ -59,16 +59,12 @@ from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, MIN_WALL, OUTLET_WALL, RV_W
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
 from .registration import registered
-from .valves import across_valves, annulus_normals, outlet_points
+from .valves import CAVITY_RINGS, INFLOW_RINGS, across_valves, outlet_points, ring_normals
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .surface_fit import fit_contour_rbf
 
 logger = logging.getLogger("bitemesh")
 
-#: the cavities whose inflow valve points are samples of their walls too (an outflow ring as well would fold the
-#: wall between the two rings into the cavity: a bridge of myocardium across it).
-CAVITY_RINGS = {"LV_ENDO": ("MITRAL_VALVE",), "RV_ENDO": ("TRICUSPID_VALVE",)}
-INFLOW_RINGS = tuple(valve for valves in CAVITY_RINGS.values() for valve in valves)
 #: an epicardium holds every inflow ring point at least this far inside (mm; the thinnest wall the mesher keeps by
 #: default): the epicardial contours end short of the annulus, and a wall tapering to nothing there would leave the
 #: ring points mm away from the mesh (up to 4.6 mm on the cine's frame 7).
@@ -256,7 +252,8 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         normals = _surface_normals(points[index], slices[index], planes, name, gap_factor)
         if name in CAVITY_RINGS:   # a cavity's inflow annulus lies on its wall, its normal away from the valve's centre
             rings = _distinct(points, np.flatnonzero(np.isin(labels, CAVITY_RINGS[name])))
-            index, normals = np.r_[index, rings], np.vstack([normals, annulus_normals(points[rings], labels[rings])])
+            index, normals = np.r_[index, rings], np.vstack([normals, ring_normals(
+                points[rings], labels[rings], slices[rings], points[index], slices[index], normals)])
         fitted_points, fitted_normals = points[index], normals
         if name in CAVITY_RINGS and base is not None and len(rings):   # the wall runs on up through the base
             risen = points[rings] + RING_RISE * base.outward(points[rings])

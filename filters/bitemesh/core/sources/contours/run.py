@@ -11,6 +11,8 @@ import numpy as np
 
 from ...errors import check_points
 from ...mesh.simplicial import Mesh
+from ...mesh.topology import boundary_facets
+from ...steps.fidelity import distances_to_facets
 from ...parameters import (BitingParameters, FidelityParameters, ImplicitParameters,
                            LabelledParameters, OptimizeParameters, SpuriousParameters)
 from ...progress import ProgressCallback, sub_progress
@@ -21,6 +23,7 @@ from .cardiac import (BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, DERI
                       LV_TAGS, MIN_WALL, check_heart)
 from .fit import labelled_implicit
 from .function import LabelledImplicit
+from .valves import INFLOW_RINGS, rings_off_the_mesh
 
 logger = logging.getLogger("bitemesh")
 
@@ -168,4 +171,24 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
         with timed(seconds, "plausibility"):
             check_heart(result.mesh, result.function, result.radius, result.fidelity,
                         allow_implausible=allow_implausible)
+            notes = _rings_off_the_mesh(result, points, labels, slices)
+        for note in notes:
+            logger.info(note)
+        result = replace(result, notes=result.notes + notes)
     return result
+
+
+def _rings_off_the_mesh(result, points, labels, slices) -> tuple:
+    """:func:`~bitemesh.core.sources.contours.valves.rings_off_the_mesh` on the input's ring points, moved with their
+    slices as the registration moved them, beyond R + the tracing noise."""
+    labels = np.asarray(labels).astype(str)
+    rings = np.flatnonzero(np.isin(labels, INFLOW_RINGS))
+    if not len(rings):
+        return ()
+    slices = np.full(len(labels), -1) if slices is None else np.asarray(slices)
+    points = np.array(points, dtype=np.float64)
+    for number, shift in result.function.shifts.items():
+        points[slices == number] += shift
+    distances = np.full(len(points), 0.0)
+    distances[rings] = distances_to_facets(points[rings], result.mesh.points[boundary_facets(result.mesh.cells)])
+    return rings_off_the_mesh(distances, points, labels, slices, result.radius + result.function.tracing_noise())

@@ -1,5 +1,6 @@
-"""The valves of biv-me contours: where each cavity opens (a point inside it at each valve's centre), and the
-contour points traced across a valve rather than along a wall.
+"""The valves of biv-me contours: where each cavity opens (a point inside it at each valve's centre), the inflow
+rings as samples of the cavities' walls, the contour points traced across a valve rather than along a wall, and the
+ring points a mesh leaves (:func:`rings_off_the_mesh`).
 
 Some exports trace a long-axis contour as a closed loop, its last stretch straight across the valve between the two
 annulus points of that view: those points sample no wall (the cavity opens there), and a fit through them would close
@@ -10,7 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cardiac import BIVME_VALVES
+from .cardiac import BIVME_SURFACES, BIVME_VALVES
+
+#: the cavities whose inflow valve points are samples of their walls too (an outflow ring as well would fold the
+#: wall between the two rings into the cavity: a bridge of myocardium across it).
+CAVITY_RINGS = {"LV_ENDO": ("MITRAL_VALVE",), "RV_ENDO": ("TRICUSPID_VALVE",)}
+INFLOW_RINGS = tuple(valve for valves in CAVITY_RINGS.values() for valve in valves)
 
 #: a contour point within this (mm) of a valve's chord is traced across the valve.
 ACROSS = 3.0
@@ -49,6 +55,21 @@ def annulus_normals(points, labels) -> np.ndarray:
     return normals
 
 
+def ring_normals(rings, ring_labels, ring_slices, wall, wall_slices, wall_normals) -> np.ndarray:
+    """(n, 3) the outward normals of a cavity's wall at its inflow valve points ``rings`` (n, 3):
+    :func:`annulus_normals`, and for a valve seen in one view only (fewer than three points) the in-plane normal of
+    the nearest point of the cavity's contours ``wall`` (m, 3) in the same slice (``wall_normals`` (m, 3), NaN where
+    none): the contour runs on from the annulus, so its last normals are the wall's there.  NaN where neither is
+    known."""
+    normals = annulus_normals(rings, ring_labels)
+    known = np.isfinite(wall_normals).all(axis=1)
+    for row in np.flatnonzero(np.isnan(normals).any(axis=1)):
+        same = np.flatnonzero(known & (wall_slices == ring_slices[row]))
+        if ring_slices[row] >= 0 and len(same):
+            normals[row] = wall_normals[same[np.argmin(np.linalg.norm(wall[same] - rings[row], axis=1))]]
+    return normals
+
+
 def across_valves(points, labels, slices, wall_labels):
     """(n,) bool, the points of ``wall_labels`` traced across a valve (see the module docstring), and a note."""
     across = np.zeros(len(points), bool)
@@ -72,3 +93,22 @@ def across_valves(points, labels, slices, wall_labels):
     return across, ("points traced across a valve left out (no wall there: the cavity opens): "
                     + ", ".join(f"{count} {label} across the {valve.split('_')[0].lower()} valve"
                                 for (label, valve), count in counts.items()),)
+
+
+def rings_off_the_mesh(distances, points, labels, slices, bound: float) -> tuple:
+    """Notes on the inflow ring points farther than ``bound`` (mm) from the mesh, ``distances`` (n,) being each of
+    ``points`` (n, 3) (labels, slices (n,)) to the mesh's boundary: each with its nearest contour point of its
+    cavity's wall in its own slice, so that a ring point placed away from the wall its view traces (inside the
+    cavity, beyond the contours' ends) is named rather than followed into a wall no contour shows.  Empty when none."""
+    notes = []
+    for cavity, valves in CAVITY_RINGS.items():
+        wall = np.isin(labels, BIVME_SURFACES[cavity])
+        for row in np.flatnonzero(np.isin(labels, valves) & (distances > bound)):
+            same = wall & (slices == slices[row]) & (slices[row] >= 0)
+            gap = np.linalg.norm(points[same] - points[row], axis=1).min() if same.any() else None
+            reach = "" if gap is None else f"; its slice's {cavity} contours end {gap:.1f} mm from it"
+            notes.append(f"the {labels[row]} point at ({', '.join(f'{value:.1f}' for value in points[row])}) (slice "
+                         f"{slices[row]}) lies {distances[row]:.1f} mm from the mesh, beyond R + the tracing noise "
+                         f"({bound:.1f} mm){reach}: the mesh follows the walls the contours trace; if the annulus is "
+                         "there, trace the contours up to it, or check the point's slice")
+    return tuple(notes)
