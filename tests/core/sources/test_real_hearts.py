@@ -15,7 +15,8 @@ from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, BIVME_VALVES
 from bitemesh.core.sources.contours.fit import labelled_implicit
 from bitemesh.core.sources.contours.registration import register_slices
 from bitemesh.core.sources.contours.slices import contour_normals, slice_planes
-from bitemesh.core.sources.contours.valves import annulus_normals, ring_normals, rings_off_the_mesh
+from bitemesh.core.sources.contours.valves import (annulus_normals, ring_normals, rings_off_the_mesh,
+                                                   walls_behind)
 from bitemesh.core.errors import MeshingError
 from bitemesh.core.steps.fidelity import Fidelity, check_fidelity
 from bitemesh.core.parameters import FidelityParameters
@@ -234,6 +235,24 @@ def test_a_valve_seen_in_one_view_takes_the_normals_of_its_slices_wall():
     np.testing.assert_array_equal(normals[6:], wall_normals[:2])
     alone = ring_normals(rings[6:], ring_labels[6:], np.array([4, 4]), wall, wall_slices, wall_normals)
     assert np.isnan(alone).all()
+
+
+def test_a_cavity_leaves_a_wall_behind_its_ring_points_where_it_would_pocket():
+    """A cavity (a ball of radius 10 mm) with a pocket behind a ring point (a ball of 2 mm whose centre lies 4 mm
+    beyond the point: a fin 2 mm thick between them, the cine frame 23's mitral point 3.4 mm from the mesh): held
+    outside in the pocket, 1 mm apart, valued minus the distance up to the wall's thickness; no
+    value where the wall behind is whole, where the normal is unknown, or where no wall lies within reach (a ring
+    point inside a cavity 30 mm wide, named instead: a wall forced there would cut across the cavity)."""
+    def cavity(x):
+        return np.maximum(10 - np.linalg.norm(x, axis=1), 2 - np.linalg.norm(x - [14.0, 0, 0], axis=1))
+
+    rings = np.array([[10.0, 0, 0], [0, 10, 0], [0, 0, 10]])
+    normals = np.array([[1.0, 0, 0], [0, 1, 0], [np.nan] * 3])
+    centres, values = walls_behind(cavity, rings, normals, wall=2.5)
+    np.testing.assert_allclose(centres, [[12.5, 0, 0], [13.5, 0, 0], [14.5, 0, 0], [15.5, 0, 0]])
+    np.testing.assert_allclose(values, -2.5)
+    wide = walls_behind(lambda x: 30 - np.linalg.norm(x, axis=1), rings[:1], normals[:1], wall=2.5)
+    assert len(wide[0]) == 0
 
 
 def test_ring_points_off_the_mesh_are_named_with_their_slice_and_its_contours_reach():

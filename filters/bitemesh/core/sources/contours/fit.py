@@ -59,7 +59,7 @@ from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, MIN_WALL, OUTLET_WALL, RV_W
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
 from .registration import registered
-from .valves import CAVITY_RINGS, INFLOW_RINGS, across_valves, outlet_points, ring_normals
+from .valves import CAVITY_RINGS, INFLOW_RINGS, across_valves, outlet_points, ring_normals, walls_behind
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
 from .surface_fit import fit_contour_rbf
 
@@ -267,8 +267,11 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         ring_points = points[np.isin(labels, [valve for valve in outlets.get(name, ()) if valve in INFLOW_RINGS])]
         thin = ring_points[rbf(ring_points) < RING_WALL] if name in OUTLET_WALL and len(ring_points) else []
         if len(thin):   # the epicardium holds each inflow ring point a wall inside it: fitted again with them
-            centres, values = interior if interior is not None else (np.zeros((0, 3)), np.zeros(0))
-            rbf = fit_surface(interior=(np.vstack([centres, thin]), np.r_[values, np.full(len(thin), RING_WALL)]))
+            rbf = fit_surface(interior=_joined(interior, thin, np.full(len(thin), RING_WALL)))
+        if name in CAVITY_RINGS and len(rings):   # and a cavity leaves a wall behind each: no pocket there
+            behind = walls_behind(rbf, points[rings], normals[-len(rings):], RING_WALL)
+            if len(behind[0]):
+                rbf = fit_surface(interior=_joined(interior, *behind))
         functions[name] = _sampled_surface(rbf, points[index], offset, resolution, sub_progress(
             progress, 0.05 + 0.9 * (number + 0.3) / len(fitted), 0.05 + 0.9 * (number + 1) / len(fitted)))
         surface_points[name], surface_normals[name], surface_slices[name] = points[index], normals, slices[index]
@@ -284,6 +287,12 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     report(progress, 1.0, "surfaces fitted")
     function = replace(function, lower=lower, upper=upper)
     return function, lower, upper
+
+
+def _joined(interior, centres, values) -> tuple:
+    """The interior values ``interior`` ((k, 3), (k,), or None) with more ``centres`` (j, 3) and ``values`` (j,)."""
+    known, given = interior if interior is not None else (np.zeros((0, 3)), np.zeros(0))
+    return np.vstack([known, centres]), np.r_[given, values]
 
 
 def _derived_epicardium(tree, labels, rv_wall: float):

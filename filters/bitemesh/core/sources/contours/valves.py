@@ -70,6 +70,43 @@ def ring_normals(rings, ring_labels, ring_slices, wall, wall_slices, wall_normal
     return normals
 
 
+#: a cavity's fit that runs on past a ring point (a pocket behind it, under a fin of wall thinner than a cell that
+#: the mesh loses) is held outside along the ring's normal up to its wall when that wall lies within this (mm); a
+#: point farther from any wall is no annulus of that cavity's (named by :func:`rings_off_the_mesh`), and a wall
+#: forced there would cut across the cavity.
+POCKET_REACH = 10.0
+#: the step (mm) of the profile along the normal.
+POCKET_STEP = 0.5
+
+
+def walls_behind(cavity, rings, normals, wall: float) -> tuple:
+    """Interior values that leave a wall behind each ring point: where the fit ``cavity`` ((m, 3) -> (m,), > 0
+    inside) is inside again within :data:`POCKET_REACH` of a ring point (n, 3) along its normal (n, 3; NaN: none),
+    before its wall (where it stays outside for twice ``wall`` mm: a fin of one wall's thickness between the cavity
+    and a pocket behind it is what the mesh loses), the pocket's points every other POCKET_STEP, valued minus their
+    distance from the ring point up to ``wall`` (about the signed distance of a wall behind it).
+
+    Returns ((j, 3) points, (j,) values), empty when no ring point has a pocket."""
+    thick = int(round(2 * wall / POCKET_STEP))
+    steps = POCKET_STEP * np.arange(1, int(round(POCKET_REACH / POCKET_STEP)) + thick + 1)
+    centres, values = [], []
+    for point, normal in zip(rings, normals):
+        if not np.isfinite(normal).all():
+            continue
+        profile = cavity(point + np.outer(steps, normal))
+        outside = profile <= 0
+        run = np.convolve(outside, np.ones(thick), "valid") == thick   # a wall starts at each True
+        start = int(np.argmax(run))
+        if not run[start] or steps[start] > POCKET_REACH or not (profile[:start] > 0).any():
+            continue   # no wall within reach, or no pocket before it
+        pocket = steps[:start][profile[:start] > 0][::2]   # 1 mm apart, beyond the fit's own off-surface points
+        centres.append(point + np.outer(pocket, normal))
+        values.append(-np.minimum(pocket, wall))
+    if not centres:
+        return np.zeros((0, 3)), np.zeros(0)
+    return np.vstack(centres), np.concatenate(values)
+
+
 def across_valves(points, labels, slices, wall_labels):
     """(n,) bool, the points of ``wall_labels`` traced across a valve (see the module docstring), and a note."""
     across = np.zeros(len(points), bool)
