@@ -10,7 +10,8 @@ which surfaces they sample, what to derive when a surface is missing, and what a
 - **LV only**: without RV contours the domain is ``LV_EPI - LV_ENDO``.
 - **Base**: the surface through the valve annuli (:mod:`bitemesh.core.sources.contours.base`), its heights measured
   along the short-axis stack (:func:`short_axis_stack`).
-- **Size**: R = :data:`CARDIAC_RADIUS` (2 mm) unless a radius or a cell count is given.
+- **Size**: R = :data:`CARDIAC_RADIUS` (2 mm) unless a radius or a cell count is given, times
+  :func:`heart_scale` for a heart smaller than an adult's.
 - **Plausibility** (:func:`check_heart`): each cavity open at the base and not filled, the myocardial volume and
   mean wall thickness in physiological ranges, the guide points near their surface; otherwise a refusal naming what
   failed (or a warning with ``allow_implausible``).
@@ -96,6 +97,12 @@ WALL_THICKNESS = (1.5, 20.0)
 #: the least and the largest span (mm, the diagonal of the contours' bounding box) of a heart: a mouse heart is
 #: about 8 mm long, a horse's about 250 mm.
 SMALLEST_HEART, LARGEST_HEART = 5.0, 1000.0
+#: the span (mm) of the smallest adult human heart's contours the defaults above are for (biv-me's patients span
+#: 149-230 mm, end-systole included); contours that span less are a child's or an animal's heart, and R, the
+#: thinnest wall and the plausible volume and wall thickness shrink with them (:func:`heart_scale`): at R = 2 mm and
+#: walls kept 2.5 mm thick a heart 0.3 the size was refused as implausible, 8 ml of walls thickened to a cell, and
+#: meshes as the adult one does at 0.3 of its R and thinnest wall (guide points 0.16 mm away on average).
+ADULT_SPAN = 140.0
 
 
 def canonical_labels(labels):
@@ -143,6 +150,13 @@ def check_millimetres(points) -> None:
             f"cardiac contours are read in mm, and a heart spans at most {LARGEST_HEART:g} mm (a horse's is about "
             f"250 mm long); these span {span:.3g} (the diagonal of their bounding box): in micrometres? give the "
             "coordinates in mm (divide them by 1000)")
+
+
+def heart_scale(points) -> float:
+    """How large the heart of contour points (n, 3) in mm is against an adult's: their span (the diagonal of their
+    bounding box) over :data:`ADULT_SPAN`, at most 1."""
+    span = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else ADULT_SPAN
+    return min(1.0, span / ADULT_SPAN)
 
 
 def is_bivme(labels) -> bool:
@@ -233,7 +247,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     - each cavity open at the base: at least half of its section 1 mm below the base outside the mesh (its core,
       deeper than min_wall: the walls are kept at least that thick, narrowing the cavity by as much);
     - the myocardial volume and the mean wall thickness (2 x volume / walls' area) in :data:`MYOCARDIAL_VOLUME`
-      and :data:`WALL_THICKNESS`;
+      and :data:`WALL_THICKNESS`, their lower ends scaled by :func:`heart_scale` cubed and by it;
     - the guide points near the boundary: mean <= 0.5 x noise + R / 4 and 95th percentile <= noise + R (the
       tracing noise, and a linear boundary of edges R);
     - and, as a warning only, a boundary of genus 0 (a myocardium open at the base has no handle).
@@ -254,6 +268,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     points, cells = np.asarray(mesh.points), np.asarray(mesh.cells)
     volumes = np.asarray(mesh.cell_data["Volume"])
     centroids = points[cells].mean(axis=1)
+    scale = heart_scale(np.vstack(list(function.points.values())))   # a small heart's bounds shrink with it
     problems = []
     for name in ("LV_ENDO", "RV_ENDO"):
         if name not in function.surfaces:
@@ -278,11 +293,11 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     walls = areas[~function.is_base(corners.mean(axis=1))].sum() if function.base is not None else areas.sum()
     thickness = 2 * total / walls if walls > 0 else np.inf
     low, high = MYOCARDIAL_VOLUME
-    if not low <= total / 1000 <= high:
-        problems.append(f"the myocardial volume {total / 1000:.1f} ml is outside [{low:g}, {high:g}] ml")
+    if not low * scale ** 3 <= total / 1000 <= high:
+        problems.append(f"the myocardial volume {total / 1000:.3g} ml is outside [{low * scale ** 3:.3g}, {high:g}] ml")
     low, high = WALL_THICKNESS
-    if not low <= thickness <= high:
-        problems.append(f"the mean wall thickness {thickness:.1f} mm is outside [{low:g}, {high:g}] mm")
+    if not low * scale <= thickness <= high:
+        problems.append(f"the mean wall thickness {thickness:.2g} mm is outside [{low * scale:.2g}, {high:g}] mm")
     euler = euler_characteristic(facets)
     handles = (2 * count_boundary_components(mesh) - euler) // 2
     if handles > 0:

@@ -20,7 +20,7 @@ from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
 from ...mesh.tags import DOMAIN, MYOCARDIUM, renamed_tags, surface_tags
 from .cardiac import (BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, DERIVED_EPI_TAGS, LV_DOMAIN, LV_REGION,
-                      LV_TAGS, MIN_WALL, check_heart)
+                      LV_TAGS, MIN_WALL, check_heart, heart_scale)
 from .fit import labelled_implicit
 from .function import LabelledImplicit
 from .valves import INFLOW_RINGS, rings_off_the_mesh
@@ -33,9 +33,11 @@ logger = logging.getLogger("bitemesh")
 WALL_PER_RADIUS = 1.25
 
 
-def thinnest_wall(radius: float) -> float:
-    """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS` x R."""
-    return max(MIN_WALL, WALL_PER_RADIUS * radius)
+def thinnest_wall(radius: float, scale: float = 1.0) -> float:
+    """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` (times ``scale``, the heart's size
+    against an adult's: :func:`~bitemesh.core.sources.contours.cardiac.heart_scale`) and :data:`WALL_PER_RADIUS`
+    x R."""
+    return max(MIN_WALL * scale, WALL_PER_RADIUS * radius)
 
 
 def two_cells_across(radius: float) -> float:
@@ -119,16 +121,20 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
     for note in function.notes:
         logger.info(note)
     cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
+    scale = heart_scale(points) if cardiac else 1.0
+    if min_wall is None and scale < 1:
+        function = function.with_min_wall(MIN_WALL * scale)
     ball = is_myocardium(function) and function.base is not None   # no handle, no void
+    size = f" (a heart {scale:.2g} the size of an adult's: R and the thinnest wall with it)" if scale < 1 else ""
     return Source(function, lower, upper, frame, samples=function.surface_samples(),
-                  at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None
+                  at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius, scale))) if min_wall is None
                   else None,
                   noise=function.tracing_noise(), gap=function.contour_gap(),
                   open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
-                  notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
-                  radius_note=f"cardiac contours: R = {CARDIAC_RADIUS:g} mm (give radius or cells for another size)"
-                  if cardiac else "", handles="remove" if ball else "keep", tagging=labelled_tags,
-                  locate=function.locate)
+                  notes=function.notes, radius=CARDIAC_RADIUS * scale if cardiac else None,
+                  radius_note=f"cardiac contours: R = {CARDIAC_RADIUS * scale:.3g} mm{size} (give radius or cells "
+                  "for another size)" if cardiac else "", handles="remove" if ball else "keep",
+                  tagging=labelled_tags, locate=function.locate)
 
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
@@ -160,11 +166,13 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
                          spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
                          fidelity or FidelityParameters())
     result = replace(result, function=result.function.moved(source.frame.shift))
-    if min_wall is None and thinnest_wall(result.radius) > MIN_WALL and is_myocardium(source.function):
-        note = (f"at R = {result.radius:.3g} the thinnest wall kept is {thinnest_wall(result.radius):.3g} (about a "
-                f"cell): walls traced thinner (an RV free wall, 2 to 5 mm) are that thick in the mesh, and the "
-                f"myocardium larger than the contours' own; for walls as traced give radius <= "
-                f"{MIN_WALL / WALL_PER_RADIUS:.3g} (or min_wall down to {MIN_WALL:g})")
+    scale = heart_scale(points) if source.radius is not None else 1.0   # a cardiac source's
+    wall = thinnest_wall(result.radius, scale)
+    if min_wall is None and wall > MIN_WALL * scale and is_myocardium(source.function):
+        note = (f"at R = {result.radius:.3g} the thinnest wall kept is {wall:.3g} (about a cell): walls traced "
+                f"thinner (an RV free wall, 2 to 5 mm in an adult) are that thick in the mesh, and the myocardium "
+                f"larger than the contours' own; for walls as traced give radius <= "
+                f"{MIN_WALL * scale / WALL_PER_RADIUS:.3g} (or min_wall down to {MIN_WALL * scale:.3g})")
         logger.info(note)
         result = replace(result, notes=result.notes + (note,))
     if is_myocardium(source.function):
