@@ -57,8 +57,10 @@ def test_every_boundary_triangle_of_the_heart_is_on_a_named_surface():
     base = mesh.facet_tags == 4
     assert np.abs(below[base]).max() < result.radius and np.median(np.abs(below[base])) < result.radius / 10
     assert (below[~base] > -result.radius / 2).all()
-    # the base's triangles off its rim face out along its normal at one corner at least (one that spans a crease
-    # may face away from the base's normal at its centroid: measured 2 of 178 at R = 3.7 mm)
+    # the base's triangles off its rim face out along its normal at one corner or at the centroid at least (one that
+    # spans a crease may face away from the base's normal at its centroid: measured 2 of 178 at R = 3.7 mm; and from
+    # it at every corner where it stands across a cliff of the base, the corners on the facets beyond: 1 of 190 at
+    # R = 3.6 mm, 76 degrees from the base's normal at its centroid)
     edges = np.sort(np.concatenate([mesh.facets[:, [0, 1]], mesh.facets[:, [1, 2]], mesh.facets[:, [2, 0]]]), axis=1)
     owner = np.tile(base, 3)
     rim = {tuple(edge) for edge in edges[~owner].tolist()}
@@ -66,7 +68,8 @@ def test_every_boundary_triangle_of_the_heart_is_on_a_named_surface():
                        for number in np.flatnonzero(base)])
     corners = mesh.points[mesh.facets[base][inner]]
     normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    facing = np.max([np.einsum("ij,ij->i", normals, function.base.outward(corners[:, k])) for k in range(3)], axis=0)
+    facing = np.max([np.einsum("ij,ij->i", normals, function.base.outward(at))
+                     for at in (*corners.transpose(1, 0, 2), corners.mean(axis=1))], axis=0)
     assert inner.sum() > 0.25 * base.sum() and (facing > 0).all()   # a band two or three R wide: a third inside
     # the others lie nearer to their own surface's contour points than to any other surface's
     trees = {name: cKDTree(function.points[name]) for name in ("EPI", "LV_ENDO", "RV_ENDO")}
