@@ -241,6 +241,27 @@ def stray_mitral_point(gp: dict, depth: float = 12.0) -> dict:
     return {**gp, "points": points}
 
 
+def tilted_base(gp: dict, degrees: float = 30.0) -> dict:
+    """The base tilted by ``degrees`` against the short-axis stack: every point above the data's centre moved across
+    the stack's axis by its height there times tan(degrees) (a shear of the basal half: the annuli, the long-axis
+    contours' upper parts and the basal short-axis slices together, as hearts whose mitral annulus leans more)."""
+    normal = stack_normal(gp)
+    height = (gp["points"] - gp["points"].mean(axis=0)) @ normal
+    across = np.cross(normal, [1.0, 0.0, 0.0])
+    across /= np.linalg.norm(across)
+    shear = np.tan(np.radians(degrees)) * np.maximum(height, 0.0)
+    return {**gp, "points": gp["points"] + np.outer(shear, across)}
+
+
+def rotated(gp: dict, degrees: float = 30.0) -> dict:
+    """Every point turned about the data's centre (another scanner's orientation of the same heart)."""
+    angle = np.radians(degrees)
+    turn = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+    tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(angle), -np.sin(angle)], [0.0, np.sin(angle), np.cos(angle)]])
+    centre = gp["points"].mean(axis=0)
+    return {**gp, "points": (gp["points"] - centre) @ (turn @ tilt).T + centre}
+
+
 def thinned_contours(gp: dict, step: int = 3) -> dict:
     """Every ``step``-th point of each contour (a sparser export), the valves and landmarks kept."""
     keep = np.ones(len(gp["labels"]), bool)
@@ -264,6 +285,8 @@ CLASSES = {
     "sparse base": lambda folder, frame: (sparse_base(read_frame(folder, frame)), None),
     "sparser 3x": lambda folder, frame: (thinned_contours(read_frame(folder, frame)), None),
     "stray mitral point": lambda folder, frame: (stray_mitral_point(read_frame(folder, frame)), None),
+    "base tilted 30 deg": lambda folder, frame: (tilted_base(read_frame(folder, frame)), None),
+    "rotated 30 deg": lambda folder, frame: (rotated(read_frame(folder, frame)), None),
     "denser 4x": lambda folder, frame: (denser(read_frame(folder, frame)), None),
     "no RV epicardium": lambda folder, frame: (without(read_frame(folder, frame), RV_EPICARDIUM), None),
     "frames merged": lambda folder, frame: (merged(read_frame(folder, frame), read_frame(folder, (frame + 8) % 25)),

@@ -64,6 +64,7 @@ def wall_distances(result, points, labels) -> np.ndarray:
     (0, "sparse base"),                 # no RV long-axis contour above the basal slice, no outflow valves
     (0, "sparser 3x"),
     (0, "frames merged"),               # two frames in one file, --frame 0
+    (0, "base tilted 30 deg"),          # the annuli and the basal half sheared across the axis
     # no RV epicardium: tests/cli/test_cardiac_variants.py
 ])
 def test_every_class_meshes_as_one_closed_myocardium_that_follows_the_guide_points(meshed, frame, variant):
@@ -89,7 +90,8 @@ def test_shifted_slices_mesh_as_the_unshifted_frame(meshed):
 
 
 @pytest.mark.parametrize("frame, variant", [(0, ""), (7, ""), (23, ""), (0, "open arcs"), (0, "frames merged"),
-                                            (0, "sparser 3x"), (0, "no RV epicardium")])
+                                            (0, "sparser 3x"), (0, "no RV epicardium"),
+                                            (0, "base tilted 30 deg")])
 def test_the_mitral_and_tricuspid_points_lie_on_the_mesh(meshed, frame, variant):
     """The base follows the annuli: every mitral and tricuspid point within 3 mm of the boundary (10-16 mm with the
     plane through the valves' centres; 4.2 mm on frame 23 before the mitral points had their normals: its
