@@ -100,13 +100,15 @@ class BaseSurface:
         direction = self.normal - self.heights.gradient(offset @ self.axes.T) @ self.axes
         return direction / np.linalg.norm(direction, axis=1, keepdims=True)
 
-    def moved(self, shift) -> "BaseSurface":
-        """The same surface translated by ``shift`` (3,)."""
-        return replace(self, point=self.point + np.asarray(shift, dtype=np.float64))
+    def mapped(self, scale: float, shift) -> "BaseSurface":
+        """The same surface in the coordinates x * ``scale`` + ``shift`` (3,)."""
+        heights = self.heights if self.heights is None or scale == 1 else \
+            PiecewiseLinear(self.heights.anchors * scale, self.heights.heights * scale)
+        return replace(self, point=self.point * scale + np.asarray(shift, dtype=np.float64), heights=heights)
 
     def raised(self, distance: float) -> "BaseSurface":
         """The same surface moved ``distance`` along its normal (> 0: away from the apex)."""
-        return self.moved(float(distance) * self.normal)
+        return replace(self, point=self.point + float(distance) * self.normal)
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,8 +10,8 @@ which surfaces they sample, what to derive when a surface is missing, and what a
 - **LV only**: without RV contours the domain is ``LV_EPI - LV_ENDO``.
 - **Base**: the surface through the valve annuli (:mod:`bitemesh.core.sources.contours.base`), its heights measured
   along the short-axis stack (:func:`short_axis_stack`).
-- **Size**: R = :data:`CARDIAC_RADIUS` (2 mm) unless a radius or a cell count is given, times
-  :func:`heart_scale` for a heart smaller than an adult's.
+- **Size**: R = :data:`CARDIAC_RADIUS` (2 mm) unless a radius or a cell count is given; a heart smaller than an
+  adult's is fitted and meshed in a frame scaled to an adult's size (:func:`heart_scale`).
 - **Plausibility** (:func:`check_heart`): each cavity open at the base and not filled, the myocardial volume and
   mean wall thickness in physiological ranges, the guide points near their surface; otherwise a refusal naming what
   failed (or a warning with ``allow_implausible``).
@@ -97,11 +97,11 @@ WALL_THICKNESS = (1.5, 20.0)
 #: the least and the largest span (mm, the diagonal of the contours' bounding box) of a heart: a mouse heart is
 #: about 8 mm long, a horse's about 250 mm.
 SMALLEST_HEART, LARGEST_HEART = 5.0, 1000.0
-#: the span (mm) of the smallest adult human heart's contours the defaults above are for (biv-me's patients span
-#: 149-230 mm, end-systole included); contours that span less are a child's or an animal's heart, and R, the
-#: thinnest wall and the plausible volume and wall thickness shrink with them (:func:`heart_scale`): at R = 2 mm and
-#: walls kept 2.5 mm thick a heart 0.3 the size was refused as implausible, 8 ml of walls thickened to a cell, and
-#: meshes as the adult one does at 0.3 of its R and thinnest wall (guide points 0.16 mm away on average).
+#: the span (mm) of the smallest adult human heart's contours the defaults in mm are for (biv-me's patients span
+#: 149-230 mm, end-systole included); contours that span less are a child's or an animal's heart, fitted and meshed
+#: in a frame scaled to this span (:func:`heart_scale`), the plausible volume and wall thickness shrinking with
+#: them: at R = 2 mm and walls kept 2.5 mm thick a heart 0.3 the size was refused as implausible (8 ml of walls
+#: thickened to a cell), and a mouse's (0.1) kept none of its walls.
 ADULT_SPAN = 140.0
 
 

@@ -82,15 +82,20 @@ class LabelledImplicit:
         """The same surfaces, with another thinnest wall (input units)."""
         return replace(self, min_wall=check_number(min_wall, "min_wall", low=0))
 
-    def moved(self, shift) -> LabelledImplicit:
-        """The same domain translated by ``shift`` (3,): every sampled surface, the base, the box, the points."""
-        shift = np.asarray(shift, dtype=np.float64)
-        return replace(self, surfaces={name: replace(grid, origin=grid.origin + shift)
+    def mapped(self, scale: float, shift) -> LabelledImplicit:
+        """The same domain in the coordinates x * ``scale`` + ``shift`` (3,): every sampled surface (f scaled with
+        the lengths, about a distance still), the base, the thinnest wall, the box, the points, the slices' shifts."""
+        shift, scale = np.asarray(shift, dtype=np.float64), float(scale)
+        return replace(self, surfaces={name: grid.scaled(grid.origin * scale + shift, scale)
                                        for name, grid in self.surfaces.items()},
-                       base=None if self.base is None else self.base.moved(shift),
-                       lower=self.lower + shift, upper=self.upper + shift,
-                       points={name: points + shift for name, points in self.points.items()},
-                       basal_slice=(self.basal_slice[0] + shift, self.basal_slice[1]) if self.basal_slice else ())
+                       base=None if self.base is None else self.base.mapped(scale, shift),
+                       min_wall=self.min_wall * scale, lower=self.lower * scale + shift,
+                       upper=self.upper * scale + shift,
+                       points={name: points * scale + shift for name, points in self.points.items()},
+                       shifts={number: moved * scale for number, moved in self.shifts.items()},
+                       disagreement=self.disagreement * scale,
+                       basal_slice=(self.basal_slice[0] * scale + shift, self.basal_slice[1]) if self.basal_slice
+                       else ())
 
     def _kept(self) -> np.ndarray:
         """(n,) bool over the points of every surface in turn: those below the base (those above it are cut away)."""

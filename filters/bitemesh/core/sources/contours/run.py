@@ -20,7 +20,7 @@ from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
 from ...mesh.tags import DOMAIN, MYOCARDIUM, renamed_tags, surface_tags
 from .cardiac import (BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, DERIVED_EPI_TAGS, LV_DOMAIN, LV_REGION,
-                      LV_TAGS, MIN_WALL, check_heart, heart_scale)
+                      LV_TAGS, MIN_WALL, canonical_labels, check_heart, heart_scale, is_bivme)
 from .fit import labelled_implicit
 from .function import LabelledImplicit
 from .valves import INFLOW_RINGS, rings_off_the_mesh
@@ -33,11 +33,9 @@ logger = logging.getLogger("bitemesh")
 WALL_PER_RADIUS = 1.25
 
 
-def thinnest_wall(radius: float, scale: float = 1.0) -> float:
-    """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` (times ``scale``, the heart's size
-    against an adult's: :func:`~bitemesh.core.sources.contours.cardiac.heart_scale`) and :data:`WALL_PER_RADIUS`
-    x R."""
-    return max(MIN_WALL * scale, WALL_PER_RADIUS * radius)
+def thinnest_wall(radius: float) -> float:
+    """The default min_wall for node spacing R: the larger of :data:`MIN_WALL` and :data:`WALL_PER_RADIUS` x R."""
+    return max(MIN_WALL, WALL_PER_RADIUS * radius)
 
 
 def two_cells_across(radius: float) -> float:
@@ -108,33 +106,52 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
     surface points below the base plane as the samples (the base plane's cap and derived surfaces left out of the
     fidelity), the boundary tagged by surface (:func:`labelled_tags`)."""
     points = check_points(points, dims=(3,))
-    frame = Frame.around(points, scaled=False)   # millimetres stay millimetres: the defaults are in mm
+    frame = _local_frame(points, labels)
+    scale = frame.scale
     if base_plane is not None and not isinstance(base_plane, str):
         try:
             point, normal = base_plane
-            base_plane = (np.asarray(point, dtype=np.float64) - frame.shift, normal)
+            base_plane = ((np.asarray(point, dtype=np.float64) - frame.shift) / scale, normal)
         except (TypeError, ValueError):
             pass   # labelled_implicit refuses it with its message
-    function, lower, upper = labelled_implicit(points - frame.shift, labels, domain, base_plane, slices=slices,
-                                               surfaces=surfaces, min_wall=MIN_WALL if min_wall is None
-                                               else min_wall, progress=progress, **options)
+    for name in LENGTH_OPTIONS:   # a length given is in the input's unit; the defaults are an adult heart's mm
+        if options.get(name) is not None and options[name] != getattr(LabelledParameters, name):
+            options[name] = options[name] / scale
+    function, lower, upper = labelled_implicit(
+        (points - frame.shift) / scale, labels, domain, base_plane, slices=slices, surfaces=surfaces,
+        min_wall=MIN_WALL if min_wall is None else min_wall / scale, progress=progress, **options)
     for note in function.notes:
         logger.info(note)
     cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
-    scale = heart_scale(points) if cardiac else 1.0
-    if min_wall is None and scale < 1:
-        function = function.with_min_wall(MIN_WALL * scale)
     ball = is_myocardium(function) and function.base is not None   # no handle, no void
-    size = f" (a heart {scale:.2g} the size of an adult's: R and the thinnest wall with it)" if scale < 1 else ""
+    size = f" (a heart {scale:.2g} the size of an adult's, meshed as one: R and every wall with it)" if scale < 1 \
+        else ""
     return Source(function, lower, upper, frame, samples=function.surface_samples(),
-                  at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius, scale))) if min_wall is None
+                  at_radius=(lambda radius: function.with_min_wall(thinnest_wall(radius))) if min_wall is None
                   else None,
                   noise=function.tracing_noise(), gap=function.contour_gap(),
                   open_boundary=function.is_unsampled if function.base is not None or function.derived else None,
-                  notes=function.notes, radius=CARDIAC_RADIUS * scale if cardiac else None,
+                  notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
                   radius_note=f"cardiac contours: R = {CARDIAC_RADIUS * scale:.3g} mm{size} (give radius or cells "
                   "for another size)" if cardiac else "", handles="remove" if ball else "keep",
                   tagging=labelled_tags, locate=function.locate)
+
+
+#: the options of :func:`labelled_implicit` that are lengths (input units).
+LENGTH_OPTIONS = ("offset", "base_offset", "resolution", "rv_wall")
+
+
+def _local_frame(points, labels) -> Frame:
+    """The frame contours are fitted and meshed in: centred on their bounding box, in the input's unit (mm: the
+    cardiac defaults are in mm); for biv-me contours of a heart smaller than an adult's, scaled to an adult's size
+    (:func:`~bitemesh.core.sources.contours.cardiac.heart_scale`), so that every default length (R, the thinnest
+    wall, the valves' clearances, the base's reach) is the same share of it as of an adult's."""
+    frame = Frame.around(points, scaled=False)
+    try:
+        cardiac = is_bivme(canonical_labels(np.asarray(labels).astype(str))[0])
+    except (TypeError, ValueError):   # labels that are no labels: labelled_implicit refuses them by name
+        cardiac = False
+    return Frame(frame.linear * (heart_scale(points) if cardiac else 1.0), frame.shift)
 
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
@@ -165,9 +182,9 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     result = mesh_source(source, implicit or ImplicitParameters(), biting or BitingParameters(),
                          spurious or SpuriousParameters(), optimize, sub_progress(progress, 0.3, 1.0), seconds,
                          fidelity or FidelityParameters())
-    result = replace(result, function=result.function.moved(source.frame.shift))
-    scale = heart_scale(points) if source.radius is not None else 1.0   # a cardiac source's
-    wall = thinnest_wall(result.radius, scale)
+    scale = source.frame.scale
+    result = replace(result, function=result.function.mapped(scale, source.frame.shift))
+    wall = thinnest_wall(result.radius / scale) * scale
     if min_wall is None and wall > MIN_WALL * scale and is_myocardium(source.function):
         note = (f"at R = {result.radius:.3g} the thinnest wall kept is {wall:.3g} (about a cell): walls traced "
                 f"thinner (an RV free wall, 2 to 5 mm in an adult) are that thick in the mesh, and the myocardium "
