@@ -20,7 +20,8 @@ from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
 from ...mesh.tags import DOMAIN, MYOCARDIUM, renamed_tags, surface_tags
 from .cardiac import (BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, DERIVED_EPI_TAGS, LV_DOMAIN, LV_REGION,
-                      LV_TAGS, MIN_WALL, canonical_labels, check_heart, heart_scale, is_bivme)
+                      LV_TAGS, MIN_WALL, canonical_labels, check_heart, check_millimetres, heart_scale,
+                      is_bivme)
 from .fit import labelled_implicit
 from .function import LabelledImplicit
 from .valves import INFLOW_RINGS, rings_off_the_mesh
@@ -151,6 +152,8 @@ def _local_frame(points, labels) -> Frame:
         cardiac = is_bivme(canonical_labels(np.asarray(labels).astype(str))[0])
     except (TypeError, ValueError):   # labels that are no labels: labelled_implicit refuses them by name
         cardiac = False
+    if cardiac:
+        check_millimetres(points)   # here, where a heart in metres is still 1000 times too small
     return Frame(frame.linear * (heart_scale(points) if cardiac else 1.0), frame.shift)
 
 
