@@ -132,7 +132,8 @@ def test_a_small_heart_meshes_at_its_own_scale(tmp_path, size):
     walls 0.1-0.4 mm thick): fitted and meshed in a frame scaled to an adult's size (heart_scale: its span over
     140 mm), so that R, the thinnest wall, the valves' clearances and the base's reach are the same share of it as
     of an adult's: one closed myocardium whose guide points lie as near relative to its size (the issue's 1.0 / 3.0
-    mm times the size), R = 2 mm times heart_scale, and the plausibility bounds shrink with it.  Before: R = 2 mm and
+    mm times the size), R = 2 mm times heart_scale, the notes' lengths in the input's mm, and the plausibility bounds
+    shrink with it.  Before: R = 2 mm and
     walls kept 2.5 mm thick, refused at 0.3 of the size as 8.3 ml of myocardium, below an adult's 10 ml, with a hint
     that did not help; with R and the thinnest wall alone scaled, the mouse's refused by fidelity (the valves'
     clearances stayed 2 mm)."""
@@ -145,6 +146,9 @@ def test_a_small_heart_meshes_at_its_own_scale(tmp_path, size):
     scale = heart_scale(read_labelled_points(path)[0])
     assert result.radius == pytest.approx(2.0 * scale) and scale == pytest.approx(size * 199.2 / 140, rel=0.01)
     assert any(f"a heart {scale:.2g} the size of an adult's" in note for note in result.notes)
+    moved = next(note for note in result.notes if note.startswith("slices moved"))   # its lengths in the input's mm
+    number, shift = next(iter(result.function.shifts.items()))
+    assert f"slice {number} by {np.linalg.norm(shift):.1f} mm" in moved
     assert_valid_domain(result.mesh, euler=2, components=1)
     points, labels, slices = read_labelled_points(path)
     for number, shift in result.function.shifts.items():

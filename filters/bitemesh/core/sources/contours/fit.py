@@ -150,7 +150,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
                       smoothing: float = LabelledParameters.smoothing,
                       base_offset: float = LabelledParameters.base_offset, min_wall: float = 2.5,
                       rv_wall: float = RV_WALL, gap_factor: float = GAP_FACTOR, resolution=None,
-                      progress: ProgressCallback = None):
+                      reported_scale: float = 1.0, progress: ProgressCallback = None):
     """The implicit function of a domain bounded by several labelled contour surfaces.
 
     Parameters
@@ -182,6 +182,8 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     resolution : float, input units, the spacing of the grid each surface is sampled on (an ImplicitGrid);
         default 0.35 x the median spacing of the surface's points (1 mm for contours traced on 1.4 mm pixels), at
         least offset / 4 (denser contours say no more between the slices) and 1/400 of its bounding-box diagonal
+    reported_scale : float, the input's units per unit of ``points`` in the lengths the notes give (a small heart's
+        contours are fitted scaled to an adult's size: :func:`~bitemesh.core.sources.contours.run.labelled_source`)
     progress : callable(fraction, message), optional
 
     Returns
@@ -204,7 +206,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     grown_from = {}   # surface name -> the fitted surface whose distance it is
     if domain is None and is_bivme(labels) and surfaces == BIVME_SURFACES:
         tree, grown_from, note = _derived_epicardium(tree, labels, check_number(rv_wall, "rv_wall", low=0,
-                                                                                 low_open=True))
+                                                                                 low_open=True), reported_scale)
         notes += note
     derived = tuple(grown_from)
     used = domain_names(tree)
@@ -231,7 +233,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     if check_choice(slice_shifts, "slice_shifts", ("auto", "none")) == "auto":
         points, labels, slices, registration = registered(points, labels, slices,
                                                           {name: surfaces[name] for name in fitted}, gap_factor)
-        notes += registration.notes()
+        notes += registration.notes(reported_scale)
         shifts, disagreement = registration.shifts, registration.disagreement
     planes = slice_planes(points, slices)
     outlets = (BIVME_OUTLETS if is_bivme(labels) else {}) if outlets is None else dict(outlets)
@@ -295,9 +297,10 @@ def _joined(interior, centres, values) -> tuple:
     return np.vstack([known, centres]), np.r_[given, values]
 
 
-def _derived_epicardium(tree, labels, rv_wall: float):
+def _derived_epicardium(tree, labels, rv_wall: float, reported_scale: float = 1.0):
     """Without RV epicardial contours: the domain with EPI replaced by ``LV_EPI`` joined to the RV cavity grown by
-    ``rv_wall`` (``RV_EPI``, a surface grown from RV_ENDO), and a note; else the domain unchanged."""
+    ``rv_wall`` (``RV_EPI``, a surface grown from RV_ENDO), and a note (its length times ``reported_scale``); else
+    the domain unchanged."""
     if not needs_derived_epicardium(labels, domain_names(tree)):
         return tree, {}, ()
 
@@ -308,7 +311,7 @@ def _derived_epicardium(tree, labels, rv_wall: float):
 
     return substituted(tree), {"RV_EPI": "RV_ENDO"}, (
         f"no RV epicardial contours: the RV epicardium is derived, the RV endocardium grown by rv_wall = "
-        f"{rv_wall:g} mm and joined to the LV epicardium at the RV insertions",)
+        f"{rv_wall * reported_scale:.3g} mm and joined to the LV epicardium at the RV insertions",)
 
 
 def _surface_normals(points, slices, planes, name: str, gap_factor: float) -> np.ndarray:

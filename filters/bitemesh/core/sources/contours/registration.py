@@ -234,26 +234,28 @@ class Registration:
     outliers: dict = field(default_factory=dict)
     disagreement: float = 0.0
 
-    def notes(self) -> tuple:
-        """What was moved, left in place and left out, one sentence each."""
+    def notes(self, scale: float = 1.0) -> tuple:
+        """What was moved, left in place and left out, one sentence each; lengths times ``scale`` (the input's mm
+        per unit of the registered points)."""
         notes = ()
         if self.shifts:
             notes += ("slices moved in their planes so that their contours meet where the slices cross (breath-hold "
-                      "misregistration): " + ", ".join(f"slice {number} by {np.linalg.norm(shift):.1f} mm"
+                      "misregistration): " + ", ".join(f"slice {number} by {scale * np.linalg.norm(shift):.1f} mm"
                                                       for number, shift in self.shifts.items()),)
         if self.unpinned:
             notes += (f"slice(s) {', '.join(map(str, self.unpinned))} left in place: too few other slices' contours "
                       "cross them to pin a shift",)
         if self.outliers:
             notes += ("slice(s) left out, their contours " + ", ".join(
-                f"{distance:.0f} mm (slice {number})" for number, distance in self.outliers.items())
+                f"{scale * distance:.0f} mm (slice {number})" for number, distance in self.outliers.items())
                 + " from where the other slices' contours cross them (whatever the shift, or by the shift needed), "
-                f"while the others agree to {self.disagreement:.1f} mm: check those slices' positions (the image "
-                "header) or their labels",)
+                f"while the others agree to {scale * self.disagreement:.1f} mm: check those slices' positions (the "
+                "image header) or their labels",)
         if self.disagreement > DISAGREEING:
-            notes += (f"the contours still disagree by {self.disagreement:.1f} mm (median) where the slices cross once "
-                      "registered (motion through the slices, or views of other breath-holds): the surfaces pass "
-                      "between them, and the fidelity bounds count that disagreement as the contours' noise",)
+            notes += (f"the contours still disagree by {scale * self.disagreement:.1f} mm (median) where the slices "
+                      "cross once registered (motion through the slices, or views of other breath-holds): the "
+                      "surfaces pass between them, and the fidelity bounds count that disagreement as the contours' "
+                      "noise",)
         return notes
 
 

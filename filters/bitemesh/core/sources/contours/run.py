@@ -120,7 +120,8 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
             options[name] = options[name] / scale
     function, lower, upper = labelled_implicit(
         (points - frame.shift) / scale, labels, domain, base_plane, slices=slices, surfaces=surfaces,
-        min_wall=MIN_WALL if min_wall is None else min_wall / scale, progress=progress, **options)
+        min_wall=MIN_WALL if min_wall is None else min_wall / scale, reported_scale=scale, progress=progress,
+        **options)
     for note in function.notes:
         logger.info(note)
     cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
