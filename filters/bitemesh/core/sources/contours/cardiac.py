@@ -238,7 +238,8 @@ def short_axis_stack(points, labels, slices, planes):
     return axis * toward_base, [numbers[i] for i in stack], heights * toward_base
 
 
-def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: bool = False) -> list:
+def check_heart(mesh, function, radius: float, fidelity, *, scale: float = 1.0,
+                allow_implausible: bool = False) -> list:
     """What a cardiac user checks on a myocardium mesh; raise :class:`MeshingError` naming what failed (a
     :class:`BitemeshWarning` with ``allow_implausible``).
 
@@ -247,7 +248,8 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     - each cavity open at the base: at least half of its section 1 mm below the base outside the mesh (its core,
       deeper than min_wall: the walls are kept at least that thick, narrowing the cavity by as much);
     - the myocardial volume and the mean wall thickness (2 x volume / walls' area) in :data:`MYOCARDIAL_VOLUME`
-      and :data:`WALL_THICKNESS`, their lower ends scaled by :func:`heart_scale` cubed and by it;
+      and :data:`WALL_THICKNESS`, their lower ends times ``scale`` cubed and ``scale`` (the heart's
+      :func:`heart_scale`);
     - the guide points near the boundary: mean <= 0.5 x noise + R / 4 and 95th percentile <= noise + R (the
       tracing noise, and a linear boundary of edges R);
     - and, as a warning only, a boundary of genus 0 (a myocardium open at the base has no handle).
@@ -255,7 +257,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     Parameters
     ----------
     mesh : Mesh in mm (cell data Volume); function : the LabelledImplicit (mm); radius : R (mm)
-    fidelity : the Fidelity measured on the mesh (or None)
+    fidelity : the Fidelity measured on the mesh (or None); scale : the heart's size against an adult's, <= 1
 
     Returns
     -------
@@ -268,7 +270,6 @@ def check_heart(mesh, function, radius: float, fidelity, *, allow_implausible: b
     points, cells = np.asarray(mesh.points), np.asarray(mesh.cells)
     volumes = np.asarray(mesh.cell_data["Volume"])
     centroids = points[cells].mean(axis=1)
-    scale = heart_scale(np.vstack(list(function.points.values())))   # a small heart's bounds shrink with it
     problems = []
     for name in ("LV_ENDO", "RV_ENDO"):
         if name not in function.surfaces:

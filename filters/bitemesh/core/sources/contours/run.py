@@ -198,7 +198,7 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
         result = replace(result, notes=result.notes + (note,))
     if is_myocardium(source.function):
         with timed(seconds, "plausibility"):
-            check_heart(result.mesh, result.function, result.radius, result.fidelity,
+            check_heart(result.mesh, result.function, result.radius, result.fidelity, scale=scale,
                         allow_implausible=allow_implausible)
             notes = _rings_off_the_mesh(result, points, labels, slices)
         for note in notes:
