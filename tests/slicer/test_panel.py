@@ -102,7 +102,7 @@ def test_parameter_specs_follow_the_core_dataclasses():
     assert (specs["iterations"].kind, specs["iterations"].default, specs["iterations"].high) == (int, 30, 1000)
     assert (specs["minDihedral"].default, specs["minDihedral"].high, specs["minDihedral"].unit) == \
         (20.0, 60.0, "degrees")
-    assert (specs["rvWall"].default, specs["rvWall"].lowOpen) == (3.0, True)
+    assert (specs["rvWall"].default, specs["rvWall"].lowOpen) == (-1.0, True)   # automatic: 3 mm, or a small heart's
     assert specs["basePlane"].choices == ("auto", "valves", "none") and specs["basePlane"].default == "auto"
     # the fibres: a check box, off, and the four angles of Bayer et al. in [-90, 90] degrees
     assert (specs["fibres"].kind, specs["fibres"].default, specs["fibres"].core) == (bool, False, "fibres")

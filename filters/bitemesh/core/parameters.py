@@ -146,17 +146,20 @@ class LabelledParameters(Parameters):
         None, "the thinnest wall the domain keeps between a surface and what is subtracted from it (a wall thinner "
         "than a cell opens in holes); default the larger of 2.5 and 1.25 R (R = 4 grid spacings in "
         "PointsToImplicit)", unit="input units", low=0)
-    rv_wall: float = parameter(3.0, "biv-me contours without RV epicardial points: the RV free wall thickness the "
-                               "RV epicardium is derived with (normal adult RV walls: 2 to 5 mm)", unit="mm", low=0,
-                               low_open=True, high=20)
+    rv_wall: Optional[float] = parameter(
+        None, "biv-me contours without RV epicardial points: the RV free wall thickness the RV epicardium is derived "
+        "with; default 3 mm (normal adult RV walls: 2 to 5 mm), a smaller heart's in proportion", unit="mm", low=0,
+        low_open=True, high=20)
     allow_implausible: int = parameter(0, "1 keeps a heart mesh that fails the plausibility checks (a cavity closed "
                                        "or filled, volume or wall thickness out of range, guide points far from "
                                        "the boundary), with a warning, instead of refusing it", low=0, high=1,
                                        integer=True)
     kernel: str = parameter("linear", "the radial basis function of each surface's fit: r (Carr's biharmonic), "
                             "r^3, or r^2 log r", choices=KERNELS)
-    offset: float = parameter(4.0, "the largest distance of the fit's off-surface constraints from the contours "
-                              "(halved where another contour is near)", unit="input units", low=0, low_open=True)
+    offset: Optional[float] = parameter(
+        None, "the largest distance of the fit's off-surface constraints from the contours (halved where another "
+        "contour is near); default 4 (mm for a heart: a smaller heart's in proportion)", unit="input units", low=0,
+        low_open=True)
     smoothing: float = parameter(0.0, "added to the diagonal of each patch's kernel matrix, in units of phi(patch "
                                  "diameter): 0 interpolates the contours, more smooths tracing noise", low=0)
     base_offset: float = parameter(0.0, "moves the base along its normal (> 0: away from the apex)",

@@ -308,18 +308,49 @@ def test_labelled_contours_mesh_the_same_twice(shell):
 
 def test_every_labelled_parameter_reaches_the_fit_with_the_dataclass_default():
     """LabelledParameters is the one source of the contour fit's options: each field is a keyword of run_labelled
-    or of labelled_implicit, and the fit's own defaults are the dataclass's."""
+    or of labelled_implicit, and the fit's own defaults are the dataclass's; a length left automatic (None) is not
+    passed, so that the fit's default (an adult heart's mm) stands."""
     import inspect
 
+    from bitemesh.core.sources.contours.cardiac import RV_WALL
     from bitemesh.core.sources.contours.fit import labelled_implicit
     from bitemesh.core.sources.contours.run import labelled_keywords, run_labelled
+    from bitemesh.core.sources.contours.surface_fit import OFFSET
     from bitemesh.core.parameters import LabelledParameters
     fit = inspect.signature(labelled_implicit).parameters
     run = inspect.signature(run_labelled).parameters
     keywords = labelled_keywords(LabelledParameters())
     assert all(name in fit or name in run for name in keywords)
-    for name in ("kernel", "offset", "smoothing", "base_offset", "rv_wall", "resolution", "base_plane"):
+    for name in ("kernel", "smoothing", "base_offset", "resolution", "base_plane"):
         assert fit[name].default == getattr(LabelledParameters, name), name
+    assert (fit["offset"].default, fit["rv_wall"].default) == (OFFSET, RV_WALL)
+    assert not {"offset", "rv_wall", "resolution", "min_wall"} & set(keywords)
     assert labelled_keywords(LabelledParameters(domain=" ", base_plane="none", allow_implausible=1)) == {
         **keywords, "domain": None, "base_plane": None, "allow_implausible": True}
-    assert labelled_keywords(LabelledParameters(offset=3.0), given_only=True) == {"offset": 3.0}
+    assert labelled_keywords(LabelledParameters(offset=4.0), given_only=True) == {"offset": 4.0}
+
+
+@pytest.mark.parametrize("given", [{}, {"offset": 4.0, "rv_wall": 3.0}], ids=["defaults", "given-at-the-defaults"])
+def test_a_small_hearts_lengths_are_its_own_when_given_even_at_the_defaults(monkeypatch, gpfile, given):
+    """A heart smaller than an adult's is fitted in a frame scaled up to an adult's size: the default lengths are an
+    adult's mm there (absent, the fit's own), a length the user gives is in the input's mm, even the default's
+    value."""
+    from bitemesh.core.sources.contours import run
+    from bitemesh.io.contours import read_labelled_points
+
+    points, labels, slices = read_labelled_points(gpfile)
+    seen = {}
+
+    def fit(*args, **keywords):
+        seen.update(keywords)
+        raise RuntimeError("captured")
+
+    monkeypatch.setattr(run, "labelled_implicit", fit)
+    with pytest.raises(RuntimeError, match="captured"):
+        run.labelled_source(points * 0.4, labels, slices=slices, **given)
+    scale = seen["reported_scale"]
+    assert scale < 0.6   # the shipped heart spans 199 mm: 0.4 of it, 80 mm, is 0.57 the smallest adult's 140
+    if given:
+        assert seen["offset"] == pytest.approx(4.0 / scale) and seen["rv_wall"] == pytest.approx(3.0 / scale)
+    else:
+        assert "offset" not in seen and "rv_wall" not in seen

@@ -25,7 +25,6 @@ import numpy as np
 
 from ...errors import BitemeshWarning, InvalidInputError, MeshingError, check_number
 from ...grid.sampled import ImplicitGrid
-from ...parameters import LabelledParameters
 
 #: biv-me guide-point labels -> the surfaces they sample (see bitemesh.core.sources.contours.fit for the septum).
 # biv-me splits  the RV endocardium into free wall and septum (older exports: RV_ENDOCARDIAL; the outflow tract:
@@ -82,7 +81,7 @@ LV_REGION = 8
 DERIVED_EPI_TAGS = {"LV_EPI": ("EPI", 1), "RV_EPI": ("EPI", 1), "LV_ENDO": ("LV_ENDO", 2),
                     "RV_ENDO": ("RV_ENDO", 3), "BASE": ("BASE", 4)}
 #: the RV free wall thickness (mm) an RV epicardium is derived with: normal adult RV walls are 2 to 5 mm thick.
-RV_WALL = LabelledParameters.rv_wall
+RV_WALL = 3.0
 #: the thinnest wall the domain keeps by default (min_wall, input units): the RV free wall of adult hearts is 2 to
 #: 5 mm thick.
 MIN_WALL = 2.5

@@ -61,7 +61,7 @@ from .function import LabelledImplicit
 from .registration import registered
 from .valves import CAVITY_RINGS, INFLOW_RINGS, across_valves, outlet_points, ring_normals, walls_behind
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
-from .surface_fit import fit_contour_rbf
+from .surface_fit import OFFSET, fit_contour_rbf
 
 logger = logging.getLogger("bitemesh")
 
@@ -146,7 +146,7 @@ def _distinct(points, index) -> np.ndarray:
 
 def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=None, surfaces=None, outlets=None,
                       slice_shifts: str = LabelledParameters.slice_shifts,
-                      kernel: str = LabelledParameters.kernel, offset: float = LabelledParameters.offset,
+                      kernel: str = LabelledParameters.kernel, offset: float = OFFSET,
                       smoothing: float = LabelledParameters.smoothing,
                       base_offset: float = LabelledParameters.base_offset, min_wall: float = 2.5,
                       rv_wall: float = RV_WALL, gap_factor: float = GAP_FACTOR, resolution=None,

@@ -14,7 +14,7 @@ from ...mesh.simplicial import Mesh
 from ...mesh.topology import boundary_facets
 from ...steps.fidelity import distances_to_facets
 from ...parameters import (BitingParameters, FidelityParameters, ImplicitParameters,
-                           LabelledParameters, OptimizeParameters, SpuriousParameters)
+                           LabelledParameters, OptimizeParameters, SpuriousParameters, is_optional)
 from ...progress import ProgressCallback, sub_progress
 from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
@@ -83,10 +83,12 @@ def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
 
 def labelled_keywords(parameters: LabelledParameters, given_only: bool = False) -> dict:
     """LabelledParameters as keywords of :func:`run_labelled` (the CLI, the VTK filters and Slicer all pass them so):
-    an empty domain is None (the default domain), base_plane "none" None (no cut), allow_implausible a bool.
-    ``given_only``: only the fields not at their defaults (so that a config file's values stand where no flag was
-    given)."""
-    keywords = {item.name: getattr(parameters, item.name) for item in fields(LabelledParameters)}
+    an empty domain is None (the default domain), base_plane "none" None (no cut), allow_implausible a bool, a
+    number left automatic (None) absent (the functions' own default: for a length, an adult heart's, scaled with a
+    smaller heart). ``given_only``: only the fields not at their defaults (so that a config file's values stand where
+    no flag was given)."""
+    keywords = {item.name: getattr(parameters, item.name) for item in fields(LabelledParameters)
+                if not (is_optional(item) and getattr(parameters, item.name) is None)}
     if given_only:
         keywords = {name: value for name, value in keywords.items() if value != getattr(LabelledParameters, name)}
     if "domain" in keywords:
@@ -116,7 +118,7 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
         except (TypeError, ValueError):
             pass   # labelled_implicit refuses it with its message
     for name in LENGTH_OPTIONS:   # a length given is in the input's unit; the defaults are an adult heart's mm
-        if options.get(name) is not None and options[name] != getattr(LabelledParameters, name):
+        if options.get(name) is not None:
             options[name] = options[name] / scale
     function, lower, upper = labelled_implicit(
         (points - frame.shift) / scale, labels, domain, base_plane, slices=slices, surfaces=surfaces,

@@ -21,6 +21,9 @@ from ...implicit.rbf import RBFImplicit, fit_partition
 #: the points are fitted thinned to this x the off-surface offset apart (contours traced on 1.4 mm pixels are about
 #: 3 mm apart; a denser resampling adds time, not shape).
 THIN_PER_OFFSET = 0.4
+#: the largest distance (input units) of the off-surface constraints from the contours by default: 4 mm, about a
+#: wall thickness of an adult heart (a smaller heart's is scaled in proportion by its frame).
+OFFSET = 4.0
 
 
 def off_surface_offsets(points, normals, offset) -> np.ndarray:
@@ -77,7 +80,7 @@ def thinned(points: np.ndarray, spacing: float) -> np.ndarray:
 
 
 def fit_contour_rbf(points, normals, *, kernel: str = LabelledParameters.kernel,
-                    offset: float = LabelledParameters.offset, smoothing: float = LabelledParameters.smoothing,
+                    offset: float = OFFSET, smoothing: float = LabelledParameters.smoothing,
                     interior=None, min_patch: float = 0.0, min_spacing=None) -> RBFImplicit:
     """The implicit of contour points with (in-plane) outward normals: RBFs on patches blended by a partition of
     unity (:func:`bitemesh.core.implicit.rbf.fit_partition`).
