@@ -12,17 +12,10 @@ from scipy.sparse import csgraph
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from ..errors import InvalidInputError, check_number, check_points
-from .samples import near_duplicates
+from .samples import scan_copies
 
 logger = logging.getLogger("bitemesh")
 
-#: points nearer each other than this x the median distance to the 8th neighbour share one normal, estimated from
-#: the neighbours of one of them: five copies of a scan, each moved by 1e-4 of its size, filled every point's 12
-#: neighbours with copies of two or three positions, and the normals across the torus's hole came out at random.
-SAME_POSITION_SHARE = 0.1
-#: ... when more than this share of the points are such copies (random sampling puts about 8 % within that of
-#: another; two surfaces in contact a few: their points keep their own normals, or one sphere's take the other's).
-COPIED_SHARE = 0.25
 #: neighbours compared per point by check_normals.
 _CHECK_NEIGHBOURS = 6
 #: a neighbour pair counts for check_normals when its edge is within 30 degrees of the tangent plane.
@@ -92,8 +85,8 @@ def estimate_normals(points, *, neighbours: int = 12) -> np.ndarray:
             f"points: {count} points are too few to estimate normals from {neighbours} neighbours each; "
             f"give at least {neighbours + 1} points or pass normals")
     check_spans_space(points)
-    first = near_duplicates(points, SAME_POSITION_SHARE)
-    if np.mean(np.bincount(first, minlength=count)[first] > 1) <= COPIED_SHARE:
+    first = scan_copies(points)
+    if first is None:
         return _estimated(points, neighbours)
     kept = np.flatnonzero(first == np.arange(count))   # copies of a scan: one normal a position
     if len(kept) < neighbours + 1:

@@ -41,6 +41,12 @@ FAR_NEIGHBOURS, PLANE_NEIGHBOURS, LOCAL_NEIGHBOURS = 8, 12, 32
 STRAY_SPAN = 2.0
 #: points nearer each other than this x the median distance to the 8th neighbour are one sample.
 DUPLICATE_SHARE = 0.001
+#: points nearer each other than this x the median distance to the 8th neighbour are copies of one position when
+#: more than COPIED_SHARE of the points have such a copy (random sampling puts about 8 % within that of another;
+#: two surfaces in contact a few): five copies of a scan, each moved by 1e-4 of its size, filled every point's 12
+#: neighbours with copies of two or three positions, so the normals came out at random and the outlier rules
+#: flagged a third of the points.
+SAME_POSITION_SHARE, COPIED_SHARE = 0.1, 0.25
 #: passes of the two rules.
 PASSES = 3
 #: at most this many points estimate the noise (a deterministic subsample).
@@ -64,12 +70,30 @@ def _planes(around: np.ndarray):
 
 def find_outliers(points: np.ndarray) -> np.ndarray:
     """(n,) bool, True for the points that the stray-group, the far or the off-surface rule flags (see the module
-    docstring).
+    docstring), copies of a scan (:func:`scan_copies`) judged once a position.
 
     Parameters
     ----------
     points : (n, k) float64, samples of a surface (contour in 2D), n > 13
     """
+    first = scan_copies(points)
+    if first is None:
+        return _outliers(points)
+    kept = np.flatnonzero(first == np.arange(len(points)))
+    if len(kept) <= PLANE_NEIGHBOURS + 1:
+        return np.zeros(len(points), bool)
+    return _outliers(points[kept])[np.searchsorted(kept, first)]
+
+
+def scan_copies(points: np.ndarray):
+    """(n,) int64, the first of each point's copies (:func:`near_duplicates` within :data:`SAME_POSITION_SHARE`)
+    when more than :data:`COPIED_SHARE` of the (n, k) points have one (scans merged a noise apart), else None."""
+    first = near_duplicates(points, SAME_POSITION_SHARE)
+    return first if np.mean(np.bincount(first, minlength=len(points))[first] > 1) > COPIED_SHARE else None
+
+
+def _outliers(points: np.ndarray) -> np.ndarray:
+    """:func:`find_outliers` of points at distinct positions."""
     outlier = stray_groups(points)
     for _ in range(PASSES):
         index = np.flatnonzero(~outlier)
@@ -91,8 +115,9 @@ def find_outliers(points: np.ndarray) -> np.ndarray:
 
 def stray_groups(points: np.ndarray) -> np.ndarray:
     """(n,) bool, the points of the groups that span less than :data:`STRAY_SPAN` x the median distance to the 8th
-    neighbour, a group being a part of the graph that joins each point to its 8 nearest neighbours; never every
-    point."""
+    neighbour and lie farther than :data:`FAR_RATIO` x that distance from every other point, a group being a part of
+    the graph that joins each point to its 8 nearest neighbours; never every point.  (Near copies of a scan make
+    small groups of that graph a spacing or two from the rest: no stray returns.)"""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     distances, neighbours = _neighbourhoods(points, FAR_NEIGHBOURS)
@@ -105,7 +130,14 @@ def stray_groups(points: np.ndarray) -> np.ndarray:
     upper = np.full((count, points.shape[1]), -np.inf)
     np.minimum.at(lower, group, points)
     np.maximum.at(upper, group, points)
-    stray = np.linalg.norm(upper - lower, axis=1) < STRAY_SPAN * float(np.median(distances[:, -1]))
+    spacing = float(np.median(distances[:, -1]))
+    stray = np.linalg.norm(upper - lower, axis=1) < STRAY_SPAN * spacing
+    candidates = np.flatnonzero(stray[group])
+    if len(candidates):   # a small group not far from another point is part of the surface
+        near = cKDTree(points).query_ball_point(points[candidates], FAR_RATIO * spacing)
+        for point, around in zip(candidates, near):
+            if np.any(group[around] != group[point]):
+                stray[group[point]] = False
     return stray[group] if not stray.all() else np.zeros(len(points), bool)
 
 

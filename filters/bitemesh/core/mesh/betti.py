@@ -103,11 +103,11 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     alone: ``around`` () -> (f > -d, f > +d) on the grid I (SampledGrid.inside_offsets), asked only when the mesh
     (or, with ``one_fit``, the grid) has a handle or a void (d, a grid spacing: a tunnel or a cavity of the shape is
     there at one level at least, one that appears at f = 0 alone is a fold of f where surfaces cross or normals
-    disagree).  When f is ``one_fit`` of every sample (scattered points), a fold of f > 0 on the grid is refused
-    too, whether the mesh shows it or not (the mesh of a folded f may miss part of the shape with no handle of its
-    own); a function built otherwise (labelled contours, a label map) may have small handles at its zero level that
-    no mesh at R has.  What the mesh or f has more ("" when nothing); ``radius``: R in user units, for the
-    message."""
+    disagree).  When f is ``one_fit`` of every sample (scattered points), a fold of f > 0 on the grid at the mesh's
+    resolution (:func:`at_mesh_resolution`) is refused too, whether the mesh shows it or not (the mesh of a folded
+    f may miss part of the shape with no handle of its own); a function built otherwise (labelled contours, a
+    label map) may have small handles at its zero level that no mesh at R has.  What the mesh or f has more (""
+    when nothing); ``radius``: R in user units, for the message."""
     mine, data = mesh_topology(mesh), grid_topology(inside)
     extra = torn(mine, data)
     if extra:
@@ -117,9 +117,10 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
                 f"the grid: {data.describe()}): {cause}; lower radius (or raise cells) until R is below the "
                 "thinnest part and the narrowest gap")
     elif around is not None and (mine.handles or mine.voids or one_fit and (data.handles or data.voids)):
+        resolved = grid_topology(at_mesh_resolution(inside)) if one_fit else None
         levels = [grid_topology(region) for region in around()]
         steady = Topology(0, max(level.handles for level in levels), max(level.voids for level in levels))
-        shapes = [("the mesh", mine)] + ([("f > 0 on the grid", data)] if one_fit else [])
+        shapes = [("the mesh", mine)] + ([("f > 0 on the grid", resolved)] if one_fit else [])
         folded = [(what, torn(Topology(0, shape.handles, shape.voids), steady)) for what, shape in shapes]
         what, extra = next(((what, extra) for what, extra in folded if extra), ("", ""))
         text = (f"{what} has {extra} that appear at f's zero level alone, not a grid spacing inside or outside "
@@ -133,6 +134,15 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
             raise MeshingError(text)
         warnings.warn(text, BitemeshWarning, stacklevel=2)
     return extra
+
+
+def at_mesh_resolution(inside: np.ndarray) -> np.ndarray:
+    """The region ``inside`` (flags on the grid I) without what no mesh at R (four grid spacings) shows: opened and
+    closed by one spacing, so that bridges and pockets of a voxel or two (a noisy scan's bumps in f, scans merged
+    a noise apart) are gone."""
+    structure = np.ones((3,) * inside.ndim, bool)
+    padded = np.pad(np.asarray(inside, dtype=bool), 2)
+    return ndimage.binary_closing(ndimage.binary_opening(padded, structure), structure)
 
 
 def on_dropped_parts(grid, inside: np.ndarray, centroids: np.ndarray, samples: np.ndarray, min_component: float):
