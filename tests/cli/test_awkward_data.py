@@ -125,12 +125,16 @@ def test_a_cluster_of_stray_returns_far_from_a_scanned_object_is_dropped(capsys,
 
 
 def test_far_outliers_kept_on_request_are_refused_by_the_fidelity_check(capsys, tmp_path, unit_sphere_samples):
+    """15 points scattered 30 radii around, kept with --outliers keep: refused, the outliers named as the cause
+    (not parts thinner than R, with a radius hint: the box they span made R 3.3), and the hint followed meshes."""
     points, _ = unit_sphere_samples
     far = np.random.default_rng(2).uniform(-30, 30, (len(points) // 100, 3))
     path = write_rows(tmp_path / "cloud.xyz", np.vstack([points, far]))
     code, _, err, output = mesh_cli(capsys, tmp_path, path, "--outliers", "keep")
-    assert_refused(code, err, "does not follow the data", "outliers")
-    assert not output.exists()
+    assert_refused(code, err, "does not follow the data", f"{len(far)} of the input points", "are outliers",
+                   "--outliers drop")
+    assert "thinner than R" not in err and not output.exists()
+    assert_follows(*mesh_cli(capsys, tmp_path, path, "--outliers", "drop"))
 
 
 def test_near_outliers_end_in_a_faithful_mesh_or_a_refusal(capsys, tmp_path, unit_sphere_samples):
@@ -291,6 +295,20 @@ def test_touching_spheres_each_sampled_whole_are_refused_and_each_meshes_apart(c
     code, _, err, _ = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "pair.xyz", np.vstack([left, right])))
     assert_refused(code, err, "at f's zero level alone", "cross or touch", "each object apart")
     assert_follows(*mesh_cli(capsys, tmp_path, write_rows(tmp_path / "left.xyz", left)), volume=SPHERE_VOLUME)
+
+
+def test_three_spheres_in_a_row_touching_are_refused_as_touching(capsys, tmp_path, unit_sphere_samples):
+    """Three spheres in a row, each touching the next, without normals: as two are (the middle one, no vertex of
+    the points' hull, took its normals' signs across a contact and pointed in, refused as "thinner than R" with a
+    radius hint that did not help); its normals point out (seeded where it is outermost in a slab)."""
+    from bitemesh.core.implicit.normals import estimate_normals
+    points, _ = unit_sphere_samples
+    row = np.vstack([points - [2, 0, 0], points, points + [2, 0, 0]])
+    normals = estimate_normals(row)
+    middle = slice(len(points), 2 * len(points))
+    assert np.mean(np.einsum("ij,ij->i", normals[middle], points) > 0) > 0.95   # all but near the two contacts
+    code, _, err, _ = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "row.xyz", row))
+    assert_refused(code, err, "at f's zero level alone", "cross or touch", "each object apart")
 
 
 def test_overlapping_spheres_sampled_whole_are_refused_and_their_outer_surface_meshes(capsys, tmp_path,

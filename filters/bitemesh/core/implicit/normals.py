@@ -107,8 +107,9 @@ def _estimated(points: np.ndarray, neighbours: int) -> np.ndarray:
             f"points: the {neighbours} neighbours of {int(flat.sum())} points (first at index {int(np.argmax(flat))}) "
             f"lie on one line or coincide, so normals cannot be estimated there; pass normals, remove duplicates "
             f"or raise neighbours")
-    _check_one_sheet(local, spread, axes, float(np.median(distance[:, min(3, neighbours)])))
-    return _orient(points, axes[:, :, 0], near)
+    spacing = float(np.median(distance[:, min(3, neighbours)]))
+    _check_one_sheet(local, spread, axes, spacing)
+    return _orient(points, axes[:, :, 0], near, spacing)
 
 
 #: a neighbourhood holds two sheets when its points lie this far (x their spacing, RMS) off their plane, and fewer
@@ -133,8 +134,9 @@ def _check_one_sheet(local: np.ndarray, spread: np.ndarray, axes: np.ndarray, sp
             "surface more densely than the wall is thick")
 
 
-def _orient(points: np.ndarray, normals: np.ndarray, near: np.ndarray) -> np.ndarray:
-    """Flip ``normals`` consistently (see estimate_normals); ``near`` (n, k+1) are neighbour indices."""
+def _orient(points: np.ndarray, normals: np.ndarray, near: np.ndarray, spacing: float) -> np.ndarray:
+    """Flip ``normals`` consistently (see estimate_normals); ``near`` (n, k+1) are neighbour indices, ``spacing``
+    the samples' (input units)."""
     count, dim = points.shape
     rows = np.repeat(np.arange(count), near.shape[1])
     cols = near.ravel()
@@ -148,9 +150,10 @@ def _orient(points: np.ndarray, normals: np.ndarray, near: np.ndarray) -> np.nda
     graph = graph.maximum(graph.T)
     components, label = csgraph.connected_components(graph, directed=False)
 
-    # Seeds: the hull's vertices whose normal clearly points out of or into the hull, and the highest point of each
-    # component that has none, pointing up.
-    hull_seed, hull_sign = _hull_seeds(points, normals)
+    # Seeds: the hull's vertices and the slabs' outermost points whose normal clearly points out of or into the hull
+    # (the slab), and the highest point of each component that has none, pointing up.
+    hull_seed, hull_sign = (np.r_[first, second] for first, second in zip(_hull_seeds(points, normals),
+                                                                         _slab_seeds(points, normals, spacing)))
     by_height = np.lexsort((points[:, -1], label))
     highest = by_height[np.r_[np.flatnonzero(np.diff(label[by_height])), count - 1]]   # one per component
     top = highest[~np.isin(np.arange(components), label[hull_seed])]
@@ -197,6 +200,29 @@ def _hull_seeds(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np
     cosine = np.einsum("ij,ij->i", normals[vertex], outward[vertex]) / np.linalg.norm(outward[vertex], axis=1)
     clear = np.abs(cosine) > _HULL_SEED_COSINE
     return vertex[clear], np.where(cosine[clear] < 0, -1.0, 1.0)
+
+
+#: the slabs of _slab_seeds are this many sample spacings thick.
+_SLAB_SPACINGS = 4.0
+
+
+def _slab_seeds(points: np.ndarray, normals: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """The outermost points of slabs :data:`_SLAB_SPACINGS` spacings thick across each axis, in each direction
+    along the other axes, whose normal is clearly along that direction, and the signs that make those normals point
+    it: (m,) indices, (m,) +-1.  Nothing lies beyond such a point in its slab, so its surface faces out there: a
+    surface with no vertex of the hull (the middle one of three objects in a row, touching) is seeded too."""
+    seeds, signs = [], []
+    for axis in range(points.shape[1]):
+        slab = np.floor((points[:, axis] - points[:, axis].min()) / (_SLAB_SPACINGS * spacing)).astype(np.int64)
+        for other in set(range(points.shape[1])) - {axis}:
+            for direction in (1.0, -1.0):
+                order = np.lexsort((-direction * points[:, other], slab))
+                outermost = order[np.r_[0, np.flatnonzero(np.diff(slab[order])) + 1]]
+                cosine = direction * normals[outermost, other]
+                clear = np.abs(cosine) > _HULL_SEED_COSINE
+                seeds.append(outermost[clear])
+                signs.append(np.where(cosine[clear] < 0, -1.0, 1.0))
+    return np.concatenate(seeds), np.concatenate(signs)
 
 
 def _nesting_parity(points, normals, label, seed) -> np.ndarray:

@@ -61,9 +61,14 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         logger.info(notes[-1])
         points, slices = points[kept], None if slices is None else slices[kept]
         points = _enough_points(points)
-    if implicit.outliers == "drop" and len(points) > 2 * PLANE_NEIGHBOURS:
+    suspects = ""
+    if len(points) > 2 * PLANE_NEIGHBOURS:
         outlier = find_outliers(points)
-        if outlier.any():
+        if outlier.any() and implicit.outliers == "keep":
+            suspects = (f"{int(outlier.sum())} of the input points ({outlier.mean():.1%}) are outliers (far from the "
+                        "others or off the surface their neighbours sample), kept as outliers = 'keep' asks; "
+                        "leave outliers at 'drop' (the default; --outliers drop) to drop them")
+        elif outlier.any():
             points = points[~outlier]
             normals = None if normals is None else normals[~outlier]
             slices = None if slices is None else slices[~outlier]
@@ -87,7 +92,7 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         gap = max(gap, contour_gap(local, slices))
         caps = beyond_slices(local, slices)
     return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local, noise=noise_level(distinct),
-                  gap=gap, open_boundary=caps, notes=tuple(notes), one_fit=slices is None)
+                  gap=gap, open_boundary=caps, notes=tuple(notes), one_fit=slices is None, suspects=suspects)
 
 
 def _enough_points(points) -> np.ndarray:
