@@ -23,6 +23,25 @@ def test_quality_prints_the_summary(reference, capsys):
     assert out.startswith(f"mesh            {len(mesh.cells)} tetrahedra, {len(mesh.points)} points\n")
     assert mean_q_printed(out) == pytest.approx(radius_ratio(mesh.points, mesh.cells).mean(), abs=1e-4)
     assert "\ntopology: 1 part(s), 0 handle(s), 0 void(s)" in out   # a ball
+    assert "\npoor cells: " in out
+
+
+def test_quality_names_the_slivers_of_a_valid_mesh(tmp_path, capsys):
+    """A valid tetrahedron 0.02 high over a triangle of side about 1 (dihedral angles of a few degrees): no defect,
+    but a poor cell, its worst angle and where it is (the report said "no flat cell" and nothing more)."""
+    import numpy as np
+    from bitemesh.core.mesh.simplicial import Mesh
+    from bitemesh.core.optimize.measures import smallest_angles
+    from bitemesh.io import write_mesh
+    points = np.array([[0, 0, 0], [1, 0, 0], [0.5, 0.9, 0], [0.5, 0.3, 0.02]], float)
+    path = tmp_path / "sliver.vtu"
+    write_mesh(Mesh(points, np.array([[0, 1, 2, 3]])), path)
+    assert cli.main(["quality", str(path)]) == 0
+    out, _ = capsys.readouterr()
+    worst = float(smallest_angles(points, np.array([[0, 1, 2, 3]]))[0])
+    assert "defects: none" in out and worst < 5
+    assert f"poor cells: 1 with a dihedral angle below 20 degrees or a radius ratio below 0.3 (the optimizer's " \
+           f"bounds), the worst {worst:.2f} degrees at (0.5, 0.3, 0.005)" in out
 
 
 def test_quality_histogram_writes_a_png(reference, tmp_path, capsys):

@@ -3,12 +3,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ..core.mesh.betti import mesh_topology
 from ..core.errors import InvalidInputError, MeshingError
 from ..core.fem.check import FemParameters
-from ..core.parameters import QualityParameters
+from ..core.optimize.slivers import poor_cells
+from ..core.parameters import OptimizeParameters, QualityParameters
 from ..core.mesh.validity import check_valid_domain
 from ..core.mesh.quality import quality_histogram, quality_summary, radius_ratio
+from ..core.optimize.measures import smallest_angles
 from ..io import atomic_output, read_mesh
 from .fem import check
 from .options import add_parameter_options, parameters_from_args
@@ -44,11 +48,28 @@ def run(args) -> None:
             print(f"  {problem}")
         raise MeshingError(f"{args.mesh} is not a valid finite-element domain: {len(problems)} kinds of defect "
                            f"({problems[0]}{', ...' if len(problems) > 1 else ''})")
-    print("defects: none (a valid domain: no inverted, flat or duplicated cell, a closed manifold boundary)")
+    print("defects: none (a valid domain: no inverted, zero-volume or duplicated cell, a closed manifold boundary)")
+    print(poor_cells_line(mesh))
     print(f"topology: {mesh_topology(mesh).describe()} (handles: tunnels through it, or holes in 2D; voids: "
           "closed cavities inside it)")
     if args.fem:
         print(check(args.mesh, parameters_from_args(args, (FemParameters,))[0], mesh))
+
+
+def poor_cells_line(mesh) -> str:
+    """How many cells lie below the optimizer's default bounds (slivers: valid, but they stiffen a solve), the
+    worst and where."""
+    bounds = OptimizeParameters()
+    bound = f"a {'dihedral' if mesh.dim == 3 else 'interior'} angle below {bounds.min_dihedral:g} degrees or a " \
+        f"radius ratio below {bounds.min_quality:g}"
+    poor = poor_cells(mesh.points, mesh.cells, bounds.min_dihedral, bounds.min_quality)
+    if not len(poor):
+        return f"poor cells: none ({bound}: the optimizer's bounds)"
+    angles = smallest_angles(mesh.points, mesh.cells[poor])
+    worst = mesh.points[mesh.cells[poor[int(np.argmin(angles))]]].mean(axis=0)
+    return (f"poor cells: {len(poor)} with {bound} (the optimizer's bounds), the worst {angles.min():.2f} degrees at "
+            f"({', '.join(f'{value:.4g}' for value in worst)}): slivers stiffen a finite-element solve (--fem "
+            "measures how much)")
 
 
 def save_histogram(q, path: str, bins: int, title: str) -> None:
