@@ -335,8 +335,9 @@ def samples_kept(samples: np.ndarray, inside: np.ndarray, grid, mesh: Mesh, min_
     dropped, parts = on_dropped_parts(grid, inside, mesh.points[mesh.cells].mean(axis=1), samples, min_component)
     if not parts:
         return ~dropped, ()
-    note = (f"{parts} part(s) smaller than min_component = {min_component:g} x the largest part's volume dropped; "
-            f"their {int(dropped.sum())} samples are left out of the fidelity measure")
+    note = f"{parts} part(s) smaller than min_component = {min_component:g} x the largest part's volume dropped; " + (
+        f"their {int(dropped.sum())} samples are left out of the fidelity measure" if dropped.any() else
+        "no sample lies on them (specks of the fitted surface away from the data)")
     logger.info(note)
     return ~dropped, (note,)
 

@@ -241,7 +241,9 @@ class Registration:
         if self.shifts:
             notes += ("slices moved in their planes so that their contours meet where the slices cross (breath-hold "
                       "misregistration): " + ", ".join(f"slice {number} by {scale * np.linalg.norm(shift):.1f} mm"
-                                                      for number, shift in self.shifts.items()),)
+                                                      for number, shift in self.shifts.items())
+                      + "; the mesh and its fidelity figures follow the slices as moved (slice_shifts none: as "
+                      "given)",)
         if self.unpinned:
             notes += (f"slice(s) {', '.join(map(str, self.unpinned))} left in place: too few other slices' contours "
                       "cross them to pin a shift",)
