@@ -202,3 +202,24 @@ def test_an_interrupt_inside_the_writer_keeps_the_previous_file(monkeypatch, poi
     assert code == 130 and "Traceback" not in err
     assert path.read_bytes() == before
     assert leftovers(tmp_path) == []
+
+
+def test_a_refused_run_still_removes_what_a_killed_run_left(tmp_path, capsys):
+    """A run killed while writing out.vtu left its two hidden half-written files (the mesh and its facets); the next
+    run is refused (a plane of points encloses nothing) before it writes: it removes them all the same, with a
+    note (they stayed, unmentioned), and leaves a file written a moment ago (a live run's) alone."""
+    import time as clock
+    killed = [tmp_path / ".out.0a1b2c3d.partial.vtu", tmp_path / ".out_facets.0a1b2c3d.partial.vtu"]
+    live = tmp_path / ".out.deadbeef.partial.vtu"
+    for path in killed + [live]:
+        path.write_text("x")
+    then = clock.time() - 120
+    for path in killed:
+        os.utime(path, (then, then))
+    plane = tmp_path / "plane.xyz"
+    grid = np.stack(np.meshgrid(np.arange(10.0), np.arange(10.0)), axis=-1).reshape(-1, 2)
+    np.savetxt(plane, np.hstack([grid, np.zeros((100, 1))]))
+    assert cli.main(["mesh", str(plane), "-o", str(tmp_path / "out.vtu")]) == 1
+    err = capsys.readouterr().err
+    assert "removed 1 half-written file(s) of 'out.vtu'" in err and "of 'out_facets.vtu'" in err
+    assert not any(path.exists() for path in killed) and live.exists()

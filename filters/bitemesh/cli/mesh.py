@@ -6,6 +6,7 @@ from dataclasses import fields
 from ..core.errors import InvalidInputError
 from ..core.fem.coordinates import CoordinateParameters
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
+from ..io import mesh_files, remove_stale_partials
 from ..meshing import check_output, mesh
 from ..options import OPTION_NAMES, Options
 from .options import (ProgressBar, add_fibre_options, add_parameter_options, add_threads_option, describe,
@@ -62,6 +63,8 @@ def options_of(args) -> Options:
 def run(args) -> None:
     options = options_of(args)
     check_output(args.output, options)
+    for path in mesh_files(args.output):   # what a killed run left, whether this run writes or is refused
+        remove_stale_partials(path)
     bar = ProgressBar()
     try:
         result = mesh(args.input, options, progress=bar)

@@ -79,9 +79,7 @@ def atomic_outputs(paths, what: str = "a mesh", stale=()):
     for path in paths:
         if not path.parent.is_dir():
             raise InvalidInputError(f"cannot write {what} to '{path}': the directory '{path.parent}' does not exist")
-        removed = remove_stale_partials(path)
-        if removed:
-            logger.info("removed %d half-written file(s) of '%s' that a killed run left beside it", removed, path.name)
+        remove_stale_partials(path)
     temporaries = [_temporary_beside(path) for path in paths]
     replaced = []
     try:
@@ -167,12 +165,16 @@ def _idle(path: Path) -> float:
 
 
 def remove_stale_partials(path, idle: float = IDLE_SECONDS) -> int:
-    """Remove the :func:`stale_partials` of ``path`` (untouched for ``idle`` seconds); how many were removed."""
+    """Remove the :func:`stale_partials` of ``path`` (untouched for ``idle`` seconds), with a note; how many were
+    removed."""
     removed = 0
     for stale in stale_partials(path, idle):
         with contextlib.suppress(OSError):
             stale.unlink()
             removed += 1
+    if removed:
+        logger.info("removed %d half-written file(s) of '%s' that a killed run left beside it", removed,
+                    Path(path).name)
     return removed
 
 
