@@ -157,8 +157,11 @@ def unpinch(delaunay: DelaunayCells, keep: np.ndarray, faces: list, *, fill: boo
             n_sides, sides = fans(len(points), cells[gap], facet)
             choices += [(gap[sides == side], True) for side in range(n_sides)
                         if n_sides > 1 and not flat[gap[sides == side]].any()]
-        cost = [(euler_change(incidence, cells, result, *choice) < 0, volume[choice[0]].sum()) for choice in choices]
-        changed, value = choices[min(range(len(choices)), key=cost.__getitem__)]
+        if len(choices) > 1:   # a removal alone needs no comparing (most faces after the fill rounds)
+            cost = [(euler_change(incidence, cells, result, *choice) < 0, volume[choice[0]].sum())
+                    for choice in choices]
+            choices = [choices[min(range(len(choices)), key=cost.__getitem__)]]
+        changed, value = choices[0]
         result[changed] = value
     return result
 

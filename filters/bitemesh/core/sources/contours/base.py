@@ -88,9 +88,8 @@ class BaseSurface:
         height = offset @ self.normal
         if self.heights is None:
             return -height
-        in_plane = offset @ self.axes.T
-        slope = self.heights.gradient(in_plane)
-        return (self.heights(in_plane) - height) / np.sqrt(1.0 + np.einsum("ij,ij->i", slope, slope))
+        value, slope = self.heights.value_and_gradient(offset @ self.axes.T)
+        return (value - height) / np.sqrt(1.0 + np.einsum("ij,ij->i", slope, slope))
 
     def outward(self, x) -> np.ndarray:
         """(m, 3) unit normals of the base at (m, 3) points' (u, v), pointing out of the domain."""
@@ -145,22 +144,27 @@ class PiecewiseLinear:
         first = np.einsum("mij,mj->mi", transform[:, :2], uv - transform[:, 2])
         return mesh, simplex, np.column_stack([first, 1.0 - first.sum(axis=1)])
 
+    def value_and_gradient(self, uv) -> tuple:
+        """(m,) h and (m, 2) grad h at (m, 2) points, from one point location: each triangle's; beyond the ring the
+        nearest anchor's height, slope 0."""
+        uv = np.asarray(uv, dtype=np.float64)
+        mesh, simplex, weights = self._weights(uv)
+        outside = simplex < 0
+        corner = self.heights[mesh.simplices[np.maximum(simplex, 0)]]   # (m, 3)
+        value = np.einsum("mi,mi->m", weights, corner)
+        value[outside] = self.heights[self._tree.query(uv[outside])[1]]
+        transform = mesh.transform[np.maximum(simplex, 0), :2]          # rows: d(weight_i)/d(uv), i = 0, 1
+        slope = np.einsum("mij,mi->mj", transform, corner[:, :2] - corner[:, 2:])
+        slope[outside] = 0.0
+        return value, slope
+
     def __call__(self, uv) -> np.ndarray:
         """(m,) h at (m, 2) points."""
-        mesh, simplex, weights = self._weights(uv)
-        inside = np.einsum("mi,mi->m", weights, self.heights[mesh.simplices[np.maximum(simplex, 0)]])
-        outside = self.heights[self._tree.query(np.asarray(uv)[simplex < 0])[1]]
-        inside[simplex < 0] = outside
-        return inside
+        return self.value_and_gradient(uv)[0]
 
     def gradient(self, uv) -> np.ndarray:
         """(m, 2) grad h at (m, 2) points (each triangle's; 0 beyond the ring)."""
-        mesh, simplex, _ = self._weights(uv)
-        transform = mesh.transform[np.maximum(simplex, 0), :2]          # rows: d(weight_i)/d(uv), i = 0, 1
-        corner = self.heights[mesh.simplices[np.maximum(simplex, 0)]]   # (m, 3)
-        slope = np.einsum("mij,mi->mj", transform, corner[:, :2] - corner[:, 2:])
-        slope[simplex < 0] = 0.0
-        return slope
+        return self.value_and_gradient(uv)[1]
 
 
 def fit_base_plane(valve_points, inside_point) -> BaseSurface:
