@@ -168,6 +168,14 @@ def test_labelled_flags_on_plain_points_are_named(capsys, tmp_path, unit_sphere_
     assert_refused(code, err, "--domain applies to labelled contours")
 
 
+def test_label_map_flags_on_points_are_named(capsys, tmp_path, unit_sphere_samples):
+    """--ras (a label map's RAS output) on points was ignored in silence (the same mesh, exit 0), as --label is
+    not."""
+    path = write_rows(tmp_path / "cloud.xyz", unit_sphere_samples[0])
+    code, _, err, _ = mesh_cli(capsys, tmp_path, path, "--ras")
+    assert_refused(code, err, "--ras applies to label maps", "leave it out")
+
+
 # --- decimal marks -------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("separator", [";", "\t", " "])

@@ -297,6 +297,22 @@ def test_touching_spheres_each_sampled_whole_are_refused_and_each_meshes_apart(c
     assert_follows(*mesh_cli(capsys, tmp_path, write_rows(tmp_path / "left.xyz", left)), volume=SPHERE_VOLUME)
 
 
+def test_spheres_closer_than_r_joined_by_the_mesh_are_refused_and_the_hint_parts_them(capsys, tmp_path,
+                                                                                      unit_sphere_samples):
+    """Two unit spheres 0.1 apart (a sample spacing), 1,000 cells (R about 0.36): f parts them, the cells joined them
+    (one part, exit 0, no word: the count of parts, one fewer, read as a part dropped on purpose); refused naming
+    the gap, and the radius it gives meshes the two spheres apart."""
+    points, _ = unit_sphere_samples
+    pair = write_rows(tmp_path / "pair.xyz", np.vstack([points, points + [2.1, 0, 0]]))
+    code, _, err, _ = mesh_cli(capsys, tmp_path, pair, "--cells", "1000")
+    assert_refused(code, err, "the mesh joins 2 parts", "less than R", "give radius <=")
+    radius = err.split("give radius <= ")[1].split(" ")[0]
+    assert 0.05 < float(radius) <= 0.1   # the gap, or less (the grid's nodes measure it)
+    code, out, err, output = mesh_cli(capsys, tmp_path, pair, "--radius", radius)
+    assert code == 0, err
+    assert_valid_domain(read_mesh(output), components=2, measure=2 * SPHERE_VOLUME, measure_tolerance=0.03)
+
+
 def test_three_spheres_in_a_row_touching_are_refused_as_touching(capsys, tmp_path, unit_sphere_samples):
     """Three spheres in a row, each touching the next, without normals: as two are (the middle one, no vertex of
     the points' hull, took its normals' signs across a contact and pointed in, refused as "thinner than R" with a

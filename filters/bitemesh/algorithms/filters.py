@@ -218,7 +218,7 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
             check_fidelity(fidelity, bounds)
             add_field_values(output, asdict(fidelity), "Fidelity")
         check_topology(domain, grid.inside(), radius, bool(bounds.allow_unfaithful), around=grid.inside_offsets,
-                       one_fit=bool(plan_of(vtkImageData.GetData(inInfo[1])).get("OneFit")))
+                       one_fit=bool(plan_of(vtkImageData.GetData(inInfo[1])).get("OneFit")), grid=grid)
 
 
 @with_parameters(QualityParameters)

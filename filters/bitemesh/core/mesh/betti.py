@@ -96,8 +96,29 @@ def torn(mesh: Topology, grid: Topology) -> str:
     return ", ".join(extra)
 
 
+def joined_parts(mesh: Mesh, grid, inside: np.ndarray) -> tuple:
+    """Parts of the region ``inside`` (flags on the nodes of ``grid``), each of a ball of R at least (4^k nodes),
+    that share a part of the mesh with another: parts of f that the cells join (across a gap narrower than R),
+    which the count of parts alone misses (the mesh joins two, f has two: one part fewer, as a part dropped on
+    purpose).  (how many, the narrowest gap between two of them, grid units: spacing 1); (0, 0.0) when none."""
+    labels, count = grid_parts(inside)
+    if count < 2 or not len(mesh.cells):
+        return 0, 0.0
+    big = np.flatnonzero(np.bincount(labels.ravel(), minlength=count + 1) >= 4 ** inside.ndim)
+    covered = labels[grid.nearest_nodes(mesh.points[mesh.cells].mean(axis=1))]
+    component = connected_components(np.asarray(mesh.cells))
+    pairs = np.unique(np.column_stack([component, covered])[np.isin(covered, big[big > 0])], axis=0)
+    joined = [pairs[pairs[:, 0] == part, 1] for part in np.unique(pairs[:, 0])]
+    joined = [parts for parts in joined if len(parts) > 1]
+    if not joined:
+        return 0, 0.0
+    gap = min(float(ndimage.distance_transform_edt(labels != parts[0])[labels == other].min())
+              for parts in joined for other in parts[1:])
+    return sum(map(len, joined)), max(gap - 1.0, 0.0)   # node to node, less a spacing: the gap between the surfaces
+
+
 def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, around=None,
-                   one_fit: bool = False) -> str:
+                   one_fit: bool = False, grid=None, scale: float = 1.0) -> str:
     """Refuse (:class:`MeshingError`; a :class:`BitemeshWarning` when ``allow``) a mesh with parts, handles or voids
     that the region ``inside`` (f > 0 on the grid I) lacks, or handles or voids that f > 0 has at its zero level
     alone: ``around`` () -> (f > -d, f > +d) on the grid I (SampledGrid.inside_offsets), asked only when the mesh
@@ -106,11 +127,20 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     disagree).  When f is ``one_fit`` of every sample (scattered points), a fold of f > 0 on the grid at the mesh's
     resolution (:func:`at_mesh_resolution`) is refused too, whether the mesh shows it or not (the mesh of a folded
     f may miss part of the shape with no handle of its own); a function built otherwise (labelled contours, a
-    label map) may have small handles at its zero level that no mesh at R has.  What the mesh or f has more (""
-    when nothing); ``radius``: R in user units, for the message."""
+    label map) may have small handles at its zero level that no mesh at R has.  With ``grid`` (the nodes of
+    ``inside``), parts of f that a part of the mesh joins are refused too (:func:`joined_parts`), naming the gap
+    (x ``scale``, the grid's unit in user units).  What the mesh or f has more ("" when nothing); ``radius``: R in
+    user units, for the message."""
     mine, data = mesh_topology(mesh), grid_topology(inside)
-    extra = torn(mine, data)
-    if extra:
+    joined, gap = joined_parts(mesh, grid, inside) if grid is not None else (0, 0.0)
+    gap *= float(np.min(grid.spacing)) * scale if grid is not None else 0.0
+    extra = ", ".join(word for word in ((f"{joined} parts of f joined" if joined else ""), torn(mine, data)) if word)
+    if joined:
+        text = (f"the mesh joins {joined} parts of the fitted surface that come within about {gap:.3g} of each "
+                f"other, less than R = {radius:.4g} (the mesh: {mine.describe()}; f > 0 on the grid: "
+                f"{data.describe()}): objects that touch, or a gap narrower than R; give radius <= {gap:.3g} "
+                "(or more cells) to keep them apart, or mesh each object apart")
+    elif extra:
         cause = (f"cells join parts of f that come closer than R = {radius:.4g} (objects that touch)"
                  if mine.parts < data.parts else f"parts thinner than R = {radius:.4g} tear between its nodes")
         text = (f"the mesh has {extra} that the fitted surface does not have (the mesh: {mine.describe()}; f > 0 on "

@@ -395,7 +395,7 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
         check_fidelity(measured, fidelity, where=where, unsupported=unsupported if scattered else None)
     with timed(seconds, "topology"):
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful),
-                       around=grid.inside_offsets, one_fit=source.one_fit)
+                       around=grid.inside_offsets, one_fit=source.one_fit, grid=grid, scale=frame.scale)
     report(progress, 1.0, "done")
     return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
                          radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,
