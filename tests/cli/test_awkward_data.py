@@ -366,6 +366,19 @@ def test_every_point_twice_and_inward_normals(capsys, tmp_path, unit_sphere_samp
     assert "flipped" in err
 
 
+def test_normals_flipped_on_half_the_surface_are_named_and_the_hint_meshes(capsys, tmp_path, unit_sphere_samples):
+    """The normals of the half x < 0 point in (a consistent half each, so check_normals' neighbour test passes):
+    refused naming the normals and where (it named parts thinner than R, with a radius whose run was refused
+    again); the hint followed (the normals left out, estimated) meshes the sphere."""
+    points, normals = unit_sphere_samples
+    flipped = np.where(points[:, :1] < 0, -normals, normals)
+    path = write_rows(tmp_path / "flipped.xyz", np.hstack([points, flipped]))
+    code, _, err, _ = mesh_cli(capsys, tmp_path, path)
+    assert_refused(code, err, "% of the given normals point against the surface", "--columns x,y,z,skip,skip,skip")
+    assert "thinner than R" not in err
+    assert_follows(*mesh_cli(capsys, tmp_path, path, "--columns", "x,y,z,skip,skip,skip"))
+
+
 def test_inconsistent_normals_are_refused(capsys, tmp_path, unit_sphere_samples):
     points, normals = unit_sphere_samples
     signs = np.where(np.random.default_rng(5).uniform(size=len(points)) < 0.5, -1.0, 1.0)

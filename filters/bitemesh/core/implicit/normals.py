@@ -38,6 +38,29 @@ def check_spans_space(points: np.ndarray) -> None:
             f"{'volume' if points.shape[1] == 3 else 'area'}; give samples of a closed surface (contour in 2D)")
 
 
+#: given normals disagree with their surface when more than this share point against the estimated ones (and
+#: less than 1 - it: all of them inward, check_normals turns them round).
+DISAGREEING_SHARE = 0.05
+
+
+def disagreeing_normals(points, normals) -> str:
+    """A sentence naming given ``normals`` (n, k) that point against the normals estimated from the (n, k) points
+    (:func:`estimate_normals`) on more than :data:`DISAGREEING_SHARE` of them, where, and the hint; "" when they
+    agree (or cannot be compared)."""
+    try:
+        estimated = estimate_normals(points)
+    except InvalidInputError:
+        return ""
+    against = np.einsum("ij,ij->i", np.asarray(normals, dtype=np.float64), estimated) < 0
+    if not DISAGREEING_SHARE < against.mean() < 1 - DISAGREEING_SHARE:
+        return ""
+    centre = ", ".join(f"{value:.4g}" for value in points[against].mean(axis=0))
+    columns = ",".join(["x", "y", "z"][:points.shape[1]] + ["skip"] * points.shape[1])
+    return (f"{against.mean():.0%} of the given normals point against the surface their points sample (those "
+            f"around ({centre})): normals flipped on part of the surface; fix them, or leave them out (--columns "
+            f"{columns} for a table of points and normals) to have them estimated")
+
+
 def unit_normals(normals, shape) -> np.ndarray:
     """``normals`` as unit vectors after checking their shape, finiteness and length."""
     normals = np.asarray(normals, dtype=np.float64)

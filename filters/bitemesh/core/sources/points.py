@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import logging
+from functools import partial
 
 import numpy as np
 
@@ -13,6 +14,7 @@ from ..errors import InvalidInputError, check_points
 from ..grid.sampled import ImplicitGrid
 from ..implicit.mpu import MIN_POINTS
 from ..implicit.fit import fit_implicit
+from ..implicit.normals import disagreeing_normals
 from ..parameters import (BitingParameters, FidelityParameters, ImplicitParameters, OptimizeParameters,
                           SpuriousParameters)
 from ..implicit.samples import (PLANE_NEIGHBOURS, beyond_slices, contour_gap, find_outliers, near_duplicates,
@@ -61,13 +63,13 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         logger.info(notes[-1])
         points, slices = points[kept], None if slices is None else slices[kept]
         points = _enough_points(points)
-    suspects = ""
+    kept = ""
     if len(points) > 2 * PLANE_NEIGHBOURS:
         outlier = find_outliers(points)
         if outlier.any() and implicit.outliers == "keep":
-            suspects = (f"{int(outlier.sum())} of the input points ({outlier.mean():.1%}) are outliers (far from the "
-                        "others or off the surface their neighbours sample), kept as outliers = 'keep' asks; "
-                        "leave outliers at 'drop' (the default; --outliers drop) to drop them")
+            kept = (f"{int(outlier.sum())} of the input points ({outlier.mean():.1%}) are outliers (far from the "
+                    "others or off the surface their neighbours sample), kept as outliers = 'keep' asks; leave "
+                    "outliers at 'drop' (the default; --outliers drop) to drop them")
         elif outlier.any():
             points = points[~outlier]
             normals = None if normals is None else normals[~outlier]
@@ -92,7 +94,14 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         gap = max(gap, contour_gap(local, slices))
         caps = beyond_slices(local, slices)
     return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local, noise=noise_level(distinct),
-                  gap=gap, open_boundary=caps, notes=tuple(notes), one_fit=slices is None, suspects=suspects)
+                  gap=gap, open_boundary=caps, notes=tuple(notes), one_fit=slices is None,
+                  suspects=partial(_suspects, kept, points, normals))
+
+
+def _suspects(kept_outliers: str, points: np.ndarray, normals) -> str:
+    """What in the samples may make a mesh leave them (:attr:`Source.suspects`): outliers kept on request, given
+    normals that disagree with their surface (:func:`~bitemesh.core.implicit.normals.disagreeing_normals`)."""
+    return kept_outliers or ("" if normals is None else disagreeing_normals(points, normals))
 
 
 def _enough_points(points) -> np.ndarray:

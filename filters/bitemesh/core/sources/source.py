@@ -137,8 +137,9 @@ class Source:
         (:func:`~bitemesh.core.mesh.betti.check_topology`)
     locate : callable (indices into ``samples``) -> a sentence saying where those samples lie, with a hint that
         fits ("" when it cannot tell), for a refusal of samples far from the mesh; or None
-    suspects : what in the samples may make a mesh leave them, with a hint (outliers kept on request), said first
-        in a refusal of samples far from the mesh; "" for nothing
+    suspects : callable () -> what in the samples may make a mesh leave them, with a hint (outliers kept on
+        request, given normals that disagree with their surface), said first in a refusal of samples far from the
+        mesh ("" for nothing; asked only then); or None
     """
 
     function: Callable[[np.ndarray], np.ndarray]
@@ -160,7 +161,7 @@ class Source:
     interfaces: Optional[object] = None
     locate: Optional[Callable[[np.ndarray], str]] = None
     one_fit: bool = False
-    suspects: str = ""
+    suspects: Optional[Callable[[], str]] = None
 
     @property
     def size(self) -> float:

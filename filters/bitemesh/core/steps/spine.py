@@ -376,8 +376,9 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
                                         source.open_boundary).scaled(frame.scale)
 
         def where() -> str:   # the far samples' place, as the source (contours: their slice) or f's grid tells it
-            if source.suspects:
-                return source.suspects
+            said = source.suspects() if source.suspects is not None else ""
+            if said:
+                return said
             far = far_from(result.mesh, samples, measured.far_bound / frame.scale)
             if source.locate is not None:
                 return source.locate(np.flatnonzero(kept)[far])
