@@ -102,8 +102,8 @@ def test_a_hole_of_f_at_its_zero_level_alone_is_refused_when_the_mesh_has_none()
     sphere_mesh = run(*sample_surface(sphere(), 0.08), biting=BitingParameters(cells=3000)).mesh
     torus_grid = (AROUND_Z - 12) ** 2 + AXES[2] ** 2 < 16
     ball = RADIUS < 15
-    with pytest.raises(MeshingError, match=r"f > 0 on the grid has 1 hole\(s\) or tunnel\(s\) that appear at "
-                                           r"f's zero level alone"):
+    with pytest.raises(MeshingError, match=r"f > 0 on the grid at the mesh's resolution has 1 hole\(s\) or "
+                                           r"tunnel\(s\) that appear at f's zero level alone"):
         check_topology(sphere_mesh, torus_grid, 0.1, allow=False, around=lambda: (ball, ball), one_fit=True)
     # f built otherwise (labelled contours, a label map): its grid's own small handles are not folds
     assert check_topology(sphere_mesh, torus_grid, 0.1, allow=False, around=lambda: (ball, ball)) == ""

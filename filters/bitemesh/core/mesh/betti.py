@@ -134,36 +134,51 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     mine, data = mesh_topology(mesh), grid_topology(inside)
     joined, gap = joined_parts(mesh, grid, inside) if grid is not None else (0, 0.0)
     gap *= float(np.min(grid.spacing)) * scale if grid is not None else 0.0
-    extra = ", ".join(word for word in ((f"{joined} parts of f joined" if joined else ""), torn(mine, data)) if word)
+    tear = torn(mine, data)
+    # a fold of f (scattered points) is asked first: it explains a tear of the mesh too (overlapping objects)
+    fold = _fold(mine, data, inside, around, one_fit) \
+        if not joined and (one_fit or not tear) and around is not None else None
+    extra = ", ".join(word for word in ((f"{joined} parts of f joined" if joined else ""), tear) if word)
     if joined:
         text = (f"the mesh joins {joined} parts of the fitted surface that come within about {gap:.3g} of each "
                 f"other, less than R = {radius:.4g} (the mesh: {mine.describe()}; f > 0 on the grid: "
                 f"{data.describe()}): objects that touch, or a gap narrower than R; give radius <= {gap:.3g} "
                 "(or more cells) to keep them apart, or mesh each object apart")
+    elif fold is not None:
+        extra, text = fold
     elif extra:
         cause = (f"cells join parts of f that come closer than R = {radius:.4g} (objects that touch)"
                  if mine.parts < data.parts else f"parts thinner than R = {radius:.4g} tear between its nodes")
         text = (f"the mesh has {extra} that the fitted surface does not have (the mesh: {mine.describe()}; f > 0 on "
                 f"the grid: {data.describe()}): {cause}; lower radius (or raise cells) until R is below the "
                 "thinnest part and the narrowest gap")
-    elif around is not None and (mine.handles or mine.voids or one_fit and (data.handles or data.voids)):
-        resolved = grid_topology(at_mesh_resolution(inside)) if one_fit else None
-        levels = [grid_topology(region) for region in around()]
-        steady = Topology(0, max(level.handles for level in levels), max(level.voids for level in levels))
-        shapes = [("the mesh", mine)] + ([("f > 0 on the grid", resolved)] if one_fit else [])
-        folded = [(what, torn(Topology(0, shape.handles, shape.voids), steady)) for what, shape in shapes]
-        what, extra = next(((what, extra) for what, extra in folded if extra), ("", ""))
-        text = (f"{what} has {extra} that appear at f's zero level alone, not a grid spacing inside or outside "
-                f"it (the mesh: {mine.describe()}; f > 0 on the grid: {data.describe()}; f a spacing inside: "
-                f"{levels[0].describe()}, outside: {levels[1].describe()}): f folds where sampled surfaces cross or "
-                "touch (objects that overlap or touch, each sampled whole) or normals disagree, and the mesh "
-                "follows the fold; give the samples of the outer surface only, or of each object apart")
     if extra:
         text += ", or set allow_unfaithful (--allow-unfaithful) to keep the mesh anyway"
         if not allow:
             raise MeshingError(text)
         warnings.warn(text, BitemeshWarning, stacklevel=2)
     return extra
+
+
+def _fold(mine: Topology, data: Topology, inside: np.ndarray, around, one_fit: bool):
+    """(what, the message) when the mesh (or, ``one_fit``, f > 0 on the grid at the mesh's resolution) has handles
+    or voids that f > 0 has at its zero level alone, not a grid spacing inside or outside it (``around``); else
+    None.  The levels are asked only when there is a handle or a void to judge."""
+    if not (mine.handles or mine.voids or one_fit and (data.handles or data.voids)):
+        return None
+    resolved = grid_topology(at_mesh_resolution(inside)) if one_fit else None
+    levels = [grid_topology(region) for region in around()]
+    steady = Topology(0, max(level.handles for level in levels), max(level.voids for level in levels))
+    shapes = [("the mesh", mine)] + ([("f > 0 on the grid at the mesh's resolution", resolved)] if one_fit else [])
+    folded = [(what, torn(Topology(0, shape.handles, shape.voids), steady)) for what, shape in shapes]
+    what, extra = next(((what, extra) for what, extra in folded if extra), ("", ""))
+    if not extra:
+        return None
+    return extra, (f"{what} has {extra} that appear at f's zero level alone, not a grid spacing inside or outside "
+                   f"it (the mesh: {mine.describe()}; f > 0 on the grid: {data.describe()}; f a spacing inside: "
+                   f"{levels[0].describe()}, outside: {levels[1].describe()}): f folds where sampled surfaces cross "
+                   "or touch (objects that overlap or touch, each sampled whole) or normals disagree, and the mesh "
+                   "follows the fold; give the samples of the outer surface only, or of each object apart")
 
 
 def at_mesh_resolution(inside: np.ndarray) -> np.ndarray:
