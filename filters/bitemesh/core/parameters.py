@@ -167,9 +167,10 @@ class LabelledParameters(Parameters):
     resolution: Optional[float] = parameter(
         None, "the spacing of the grid each surface is sampled on; default 0.35 x the median spacing of its points "
         "(at least offset / 4 and 1/400 of its box's diagonal)", unit="input units", low=0, low_open=True)
-    slice_shifts: str = parameter("auto", "auto: every slice moved in its plane so that the contours meet "
-                                  "where the slices cross (breath-hold misregistration, reported in the notes); none: "
-                                  "the slices as given", choices=("auto", "none"))
+    slice_shifts: str = parameter("auto", "auto: cardiac contours (biv-me / CAP labels) have every slice moved in "
+                                  "its plane so that the contours meet where the slices cross (breath-hold "
+                                  "misregistration, reported in the notes), other labelled contours stay as given; "
+                                  "none: the slices as given", choices=("auto", "none"))
 
 
 @dataclass(frozen=True)

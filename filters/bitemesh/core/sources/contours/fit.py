@@ -168,8 +168,8 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         normal) a plane, the normal pointing out of the domain
     slices : (n,) int slice id per point (a GPFile's frameID), or None to find them
         (:func:`~bitemesh.core.sources.contours.slices.infer_slices`)
-    slice_shifts : "auto" (every slice moved in its plane so that the contours of each surface meet where the slices
-        cross: :mod:`bitemesh.core.sources.contours.registration`) or "none"
+    slice_shifts : "auto" (for cardiac labels, every slice moved in its plane so that the contours of each surface meet
+        where the slices cross: :mod:`bitemesh.core.sources.contours.registration`; other labels as given) or "none"
     surfaces : dict name -> labels, default :func:`default_surfaces`
     outlets : dict surface name -> valve labels through which that cavity opens (see :data:`BIVME_OUTLETS`, the
         default for biv-me labels; {} for none)
@@ -230,7 +230,9 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         across, note = across_valves(points, labels, slices, [label for name in fitted for label in surfaces[name]])
         points, labels, slices, notes = points[~across], labels[~across], slices[~across], notes + note
     shifts, disagreement = {}, 0.0
-    if check_choice(slice_shifts, "slice_shifts", ("auto", "none")) == "auto":
+    # breath-hold shifts are cardiac MR's: other labelled contours (a surface sampled in planes, a volume's
+    # segmentation traced slice by slice) are taken as given, not moved to meet
+    if check_choice(slice_shifts, "slice_shifts", ("auto", "none")) == "auto" and is_bivme(labels):
         points, labels, slices, registration = registered(points, labels, slices,
                                                           {name: surfaces[name] for name in fitted}, gap_factor)
         notes += registration.notes(reported_scale)

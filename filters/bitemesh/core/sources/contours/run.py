@@ -147,9 +147,11 @@ LENGTH_OPTIONS = ("offset", "base_offset", "resolution", "rv_wall")
 
 def _local_frame(points, labels) -> Frame:
     """The frame contours are fitted and meshed in: centred on their bounding box, in the input's unit (mm: the
-    cardiac defaults are in mm); for biv-me contours of a heart smaller than an adult's, scaled to an adult's size
+    defaults are an adult heart's mm); contours smaller than an adult heart's, scaled to its size
     (:func:`~bitemesh.core.sources.contours.cardiac.heart_scale`), so that every default length (R, the thinnest
-    wall, the valves' clearances, the base's reach) is the same share of it as of an adult's."""
+    wall, the fit's offset, the valves' clearances, the base's reach) is the same share of them as of an adult's
+    heart: a child's or a mouse's heart, or any other labelled contours in a unit of their own (a unit sphere's
+    points were thinned 1.6 apart, one point left)."""
     frame = Frame.around(points, scaled=False)
     try:
         cardiac = is_bivme(canonical_labels(np.asarray(labels).astype(str))[0])
@@ -157,7 +159,7 @@ def _local_frame(points, labels) -> Frame:
         cardiac = False
     if cardiac:
         check_millimetres(points)   # here, where a heart in metres is still 1000 times too small
-    return Frame(frame.linear * (heart_scale(points) if cardiac else 1.0), frame.shift)
+    return Frame(frame.linear * heart_scale(points), frame.shift)
 
 
 def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None, surfaces=None, min_wall=None,
