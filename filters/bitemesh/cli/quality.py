@@ -8,11 +8,11 @@ import numpy as np
 from ..core.mesh.betti import mesh_topology
 from ..core.errors import InvalidInputError, MeshingError
 from ..core.fem.check import FemParameters
-from ..core.optimize.slivers import poor_cells
 from ..core.parameters import OptimizeParameters, QualityParameters
 from ..core.mesh.validity import check_valid_domain
 from ..core.mesh.quality import quality_histogram, quality_summary, radius_ratio
 from ..core.optimize.measures import smallest_angles
+from ..core.optimize.slivers import poor_cells
 from ..io import atomic_output, read_mesh
 from .fem import check
 from .options import add_parameter_options, parameters_from_args

@@ -158,8 +158,8 @@ class LabelledParameters(Parameters):
                             "r^3, or r^2 log r", choices=KERNELS)
     offset: Optional[float] = parameter(
         None, "the largest distance of the fit's off-surface constraints from the contours (halved where another "
-        "contour is near); default 4 (mm for a heart: a smaller heart's in proportion)", unit="input units", low=0,
-        low_open=True)
+        "contour is near); default 4 (an adult heart's mm; contours spanning less than 140 mm in proportion)",
+        unit="input units", low=0, low_open=True)
     smoothing: float = parameter(0.0, "added to the diagonal of each patch's kernel matrix, in units of phi(patch "
                                  "diameter): 0 interpolates the contours, more smooths tracing noise", low=0)
     base_offset: float = parameter(0.0, "moves the base along its normal (> 0: away from the apex)",

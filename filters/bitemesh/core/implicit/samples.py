@@ -135,9 +135,9 @@ def stray_groups(points: np.ndarray) -> np.ndarray:
     candidates = np.flatnonzero(stray[group])
     if len(candidates):   # a small group not far from another point is part of the surface
         near = cKDTree(points).query_ball_point(points[candidates], FAR_RATIO * spacing)
-        for point, around in zip(candidates, near):
-            if np.any(group[around] != group[point]):
-                stray[group[point]] = False
+        owner = np.repeat(candidates, [len(around) for around in near])
+        neighbour = np.concatenate(near).astype(np.int64)
+        stray[group[owner[group[neighbour] != group[owner]]]] = False
     return stray[group] if not stray.all() else np.zeros(len(points), bool)
 
 

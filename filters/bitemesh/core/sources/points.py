@@ -63,14 +63,9 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         logger.info(notes[-1])
         points, slices = points[kept], None if slices is None else slices[kept]
         points = _enough_points(points)
-    kept = ""
-    if len(points) > 2 * PLANE_NEIGHBOURS:
+    if implicit.outliers == "drop" and len(points) > 2 * PLANE_NEIGHBOURS:
         outlier = find_outliers(points)
-        if outlier.any() and implicit.outliers == "keep":
-            kept = (f"{int(outlier.sum())} of the input points ({outlier.mean():.1%}) are outliers (far from the "
-                    "others or off the surface their neighbours sample), kept as outliers = 'keep' asks; leave "
-                    "outliers at 'drop' (the default; --outliers drop) to drop them")
-        elif outlier.any():
+        if outlier.any():
             points = points[~outlier]
             normals = None if normals is None else normals[~outlier]
             slices = None if slices is None else slices[~outlier]
@@ -95,13 +90,19 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
         caps = beyond_slices(local, slices)
     return Source(function, local.min(axis=0), local.max(axis=0), frame, samples=local, noise=noise_level(distinct),
                   gap=gap, open_boundary=caps, notes=tuple(notes), one_fit=slices is None,
-                  suspects=partial(_suspects, kept, points, normals))
+                  suspects=partial(_suspects, points, normals, implicit.outliers == "keep"))
 
 
-def _suspects(kept_outliers: str, points: np.ndarray, normals) -> str:
-    """What in the samples may make a mesh leave them (:attr:`Source.suspects`): outliers kept on request, given
-    normals that disagree with their surface (:func:`~bitemesh.core.implicit.normals.disagreeing_normals`)."""
-    return kept_outliers or ("" if normals is None else disagreeing_normals(points, normals))
+def _suspects(points: np.ndarray, normals, outliers_kept: bool) -> str:
+    """What in the (n, k) samples may make a mesh leave them (:attr:`Source.suspects`, asked on a refusal only):
+    outliers kept on request, given normals that disagree with their surface
+    (:func:`~bitemesh.core.implicit.normals.disagreeing_normals`)."""
+    outlier = find_outliers(points) if outliers_kept and len(points) > 2 * PLANE_NEIGHBOURS else np.zeros(0, bool)
+    if outlier.any():
+        return (f"{int(outlier.sum())} of the input points ({outlier.mean():.1%}) are outliers (far from the others "
+                "or off the surface their neighbours sample), kept as outliers = 'keep' asks; leave outliers at "
+                "'drop' (the default; --outliers drop) to drop them")
+    return "" if normals is None else disagreeing_normals(points, normals)
 
 
 def _enough_points(points) -> np.ndarray:

@@ -148,7 +148,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
                       slice_shifts: str = LabelledParameters.slice_shifts,
                       kernel: str = LabelledParameters.kernel, offset: float = OFFSET,
                       smoothing: float = LabelledParameters.smoothing,
-                      base_offset: float = LabelledParameters.base_offset, min_wall: float = 2.5,
+                      base_offset: float = LabelledParameters.base_offset, min_wall: float = MIN_WALL,
                       rv_wall: float = RV_WALL, gap_factor: float = GAP_FACTOR, resolution=None,
                       reported_scale: float = 1.0, progress: ProgressCallback = None):
     """The implicit function of a domain bounded by several labelled contour surfaces.
