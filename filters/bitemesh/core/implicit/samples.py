@@ -11,7 +11,9 @@ Stanford bunny scan, the nut, the biv-me guide points), none of whose points any
 - **far**: the distance to the 8th nearest neighbour is more than :data:`FAR_RATIO` times its median over the
   point's :data:`LOCAL_NEIGHBOURS` nearest (at most 2.6 times on those surfaces; 100 times or more for points
   scattered around a scene): a region sampled more sparsely than the rest is measured against itself, not
-  against the dense part;
+  against the dense part, and a point in the plane of its neighbours, up to :data:`STEP_RATIO` times farther, is a
+  sparser sample of their surface (the sparse side of a density step: 20 x fewer points on one half of a sphere, at
+  random, put 5-16 of its points 4-5 x farther from their 8th neighbour than the dense side's median);
 - **off the surface**: the distance to the plane of the 12 nearest neighbours is more than :data:`OFF_RATIO`
   times their spread along the plane (at most 0.92 on those surfaces without noise; with Gaussian noise of half
   the sample spacing, 1.37, so the bound also grows with the median of that ratio, :data:`NOISE_RATIO`).
@@ -34,6 +36,11 @@ FAR_RATIO = 4.0
 #: NOISE_RATIO x the median of that ratio over the points (Gaussian noise: its largest value among 10,000 points is
 #: about 5.7 x its median).
 OFF_RATIO, NOISE_RATIO = 1.0, 7.0
+#: a point up to STEP_RATIO x farther from its 8th neighbour than its neighbours' median is a sparser sample of their
+#: surface, not a far point, when it lies nearer to their plane than IN_PLANE_RATIO x their spread along it and they
+#: lie that near their plane (the sparse side of a density step, 20 x fewer points at random: 4-5.3 x farther, 0.05-0.11
+#: off the plane; a point 2-3 radii off a sphere sampled 0.04 apart: more than 10 x farther).
+STEP_RATIO, IN_PLANE_RATIO = 8.0, 0.25
 #: neighbours of the far rule and of the plane rule, and those whose far-rule distances are a point's reference.
 FAR_NEIGHBOURS, PLANE_NEIGHBOURS, LOCAL_NEIGHBOURS = 8, 12, 32
 #: a group of samples apart from the rest (no point's 8 nearest neighbours outside it) spanning less than this x the
@@ -102,11 +109,12 @@ def _outliers(points: np.ndarray) -> np.ndarray:
         kept = points[index]
         distances, neighbours = _neighbourhoods(kept, LOCAL_NEIGHBOURS)   # FAR < PLANE < LOCAL neighbours
         reach = distances[:, min(FAR_NEIGHBOURS, distances.shape[1] - 1)]
-        far = reach > FAR_RATIO * np.median(reach[neighbours[:, 1:]], axis=1)
-        centre, normal, _, spread = _planes(kept[neighbours[:, 1:PLANE_NEIGHBOURS + 1]])
+        farther = reach / np.maximum(np.median(reach[neighbours[:, 1:]], axis=1), 1e-300)
+        centre, normal, thickness, spread = _planes(kept[neighbours[:, 1:PLANE_NEIGHBOURS + 1]])
         ratio = np.abs(np.einsum("ni,ni->n", kept - centre, normal)) / np.maximum(spread, 1e-300)
         off = ratio > max(OFF_RATIO, NOISE_RATIO * float(np.median(ratio)))
-        flagged = index[far | off]
+        step = (farther <= STEP_RATIO) & (ratio < IN_PLANE_RATIO) & (thickness < IN_PLANE_RATIO * spread)
+        flagged = index[((farther > FAR_RATIO) & ~step) | off]
         if not len(flagged):
             break
         outlier[flagged] = True
