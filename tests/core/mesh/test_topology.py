@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from bitemesh.core.mesh.adjacency import cell_neighbours, same_side_pairs
 from bitemesh.core.mesh.simplicial import Mesh
-from bitemesh.core.mesh.topology import distinct_faces, face_groups, faces_of, unique_rows
+from bitemesh.core.mesh.topology import (CellComplex, boundary_facets, connected_components, distinct_faces,
+                                         face_groups, faces_of, unique_rows)
 from bitemesh.core.mesh.validity import check_valid_domain
 
 from .test_adjacency import positive_delaunay
@@ -56,3 +57,15 @@ def test_same_side_pairs_find_each_overlap_once(dim):
     assert count == dim + 1 and inner in (first, second)
     assert any(problem.startswith(f"{dim + 1} facets with both cells on the same side")
                for problem in check_valid_domain(Mesh(np.random.default_rng(5).random((200, dim)), cells)))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.sampled_from([2, 3]), st.floats(0.05, 0.95), st.integers(0, 2**32 - 1))
+def test_surface_pieces_count_the_boundary_parts_of_any_subset(dim, share, seed):
+    """CellComplex.surface_pieces of a random subset of a Delaunay mesh's cells (pinched, in pieces, with holes)
+    is the number of parts that connected_components finds in its boundary facets."""
+    points, cells = positive_delaunay(dim, 150, seed % 1000)
+    keep = np.random.default_rng(seed).random(len(cells)) < share
+    surface = boundary_facets(cells[keep])
+    expected = int(connected_components(surface).max() + 1) if len(surface) else 0
+    assert CellComplex(cells, len(points)).surface_pieces(keep) == expected

@@ -304,6 +304,17 @@ class CellComplex:
         """(u,) how many of the kept cells hold each facet (1: on their boundary, 2: inside)."""
         return np.bincount(self.facet_ids[keep].ravel(), minlength=len(self.facets))
 
+    def surface_pieces(self, keep: np.ndarray) -> int:
+        """How many parts the boundary of ``cells[keep]`` has: its facets joined through shared ridges, as
+        :func:`connected_components` of :func:`boundary_facets` counts them."""
+        boundary = np.flatnonzero(self.facet_counts(keep) == 1)
+        if not len(boundary):
+            return 0
+        ridges, joined = np.unique(self._facet_ridges[boundary], return_inverse=True)
+        facets = np.repeat(np.arange(len(boundary)), self._facet_ridges.shape[1])
+        labels = _labels(facets, len(boundary) + joined.ravel(), len(boundary) + len(ridges))
+        return len(np.unique(labels[:len(boundary)]))
+
     def components(self, keep: np.ndarray) -> np.ndarray:
         """(kept,) the labels of :func:`connected_components` of ``cells[keep]``."""
         a, b = (rows // self.cells.shape[1] for rows in self.neighbour_rows)

@@ -169,7 +169,7 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     cell_size = float(np.cbrt(6 * np.sqrt(2) * np.median(signed_measures(points, kept_cells))))
     candidates = [candidate for candidate in _clusters(points, cells, cut, value, fill=False)
                   + _clusters(points, cells, fill, value, fill=True) if candidate[0] <= max_depth * cell_size]
-    removed, parts_before, pieces_before = 0, parts.max() + 1, _surface_pieces(kept_cells)
+    removed, parts_before, pieces_before = 0, parts.max() + 1, complex_.surface_pieces(keep)
     for _, _, members, is_fill in sorted(candidates, key=lambda candidate: candidate[:2])[:TRIES_PER_HANDLE * handles]:
         change = euler_change(complex_.incidence, cells, keep, members, is_fill)
         if not 1 <= change <= handles - removed:
@@ -177,7 +177,7 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
         trial = keep.copy()
         trial[members] = is_fill
         if complex_.components(trial).max() + 1 == parts_before \
-                and _surface_pieces(cells[trial]) == pieces_before:
+                and complex_.surface_pieces(trial) == pieces_before:
             keep, removed = trial, removed + change
             if removed == handles:
                 break
@@ -217,8 +217,3 @@ def _clusters(points, cells, members: np.ndarray, value: np.ndarray, *, fill: bo
     depth = np.zeros(len(volume))
     np.maximum.at(depth, labels, np.abs(value[index]))
     return [(float(depth[label]), float(volume[label]), index[labels == label], fill) for label in range(len(volume))]
-
-
-def _surface_pieces(cells: np.ndarray) -> int:
-    surface = boundary_facets(cells)
-    return int(connected_components(surface).max() + 1) if len(surface) else 0
