@@ -85,10 +85,14 @@ def test_labelled_points_that_are_no_heart_mesh_at_their_own_scale_in_place(caps
     assert "slices moved" not in err
 
 
-def test_a_part_dropped_on_purpose_is_not_counted_against_the_mesh(capsys, tmp_path, unit_sphere_samples):
+@pytest.mark.parametrize("noise", [0.0, 0.02])
+def test_a_part_dropped_on_purpose_is_not_counted_against_the_mesh(capsys, tmp_path, noise):
     """Two spheres, the second of radius 0.5 (1/8 of the volume), with --min-component 0.5: the small one is dropped
-    as asked, its samples left out of the fidelity measure with a note (it was refused: 20.7 % of the points far)."""
-    points, normals = unit_sphere_samples
+    as asked, every one of its samples left out of the fidelity measure with a note (it was refused: 20.7 % of the
+    points far; then, with noise of 0.02, the 141 samples whose grid cell missed the part were still counted, 2.3 %
+    far, refused).  A sample belongs to the part nearest to it."""
+    from bitemesh.core.shapes import sample_surface, sphere
+    points, normals = sample_surface(sphere(), 0.05, noise=noise, seed=2)
     rows = np.vstack([np.hstack([points, normals]), np.hstack([0.5 * points + [3.0, 0, 0], normals])])
     code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "two.xyz", rows),
                                       "--min-component", "0.5")
@@ -291,7 +295,29 @@ def test_a_closed_surface_with_a_small_hole_meshes_as_closed(capsys, tmp_path):
     from bitemesh.core.shapes import sample_surface, sphere
     points, normals = sample_surface(sphere(), 0.05, noise=0.001, seed=1)
     path = write_rows(tmp_path / "holed.xyz", np.hstack([points, normals])[points[:, 2] > -0.9])
-    assert_follows(*mesh_cli(capsys, tmp_path, path), tolerance=0.05)
+    code, out, err, output = mesh_cli(capsys, tmp_path, path)
+    assert_follows(code, out, err, output, tolerance=0.05)
+    assert "opening about" in err and "which the mesh closes where no point is" in err
+
+
+def test_a_wide_opening_the_mesh_closes_is_named_in_a_note(capsys, tmp_path, unit_sphere_samples):
+    """A sphere without its cap below z = -0.6 (a fifth of its area): the fit closes it, within the bounds (the samples
+    surround the opening), and a note names the opening, where it is and how wide (the rim's circle is 1.6 across,
+    its centre (0, 0, -0.6)); the whole sphere gets no such note."""
+    import re
+    from bitemesh.core.shapes import sample_surface, sphere
+    points, normals = sample_surface(sphere(), 0.05, noise=0.001, seed=1)
+    path = write_rows(tmp_path / "holed.xyz", np.hstack([points, normals])[points[:, 2] > -0.6])
+    code, out, err, output = mesh_cli(capsys, tmp_path, path)
+    assert code == 0 and output.exists()
+    found = re.search(r"opening about ([0-9.]+) across around \(([-0-9.e]+), ([-0-9.e]+), ([-0-9.e]+)\)[^:]*which the "
+                      r"mesh closes where no point is \(([0-9.]+)% of the boundary", err)
+    assert found, err
+    width, centre, share = float(found[1]), np.array(found.group(2, 3, 4), float), float(found[5])
+    assert abs(width - 1.6) < 0.25 and np.linalg.norm(centre - [0, 0, -0.6]) < 0.1 and share > 2
+    points, normals = unit_sphere_samples
+    code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "whole.xyz", np.hstack([points, normals])))
+    assert code == 0 and "opening" not in err
 
 
 def test_spheres_apart_by_about_r_are_meshed_without_normals(capsys, tmp_path, unit_sphere_samples):
@@ -304,16 +330,22 @@ def test_spheres_apart_by_about_r_are_meshed_without_normals(capsys, tmp_path, u
     assert_valid_domain(read_mesh(output), components=2, measure=2 * SPHERE_VOLUME, measure_tolerance=0.05)
 
 
+def place_in(text: str, words: str) -> np.ndarray:
+    """The point (x, y, z) that ``text`` gives after ``words`` ("... around (x, y, z)")."""
+    return np.array(text.split(words + " (")[1].split(")")[0].split(", "), float)
+
+
 def test_touching_spheres_each_sampled_whole_are_refused_and_each_meshes_apart(capsys, tmp_path,
                                                                               unit_sphere_samples):
     """Two spheres in contact, each sampled whole, without normals: f folds at the contact (f > 0 on the grid has a
     hole there at its zero level alone; a spacing inside, a void; outside, two parts), and the mesh joined them at
-    a pinch; refused naming the touch (it was meshed as one part before, and earlier refused for "parts thinner
-    than R"); the hint followed (each object apart) meshes each sphere."""
+    a pinch; refused naming the touch and where it is (it was meshed as one part before, and earlier refused for
+    "parts thinner than R"); the hint followed (each object apart) meshes each sphere."""
     points, _ = unit_sphere_samples
     left, right = points - [1, 0, 0], points + [1, 0, 0]
     code, _, err, _ = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "pair.xyz", np.vstack([left, right])))
-    assert_refused(code, err, "at f's zero level alone", "cross or touch", "each object apart")
+    assert_refused(code, err, "at f's zero level alone", "cross or touch around (", "each object apart")
+    assert np.linalg.norm(place_in(err, "touch around") - [0, 0, 0]) < 0.15   # the contact, within a grid spacing
     assert_follows(*mesh_cli(capsys, tmp_path, write_rows(tmp_path / "left.xyz", left)), volume=SPHERE_VOLUME)
 
 
@@ -321,11 +353,12 @@ def test_spheres_closer_than_r_joined_by_the_mesh_are_refused_and_the_hint_parts
                                                                                       unit_sphere_samples):
     """Two unit spheres 0.1 apart (a sample spacing), 1,000 cells (R about 0.36): f parts them, the cells joined them
     (one part, exit 0, no word: the count of parts, one fewer, read as a part dropped on purpose); refused naming
-    the gap, and the radius it gives meshes the two spheres apart."""
+    the gap and where it is, and the radius it gives meshes the two spheres apart."""
     points, _ = unit_sphere_samples
     pair = write_rows(tmp_path / "pair.xyz", np.vstack([points, points + [2.1, 0, 0]]))
     code, _, err, _ = mesh_cli(capsys, tmp_path, pair, "--cells", "1000")
     assert_refused(code, err, "the mesh joins 2 parts", "less than R", "give radius <=")
+    assert np.linalg.norm(place_in(err, "of each other around") - [1.05, 0, 0]) < 0.15   # midway across the gap
     radius = err.split("give radius <= ")[1].split(" ")[0]
     assert 0.05 < float(radius) <= 0.1   # the gap, or less (the grid's nodes measure it)
     code, out, err, output = mesh_cli(capsys, tmp_path, pair, "--radius", radius)

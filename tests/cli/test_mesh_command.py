@@ -114,9 +114,13 @@ def test_every_output_format_reads_back(extension, inputs, reference, tmp_path, 
     assert_valid_domain(mesh, euler=2, components=1)
 
 
-def test_2d_points_give_triangles(inputs, tmp_path, capsys):
-    output = tmp_path / "annulus.vtu"
-    code = cli.main(["mesh", str(inputs["annulus"]), "-o", str(output), "--cells", "2000", "--method", "rbf"])
+@pytest.mark.parametrize("method", [[], ["--method", "rbf"]])
+def test_2d_points_give_triangles(inputs, tmp_path, capsys, method):
+    """An annulus's points as a .xy file, with the default method (auto: rbf for 2D points; mpu was refused as
+    '3D only') or rbf given."""
+    output, path = tmp_path / "annulus.vtu", tmp_path / "annulus.xy"
+    path.write_bytes(inputs["annulus"].read_bytes())
+    code = cli.main(["mesh", str(path), "-o", str(output), "--cells", "2000"] + method)
     out, err = capsys.readouterr()
     assert_no_traceback(err)
     assert code == 0, err

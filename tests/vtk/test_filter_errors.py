@@ -72,7 +72,7 @@ BAD_INPUTS = {
     "threshold 2": (lambda p: p.spurious.SetThreshold(2), lambda p: p.spurious.SetThreshold(0.4),
                     SpuriousCellFilter, r"threshold must be in \[0, 1\], got 2"),
     "method bogus": (lambda p: p.implicit.SetMethod("bogus"), lambda p: p.implicit.SetMethod("mpu"),
-                     PointsToImplicit, r"method must be one of 'mpu', 'rbf', got 'bogus'"),
+                     PointsToImplicit, r"method must be one of 'auto', 'mpu', 'rbf', got 'bogus'"),
     "bins 0": (lambda p: p.quality.SetBins(0), lambda p: p.quality.SetBins(20), QualityFilter, r"bins must be"),
     "empty polydata": (empty_polydata, lambda p: p.implicit.SetInputData(p.source), PointsToImplicit,
                        r"input holds no points"),

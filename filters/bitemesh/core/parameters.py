@@ -67,9 +67,9 @@ class Parameters:
 class ImplicitParameters(Parameters):
     """PointsToImplicit: scattered points to f sampled on the grid I."""
 
-    method: str = parameter("mpu", "implicit reconstruction: multilevel partition of unity, or (sparse data, 2D "
-                            "or 3D) polyharmonic RBFs on patches blended by a partition of unity",
-                            choices=("mpu", "rbf"))
+    method: str = parameter("auto", "implicit reconstruction: multilevel partition of unity (3D), or (sparse data, "
+                            "2D or 3D) polyharmonic RBFs on patches blended by a partition of unity; auto: mpu for 3D "
+                            "points, rbf for 2D", choices=("auto", "mpu", "rbf"))
     error_bound: Optional[float] = parameter(
         None, "eps0, the largest local fitting error of MPU; default 0.005 x bounding-box diagonal",
         unit="input units", low=0, low_open=True)

@@ -16,7 +16,7 @@ from ..core.errors import InvalidInputError, check_points
 from .files import existing_file, logger, meshio_warnings, unit_rows, vtk_silenced
 from .tables import column_roles, read_table, table_points
 
-TEXT_POINT_EXTENSIONS = (".xyz", ".txt", ".csv")
+TEXT_POINT_EXTENSIONS = (".xyz", ".xy", ".txt", ".csv")
 VTK_POINT_EXTENSIONS = (".vtp", ".vtk", ".vtu", ".ply", ".obj", ".stl")
 POINT_EXTENSIONS = TEXT_POINT_EXTENSIONS + VTK_POINT_EXTENSIONS
 

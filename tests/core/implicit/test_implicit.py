@@ -326,11 +326,20 @@ def test_fit_implicit_returns_the_function_that_points_to_implicit_samples():
     (np.eye(5, 3), "points.*at least 10"),
     (np.r_[np.eye(3), [[np.nan, 0, 0]], np.ones((20, 3))], "points.*NaN"),
     (np.c_[np.random.default_rng(0).uniform(size=(50, 2)), np.full(50, 2.0)], "points.*plane"),
-    (np.c_[np.linspace(0, 1, 50), np.linspace(1, 3, 50)], "method.*3D"),
-], ids=["empty", "5 points", "NaN", "coplanar", "mpu in 2D"])
+    (np.c_[np.linspace(0, 1, 50), np.linspace(1, 3, 50)], "one line"),
+], ids=["empty", "5 points", "NaN", "coplanar", "a line in 2D"])
 def test_points_to_implicit_refuses_bad_points(points, words):
     with pytest.raises(InvalidInputError, match=words):
         points_to_implicit(points)
+
+
+def test_mpu_given_for_2d_points_is_refused_and_auto_fits_them():
+    """MPU is 3D only: given for a circle's points, refused naming rbf; the default (auto) fits them by RBFs."""
+    angle = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    circle = np.c_[np.cos(angle), np.sin(angle)]
+    with pytest.raises(InvalidInputError, match="method 'mpu' needs 3D points.*rbf"):
+        points_to_implicit(circle, method="mpu")
+    assert isinstance(fit_implicit(circle), RBFImplicit)
 
 
 def test_points_to_implicit_refuses_collinear_2d_points_and_bad_options():

@@ -23,9 +23,9 @@ from .rbf import fit_rbf
 # --- the step ------------------------------------------------------------------------------------------------------
 
 def _prepared(points, normals, method: str):
-    """Checked points without exact duplicates (first kept) and their checked normals (or None)."""
+    """Checked points without exact duplicates (first kept), their checked normals (or None), the method chosen."""
     points = check_points(points)
-    method = check_choice(method, "method", ("mpu", "rbf"))
+    method = check_choice(method, "method", ("auto", "mpu", "rbf"))
     if method == "mpu" and points.shape[1] != 3:
         raise InvalidInputError(
             f"method 'mpu' needs 3D points, got {points.shape[1]}D points; use method 'rbf' (--method rbf) for 2D "
@@ -37,7 +37,12 @@ def _prepared(points, normals, method: str):
     if len(keep) < MIN_POINTS:
         raise InvalidInputError(f"points: need at least {MIN_POINTS} distinct points, got {len(keep)}")
     check_spans_space(points[keep])
-    return points[keep], None if normals is None else normals[keep]
+    return points[keep], None if normals is None else normals[keep], chosen_method(method, points.shape[1])
+
+
+def chosen_method(method: str, dim: int) -> str:
+    """``method`` as given, or for "auto" the one for ``dim``-D points: "mpu" in 3D, "rbf" in 2D."""
+    return method if method != "auto" else "mpu" if dim == 3 else "rbf"
 
 
 def _fit(points, normals, method: str, error_bound, progress: ProgressCallback):
@@ -51,7 +56,7 @@ def _fit(points, normals, method: str, error_bound, progress: ProgressCallback):
     return fit_rbf(points, normals, progress=sub_progress(progress, 0.25, 1.0))
 
 
-def fit_implicit(points, normals=None, *, method: str = "mpu", error_bound=None,
+def fit_implicit(points, normals=None, *, method: str = "auto", error_bound=None,
                  progress: ProgressCallback = None):
     """Reconstruct f from scattered points, as a function (points_to_implicit samples it on a grid).
 
@@ -59,7 +64,8 @@ def fit_implicit(points, normals=None, *, method: str = "mpu", error_bound=None,
     ----------
     points : (n, k) float64, input units, k = 3 for "mpu", 2 or 3 for "rbf", n >= 10; exact duplicates are dropped
     normals : (n, k) float64, outward, optional (estimated when omitted; checked with check_normals when given)
-    method : "mpu" (dense 3D samples) or "rbf" (sparse samples, 2D or 3D, at most MAX_RBF_POINTS)
+    method : "mpu" (dense 3D samples), "rbf" (sparse samples, 2D or 3D, at most MAX_RBF_POINTS) or "auto" (mpu
+        in 3D, rbf in 2D)
     error_bound : float, input units, MPU fit tolerance; default 0.005 x bounding-box diagonal (ignored by "rbf")
     progress : callable(fraction, message), optional
 
@@ -67,6 +73,6 @@ def fit_implicit(points, normals=None, *, method: str = "mpu", error_bound=None,
     -------
     MPUImplicit or RBFImplicit: callable (m, k) points -> (m,) f, f > 0 inside
     """
-    points, normals = _prepared(points, normals, method)
+    points, normals, method = _prepared(points, normals, method)
     return _fit(points, normals, method, error_bound, progress)
 

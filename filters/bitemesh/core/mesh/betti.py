@@ -66,6 +66,27 @@ def grid_parts(inside: np.ndarray):
     return ndimage.label(inside, structure=np.ones((3,) * inside.ndim))
 
 
+def closest_approach(labels: np.ndarray, first: int, second: int) -> tuple:
+    """Where the parts numbered ``first`` and ``second`` of ``labels`` (:func:`grid_parts`) come nearest: (the point
+    midway across, in node indices (k,): the mean of the midpoints of the node pairs within half a spacing of the
+    nearest, so that a flat contact is found at its centre; the distance between the nearest nodes, grid units)."""
+    distance, nearest = ndimage.distance_transform_edt(labels != first, return_indices=True)
+    gap = float(distance[labels == second].min())
+    close = (labels == second) & (distance <= gap + 0.5)
+    midpoints = (np.argwhere(close) + nearest[(slice(None),) + np.nonzero(close)].T) / 2.0
+    return midpoints.mean(axis=0), gap
+
+
+def touch(region: np.ndarray):
+    """Where the two largest parts of ``region`` (flags on the grid I) come nearest (see :func:`closest_approach`),
+    or None when it has one part."""
+    labels, count = grid_parts(region)
+    if count < 2:
+        return None
+    largest = np.argsort(np.bincount(labels.ravel())[1:])[::-1][:2] + 1
+    return closest_approach(labels, *largest)[0]
+
+
 def cubical_euler(inside: np.ndarray) -> int:
     """The Euler characteristic of the union of the closed unit cells flagged in ``inside`` (k-D): the alternating
     sum over the cells of every dimension (vertices, edges, squares, cubes) of how many touch a flagged one."""
@@ -100,10 +121,11 @@ def joined_parts(mesh: Mesh, grid, inside: np.ndarray) -> tuple:
     """Parts of the region ``inside`` (flags on the nodes of ``grid``), each of a ball of R at least (4^k nodes),
     that share a part of the mesh with another: parts of f that the cells join (across a gap narrower than R),
     which the count of parts alone misses (the mesh joins two, f has two: one part fewer, as a part dropped on
-    purpose).  (how many, the narrowest gap between two of them, grid units: spacing 1); (0, 0.0) when none."""
+    purpose).  (how many, the narrowest gap between two of them, grid units: spacing 1, the point midway across it in
+    node indices (k,)); (0, 0.0, None) when none."""
     labels, count = grid_parts(inside)
     if count < 2 or not len(mesh.cells):
-        return 0, 0.0
+        return 0, 0.0, None
     big = np.flatnonzero(np.bincount(labels.ravel(), minlength=count + 1) >= 4 ** inside.ndim)
     covered = labels[grid.nearest_nodes(mesh.points[mesh.cells].mean(axis=1))]
     component = connected_components(np.asarray(mesh.cells))
@@ -111,14 +133,14 @@ def joined_parts(mesh: Mesh, grid, inside: np.ndarray) -> tuple:
     joined = [pairs[pairs[:, 0] == part, 1] for part in np.unique(pairs[:, 0])]
     joined = [parts for parts in joined if len(parts) > 1]
     if not joined:
-        return 0, 0.0
-    gap = min(float(ndimage.distance_transform_edt(labels != parts[0])[labels == other].min())
-              for parts in joined for other in parts[1:])
-    return sum(map(len, joined)), max(gap - 1.0, 0.0)   # node to node, less a spacing: the gap between the surfaces
+        return 0, 0.0, None
+    where, gap = min((closest_approach(labels, parts[0], other) for parts in joined for other in parts[1:]),
+                     key=lambda approach: approach[1])
+    return sum(map(len, joined)), max(gap - 1.0, 0.0), where   # node to node, less a spacing: between the surfaces
 
 
 def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, around=None,
-                   one_fit: bool = False, grid=None, scale: float = 1.0) -> str:
+                   one_fit: bool = False, grid=None, frame=None) -> str:
     """Refuse (:class:`MeshingError`; a :class:`BitemeshWarning` when ``allow``) a mesh with parts, handles or voids
     that the region ``inside`` (f > 0 on the grid I) lacks, or handles or voids that f > 0 has at its zero level
     alone: ``around`` () -> (f > -d, f > +d) on the grid I (SampledGrid.inside_offsets), asked only when the mesh
@@ -129,19 +151,28 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     f may miss part of the shape with no handle of its own); a function built otherwise (labelled contours, a
     label map) may have small handles at its zero level that no mesh at R has.  With ``grid`` (the nodes of
     ``inside``), parts of f that a part of the mesh joins are refused too (:func:`joined_parts`), naming the gap
-    (x ``scale``, the grid's unit in user units).  What the mesh or f has more ("" when nothing); ``radius``: R in
-    user units, for the message."""
+    and where it is, and so is where objects touch; ``frame``: the grid's local frame (its ``scale`` and
+    ``to_user``), None for user coordinates.  What the mesh or f has more ("" when nothing); ``radius``: R in user
+    units, for the message."""
+    scale = 1.0 if frame is None else frame.scale
+
+    def place(index) -> str:   # " around (x, y, z)" of a point in node indices
+        if grid is None or index is None:
+            return ""
+        point = (grid.origin + index * grid.spacing)[None]
+        point = point if frame is None else frame.to_user(point)
+        return f" around ({', '.join(f'{value:.4g}' for value in point[0])})"
     mine, data = mesh_topology(mesh), grid_topology(inside)
-    joined, gap = joined_parts(mesh, grid, inside) if grid is not None else (0, 0.0)
+    joined, gap, where = joined_parts(mesh, grid, inside) if grid is not None else (0, 0.0, None)
     gap *= float(np.min(grid.spacing)) * scale if grid is not None else 0.0
     tear = torn(mine, data)
     # a fold of f (scattered points) is asked first: it explains a tear of the mesh too (overlapping objects)
-    fold = _fold(mine, data, inside, around, one_fit) \
+    fold = _fold(mine, data, inside, around, one_fit, lambda region: place(touch(region))) \
         if not joined and (one_fit or not tear) and around is not None else None
     extra = ", ".join(word for word in ((f"{joined} parts of f joined" if joined else ""), tear) if word)
     if joined:
         text = (f"the mesh joins {joined} parts of the fitted surface that come within about {gap:.3g} of each "
-                f"other, less than R = {radius:.4g} (the mesh: {mine.describe()}; f > 0 on the grid: "
+                f"other{place(where)}, less than R = {radius:.4g} (the mesh: {mine.describe()}; f > 0 on the grid: "
                 f"{data.describe()}): objects that touch, or a gap narrower than R; give radius <= {gap:.3g} "
                 "(or more cells) to keep them apart, or mesh each object apart")
     elif fold is not None:
@@ -160,25 +191,30 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     return extra
 
 
-def _fold(mine: Topology, data: Topology, inside: np.ndarray, around, one_fit: bool):
+def _fold(mine: Topology, data: Topology, inside: np.ndarray, around, one_fit: bool, place):
     """(what, the message) when the mesh (or, ``one_fit``, f > 0 on the grid at the mesh's resolution) has handles
     or voids that f > 0 has at its zero level alone, not a grid spacing inside or outside it (``around``); else
-    None.  The levels are asked only when there is a handle or a void to judge."""
+    None.  The levels are asked only when there is a handle or a void to judge.  ``place``: a region of the grid ->
+    " around (x, y, z)" where its two largest parts come nearest ("" for one part): where objects touch, from the
+    level with the most parts."""
     if not (mine.handles or mine.voids or one_fit and (data.handles or data.voids)):
         return None
     resolved = grid_topology(at_mesh_resolution(inside)) if one_fit else None
-    levels = [grid_topology(region) for region in around()]
+    regions = around()
+    levels = [grid_topology(region) for region in regions]
     steady = Topology(0, max(level.handles for level in levels), max(level.voids for level in levels))
     shapes = [("the mesh", mine)] + ([("f > 0 on the grid at the mesh's resolution", resolved)] if one_fit else [])
     folded = [(what, torn(Topology(0, shape.handles, shape.voids), steady)) for what, shape in shapes]
     what, extra = next(((what, extra) for what, extra in folded if extra), ("", ""))
     if not extra:
         return None
+    parted = max(zip([data.parts] + [level.parts for level in levels], [inside, *regions]), key=lambda pair: pair[0])
+    touching = place(parted[1]) if parted[0] > 1 else ""
     return extra, (f"{what} has {extra} that appear at f's zero level alone, not a grid spacing inside or outside "
                    f"it (the mesh: {mine.describe()}; f > 0 on the grid: {data.describe()}; f a spacing inside: "
                    f"{levels[0].describe()}, outside: {levels[1].describe()}): f folds where sampled surfaces cross "
-                   "or touch (objects that overlap or touch, each sampled whole) or normals disagree, and the mesh "
-                   "follows the fold; give the samples of the outer surface only, or of each object apart")
+                   f"or touch{touching} (objects that overlap or touch, each sampled whole) or normals disagree, and "
+                   "the mesh follows the fold; give the samples of the outer surface only, or of each object apart")
 
 
 def at_mesh_resolution(inside: np.ndarray) -> np.ndarray:
@@ -193,7 +229,7 @@ def at_mesh_resolution(inside: np.ndarray) -> np.ndarray:
 def on_dropped_parts(grid, inside: np.ndarray, centroids: np.ndarray, samples: np.ndarray, min_component: float):
     """The samples (n, k) on parts of f > 0 (``inside``, on the nodes of ``grid``) that the mesh, whose cells'
     centroids are (m, k), has no cell in and whose volume is below ``min_component`` x the largest part's: parts
-    dropped on purpose.  Returns ((n,) bool, how many such parts)."""
+    dropped on purpose (a sample's part: the one nearest to it).  Returns ((n,) bool, how many such parts)."""
     parts, count = grid_parts(inside)
     on_them = np.zeros(len(samples), bool)
     if count < 2:
@@ -201,6 +237,7 @@ def on_dropped_parts(grid, inside: np.ndarray, centroids: np.ndarray, samples: n
     volume = np.bincount(parts.ravel())[1:]
     small = np.flatnonzero(volume < min_component * volume.max()) + 1
     dropped = np.setdiff1d(small, parts[grid.nearest_nodes(centroids)])
-    for corner in np.ndindex(*(2,) * inside.ndim):   # a sample on f = 0 lies between nodes: any corner of its cell
-        on_them |= np.isin(parts[grid.nearest_nodes(samples + np.array(corner) * grid.spacing, offset=0.0)], dropped)
+    if len(dropped):   # a sample belongs to the part nearest to it (on f = 0 or, noisy, beside it)
+        nearest = ndimage.distance_transform_edt(parts == 0, return_distances=False, return_indices=True)
+        on_them = np.isin(parts[tuple(nearest)][grid.nearest_nodes(samples)], dropped)
     return on_them, len(dropped)

@@ -113,7 +113,7 @@ def _enough_points(points) -> np.ndarray:
     return points
 
 
-def points_to_implicit(points, normals=None, *, method: str = "mpu", error_bound=None, grid_spacing=None,
+def points_to_implicit(points, normals=None, *, method: str = "auto", error_bound=None, grid_spacing=None,
                        margin=None, max_memory_mb: float = 4096, outliers: str = "drop", radius=None,
                        cells: int | None = None, progress: ProgressCallback = None) -> ImplicitGrid:
     """Reconstruct f from scattered points (:func:`points_source`) and sample it on the grid I, laid out as

@@ -53,6 +53,8 @@ class Fidelity:
         unless the samples surround it
     unsupported_area : percent of the boundary's area farther than ``support_bound`` from every sample and not
         surrounded by them
+    capped_area : percent of the boundary's area farther than ``support_bound`` from every sample and surrounded by
+        them: openings of the samples (a scan's hole) that the mesh closes
     """
 
     samples: int
@@ -66,13 +68,15 @@ class Fidelity:
     from_samples_max: float
     support_bound: float
     unsupported_area: float
+    capped_area: float = 0.0
 
     def describe(self) -> str:
         """One line for a summary: both measures and their bounds."""
         return (f"samples to boundary mean {self.to_boundary_mean:.3g}, 95% {self.to_boundary_p95:.3g}, max "
                 f"{self.to_boundary_max:.3g} ({self.far_samples:.2f}% beyond {self.far_bound:.3g}); boundary to "
                 f"samples mean {self.from_samples_mean:.3g}, max {self.from_samples_max:.3g} "
-                f"({self.unsupported_area:.2f}% of its area beyond {self.support_bound:.3g})")
+                f"({self.unsupported_area:.2f}% of its area beyond {self.support_bound:.3g}"
+                + (f", {self.capped_area:.2f}% closing openings of the samples)" if self.capped_area else ")"))
 
     def scaled(self, factor: float) -> Fidelity:
         """The same measures with every length multiplied by ``factor`` (local frame -> user units)."""
@@ -188,8 +192,7 @@ def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: floa
     from_samples = tree.query(centroids)[0]
     support_bound = radius + 0.5 * gap
     far = np.flatnonzero((from_samples > support_bound) & (area > 0))
-    unsupported = far[~surrounded(centroids[far], facet_normals(corners[far]), samples, tree,
-                                  2 * from_samples[far] + radius)]
+    around = surrounded(centroids[far], facet_normals(corners[far]), samples, tree, 2 * from_samples[far] + radius)
     total = max(float(area.sum()), 1e-300)
     return Fidelity(
         samples=len(measured), noise=float(noise),
@@ -198,7 +201,8 @@ def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: floa
         far_samples=100.0 * float(np.mean(to_boundary > far_bound)),
         from_samples_mean=float((from_samples * area).sum() / total),
         from_samples_max=float(from_samples[area > 0].max(initial=0.0)), support_bound=float(support_bound),
-        unsupported_area=100.0 * float(area[unsupported].sum() / total))
+        unsupported_area=100.0 * float(area[far[~around]].sum() / total),
+        capped_area=100.0 * float(area[far[around]].sum() / total))
 
 
 def facet_normals(corners: np.ndarray) -> np.ndarray:

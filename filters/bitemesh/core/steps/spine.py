@@ -52,6 +52,9 @@ MIN_GRID_NODES = 40
 COARSE_REFINEMENTS = 3
 #: the grid I reaches at least this many grid spacings beyond the data's box.
 MIN_MARGIN = 2.0
+#: scattered points whose mesh closes openings of them over more than this percent of its boundary's area (a quarter
+#: of the unsupported share refused by default) get a note saying where.
+CAPPED_NOTE = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -383,20 +386,30 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
             if source.locate is not None:
                 return source.locate(np.flatnonzero(kept)[far])
             return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
-        def unsupported() -> str:   # an opening of the samples that the mesh closes
+        def opened() -> str:   # an opening of the samples that the mesh closes
             found = opening(result.mesh, samples, measured.support_bound / frame.scale)
             if found is None:
                 return ""
             centre, width, rim = found
             return (f"the samples leave an opening about {width * frame.scale:.3g} across around "
                     f"({', '.join(f'{value:.4g}' for value in frame.to_user(centre[None])[0])}), {rim} of them on "
-                    "its rim: the surface is open there (a scan with a side or a patch missing) and the mesh "
-                    "closes it where no point is; sample the missing part")
+                    "its rim")
+
+        def unsupported() -> str:
+            said = opened()
+            return said and (f"{said}: the surface is open there (a scan with a side or a patch missing) and the "
+                             "mesh closes it where no point is; sample the missing part")
         scattered = source.locate is None and source.open_boundary is None   # not contours: a rim means an opening
         check_fidelity(measured, fidelity, where=where, unsupported=unsupported if scattered else None)
+        closed = measured.capped_area + measured.unsupported_area
+        if scattered and closed > CAPPED_NOTE:
+            notes += (f"{opened() or 'the samples leave openings'}, which the mesh closes where no point is "
+                      f"({closed:.1f}% of the boundary's area lies farther than {measured.support_bound:.3g} from "
+                      "every point): the surface there is the fit's guess",)
+            logger.info(notes[-1])
     with timed(seconds, "topology"):
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful),
-                       around=grid.inside_offsets, one_fit=source.one_fit, grid=grid, scale=frame.scale)
+                       around=grid.inside_offsets, one_fit=source.one_fit, grid=grid, frame=frame)
     report(progress, 1.0, "done")
     return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
                          radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,
