@@ -316,7 +316,8 @@ def test_a_wide_opening_the_mesh_closes_is_named_in_a_note(capsys, tmp_path, uni
     width, centre, share = float(found[1]), np.array(found.group(2, 3, 4), float), float(found[5])
     assert abs(width - 1.6) < 0.25 and np.linalg.norm(centre - [0, 0, -0.6]) < 0.1 and share > 2
     points, normals = unit_sphere_samples
-    code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "whole.xyz", np.hstack([points, normals])))
+    whole = write_rows(tmp_path / "whole.xyz", np.hstack([points, normals]))
+    code, out, err, output = mesh_cli(capsys, tmp_path, whole)
     assert code == 0 and "opening" not in err
 
 
