@@ -53,7 +53,7 @@ def test_help_lists_commands_and_every_parameter(capsys):
         cli.main(["mesh", "--help"])
     assert stop.value.code == 0
     out = " ".join(capsys.readouterr().out.split())
-    for flag in ("--radius", "--cells", "--grid-spacing", "--method {mpu,rbf}", "--error-bound", "--margin",
+    for flag in ("--radius", "--cells", "--grid-spacing", "--method {auto,mpu,rbf}", "--error-bound", "--margin",
                  "--max-memory-mb", "--order", "--seed", "--threshold", "--min-component"):
         assert flag in out, flag
     assert "else 10000" in out and "default 4096.0" in out

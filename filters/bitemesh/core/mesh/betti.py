@@ -208,8 +208,8 @@ def _fold(mine: Topology, data: Topology, inside: np.ndarray, around, one_fit: b
     what, extra = next(((what, extra) for what, extra in folded if extra), ("", ""))
     if not extra:
         return None
-    parted = max(zip([data.parts] + [level.parts for level in levels], [inside, *regions]), key=lambda pair: pair[0])
-    touching = place(parted[1]) if parted[0] > 1 else ""
+    touching = place(max(zip([data.parts] + [level.parts for level in levels], [inside, *regions]),
+                         key=lambda pair: pair[0])[1])
     return extra, (f"{what} has {extra} that appear at f's zero level alone, not a grid spacing inside or outside "
                    f"it (the mesh: {mine.describe()}; f > 0 on the grid: {data.describe()}; f a spacing inside: "
                    f"{levels[0].describe()}, outside: {levels[1].describe()}): f folds where sampled surfaces cross "
