@@ -350,6 +350,19 @@ def test_touching_spheres_each_sampled_whole_are_refused_and_each_meshes_apart(c
     assert_follows(*mesh_cli(capsys, tmp_path, write_rows(tmp_path / "left.xyz", left)), volume=SPHERE_VOLUME)
 
 
+def test_touching_spheres_sampled_densely_are_meshed_with_a_note_at_the_contact(capsys, tmp_path):
+    """Two unit spheres in contact, sampled 0.06 apart without normals: f does not fold at the zero level alone
+    here, and the mesh joins them with a pocket into one sphere beside the contact (volume -2 %); it said nothing
+    (exit 0); now a note says where the boundary lies far from every point, samples all round it, as where sampled
+    surfaces meet (within 0.6 of the contact: the pocket's centre)."""
+    from bitemesh.core.shapes import sample_surface, sphere
+    points = sample_surface(sphere(), 0.06, seed=5)[0]
+    code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "pair.xyz",
+                                                                   np.vstack([points - [1, 0, 0], points + [1, 0, 0]])))
+    assert code == 0 and "sampled surfaces that meet there" in err, err
+    assert np.linalg.norm(place_in(err, "lies far from every point around")) < 0.6
+
+
 def test_spheres_closer_than_r_joined_by_the_mesh_are_refused_and_the_hint_parts_them(capsys, tmp_path,
                                                                                       unit_sphere_samples):
     """Two unit spheres 0.1 apart (a sample spacing), 1,000 cells (R about 0.36): f parts them, the cells joined them

@@ -245,26 +245,29 @@ def far_from(mesh: Mesh, samples: np.ndarray, bound: float) -> np.ndarray:
 
 
 def opening(mesh: Mesh, samples: np.ndarray, bound: float):
-    """Where the boundary of ``mesh`` spans an opening of the ``samples`` (n, k): (its centre (k,), its width, the
-    samples on its rim) when the samples nearest to the boundary farther than ``bound`` from every sample are
-    mostly on a rim (their neighbours on one side only: an open surface, a scan with a side missing), else None."""
+    """Where the boundary of ``mesh`` lies farther than ``bound`` from every one of the ``samples`` (n, k): (the
+    centre of that area (k,), its width, the samples on its rim), the rim's samples counted when those nearest to
+    that area are mostly on a rim (their neighbours on one side only: an open surface, a scan with a side missing),
+    else 0 (samples all round it: where sampled surfaces meet); None when no boundary lies that far."""
     corners = mesh.points[boundary_facets(mesh.cells)]
     centroids = corners.mean(axis=1)
     tree = cKDTree(samples)
     distance, nearest = tree.query(centroids)
     far = distance > bound
-    neighbours = min(RIM_NEIGHBOURS, len(samples) - 1)
-    if not far.any() or neighbours < samples.shape[1] + 1:
+    if not far.any():
         return None
+    area = facet_measures(corners[far])
+    centre = (centroids[far] * area[:, None]).sum(axis=0) / area.sum()
+    neighbours = min(RIM_NEIGHBOURS, len(samples) - 1)
+    if neighbours < samples.shape[1] + 1:
+        return centre, 2 * float(np.linalg.norm(centroids[far] - centre, axis=1).max()), 0
     rim = samples[np.unique(nearest[far])]
     reach, around = tree.query(rim, neighbours + 1)
     typical = np.median(tree.query(samples[::max(1, len(samples) // 2000)], neighbours + 1)[0][:, -1])
     # on a rim: the neighbours on one side, and as near as elsewhere (a stray point has them on one side too)
     one_sided = (widest_gaps(rim, samples[around[:, 1:]]) > RIM_GAP) & (reach[:, -1] < RIM_SPREAD * typical)
     if one_sided.mean() < 0.5:
-        return None
-    area = facet_measures(corners[far])
-    centre = (centroids[far] * area[:, None]).sum(axis=0) / area.sum()
+        return centre, 2 * float(np.linalg.norm(centroids[far] - centre, axis=1).max()), 0
     width = 2 * float(np.linalg.norm(rim[one_sided] - centre, axis=1).max())
     return centre, width, int(one_sided.sum())
 

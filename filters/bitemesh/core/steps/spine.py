@@ -386,25 +386,30 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
             if source.locate is not None:
                 return source.locate(np.flatnonzero(kept)[far])
             return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
-        def opened() -> str:   # an opening of the samples that the mesh closes
+        def opened() -> tuple:   # (where the boundary lies far from every sample, whether on a rim of them)
             found = opening(result.mesh, samples, measured.support_bound / frame.scale)
             if found is None:
-                return ""
+                return "", False
             centre, width, rim = found
-            return (f"the samples leave an opening about {width * frame.scale:.3g} across around "
-                    f"({', '.join(f'{value:.4g}' for value in frame.to_user(centre[None])[0])}), {rim} of them on "
-                    "its rim")
+            place = ', '.join(f'{value:.4g}' for value in frame.to_user(centre[None])[0])
+            if not rim:
+                return f"around ({place}), about {width * frame.scale:.3g} across, samples all round it", False
+            return (f"the samples leave an opening about {width * frame.scale:.3g} across around ({place}), {rim} of "
+                    "them on its rim"), True
 
         def unsupported() -> str:
-            said = opened()
-            return said and (f"{said}: the surface is open there (a scan with a side or a patch missing) and the "
-                             "mesh closes it where no point is; sample the missing part")
+            said, on_rim = opened()
+            return (f"{said}: the surface is open there (a scan with a side or a patch missing) and the mesh closes "
+                    "it where no point is; sample the missing part") if on_rim else ""
         scattered = source.locate is None and source.open_boundary is None   # not contours: a rim means an opening
         check_fidelity(measured, fidelity, where=where, unsupported=unsupported if scattered else None)
         closed = measured.capped_area + measured.unsupported_area
         if scattered and closed > CAPPED_NOTE:
-            notes += (f"{opened() or 'the samples leave openings'}, which the mesh closes where no point is "
-                      f"({closed:.1f}% of the boundary's area lies farther than {measured.support_bound:.3g} from "
+            said, on_rim = opened()
+            notes += ((f"{said}, which the mesh closes where no point is" if on_rim else
+                       f"the mesh's boundary lies far from every point {said}: a gap of the samples that the mesh "
+                       "closes, or sampled surfaces that meet there (objects in contact, joined by the mesh)")
+                      + f" ({closed:.1f}% of the boundary's area lies farther than {measured.support_bound:.3g} from "
                       "every point): the surface there is the fit's guess",)
             logger.info(notes[-1])
     with timed(seconds, "topology"):
