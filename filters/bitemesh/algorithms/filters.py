@@ -17,7 +17,8 @@ from ..core.steps.delaunay import delaunay
 from ..core.steps.repair import carve_domain
 from ..core.errors import InvalidInputError
 from ..core.mesh.betti import check_topology
-from ..core.steps.fidelity import check_fidelity, measure_fidelity
+from ..core.steps.fidelity import measure_fidelity
+from ..core.steps.verdict import check_fidelity
 from ..core.mesh.simplicial import Mesh
 from ..core.optimize.measures import mean_edge_length
 from ..core.optimize.optimizer import optimize_mesh

@@ -18,7 +18,8 @@ from bitemesh.core.sources.contours.slices import contour_normals, slice_planes
 from bitemesh.core.sources.contours.valves import (annulus_normals, ring_normals, rings_off_the_mesh,
                                                    walls_behind)
 from bitemesh.core.errors import MeshingError
-from bitemesh.core.steps.fidelity import Fidelity, check_fidelity
+from bitemesh.core.steps.fidelity import Fidelity
+from bitemesh.core.steps.verdict import check_fidelity
 from bitemesh.core.parameters import FidelityParameters
 from tests.cardiac_variants import (long_axis_view_shifted, open_arcs, read_frame, shifted_slices, short_arcs,
                                     short_axis_slices, subset)

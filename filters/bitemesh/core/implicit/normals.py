@@ -35,7 +35,9 @@ def check_spans_space(points: np.ndarray) -> None:
         where = "plane" if points.shape[1] == 3 else "line"
         raise InvalidInputError(
             f"points: all {len(points)} points lie in one {where}, so they enclose no "
-            f"{'volume' if points.shape[1] == 3 else 'area'}; give samples of a closed surface (contour in 2D)")
+            f"{'volume' if points.shape[1] == 3 else 'area'}; give samples of a closed surface (contour in 2D"
+            + (": a 2D contour in a table of x y z reads as 2D with --columns x,y,skip, or x,skip,z, or skip,y,z"
+               if points.shape[1] == 3 else "") + ")")
 
 
 #: given normals disagree with their surface when more than this share point against the estimated ones (and
@@ -71,7 +73,8 @@ def unit_normals(normals, shape) -> np.ndarray:
         if bad.any():
             raise InvalidInputError(
                 f"normals has {int(bad.sum())} {what} rows (first at row {int(np.argmax(bad))}); "
-                f"fix them or omit normals so that they are estimated")
+                f"fix them or omit normals so that they are estimated (in a table of x y z nx ny nz: --columns "
+                "x,y,z,skip,skip,skip)")
     return normals / length[:, None]
 
 
@@ -312,7 +315,7 @@ def check_normals(points, normals) -> np.ndarray:
             raise InvalidInputError(
                 f"normals are inconsistent: {np.count_nonzero(opposed & tangent)} of {pairs} neighbouring pairs "
                 f"point in opposite directions (more than {_CONTRADICTION_LIMIT:.0%}); omit normals so that "
-                f"they are estimated")
+                "they are estimated (in a table of x y z nx ny nz: --columns x,y,z,skip,skip,skip)")
     flux = float(np.einsum("nd,nd->", normals, points - points.mean(axis=0)))
     if flux < 0:
         logger.warning("normals point inward overall (flux %.3g < 0); flipped all of them to point outward", flux)

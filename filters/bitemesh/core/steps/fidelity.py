@@ -12,20 +12,17 @@ long on the zero level of f, which itself lies within the noise of the samples: 
 few noise levels of it (features smaller than R are rounded).  Between samples the boundary is at most half the
 data's largest gap from them (contours on slices leave gaps of the slice spacing), plus R; beyond that, a facet still
 counts as supported when the samples within twice its distance from them surround it in its tangent plane (no gap
-of their directions wider than a half turn).  :func:`check_fidelity` refuses a mesh when more than a small fraction
-of either measure exceeds its bound.
+of their directions wider than a half turn).  :func:`~.verdict.check_fidelity` refuses a mesh when more than a small
+fraction of either measure exceeds its bound.
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import BitemeshWarning, MeshingError
 from ..mesh.simplicial import Mesh
-from ..parameters import FidelityParameters
 from ..mesh.topology import boundary_facets
 
 #: a sample may be this many noise levels, plus R, from the boundary.
@@ -155,12 +152,6 @@ def _nearer(points, corners, best, rows, facets) -> None:
         np.minimum.at(best, rows, distance)
 
 
-#: the neighbours that tell a sample on the rim of an open surface (all on one side) from one inside it, the
-#: widest angle between them that a sample inside leaves (12 neighbours around: about 30 degrees; on a rim: 180),
-#: and how much farther than the samples' median they may reach on a rim (a stray point's reach far farther).
-RIM_NEIGHBOURS, RIM_GAP, RIM_SPREAD = 12, 2 * np.pi / 3, 3.0
-
-
 def facet_measures(corners: np.ndarray) -> np.ndarray:
     """(f,) area of each triangle (length of each segment in 2D)."""
     if corners.shape[1] == 2:
@@ -242,101 +233,3 @@ def on_plane(point, normal, tolerance: float):
 def far_from(mesh: Mesh, samples: np.ndarray, bound: float) -> np.ndarray:
     """(m,) the indices of the ``samples`` (n, k) farther than ``bound`` from the boundary of ``mesh``."""
     return np.flatnonzero(distances_to_facets(samples, mesh.points[boundary_facets(mesh.cells)]) > bound)
-
-
-def opening(mesh: Mesh, samples: np.ndarray, bound: float):
-    """Where the boundary of ``mesh`` lies farther than ``bound`` from every one of the ``samples`` (n, k): (the
-    centre of that area (k,), its width, the samples on its rim), the rim's samples counted when those nearest to
-    that area are mostly on a rim (their neighbours on one side only: an open surface, a scan with a side missing),
-    else 0 (samples all round it: where sampled surfaces meet); None when no boundary lies that far."""
-    corners = mesh.points[boundary_facets(mesh.cells)]
-    centroids = corners.mean(axis=1)
-    tree = cKDTree(samples)
-    distance, nearest = tree.query(centroids)
-    far = distance > bound
-    if not far.any():
-        return None
-    area = facet_measures(corners[far])
-    centre = (centroids[far] * area[:, None]).sum(axis=0) / area.sum()
-    neighbours = min(RIM_NEIGHBOURS, len(samples) - 1)
-    if neighbours < samples.shape[1] + 1:
-        return centre, 2 * float(np.linalg.norm(centroids[far] - centre, axis=1).max()), 0
-    rim = samples[np.unique(nearest[far])]
-    reach, around = tree.query(rim, neighbours + 1)
-    typical = np.median(tree.query(samples[::max(1, len(samples) // 2000)], neighbours + 1)[0][:, -1])
-    # on a rim: the neighbours on one side, and as near as elsewhere (a stray point has them on one side too)
-    one_sided = (widest_gaps(rim, samples[around[:, 1:]]) > RIM_GAP) & (reach[:, -1] < RIM_SPREAD * typical)
-    if one_sided.mean() < 0.5:
-        return centre, 2 * float(np.linalg.norm(centroids[far] - centre, axis=1).max()), 0
-    width = 2 * float(np.linalg.norm(rim[one_sided] - centre, axis=1).max())
-    return centre, width, int(one_sided.sum())
-
-
-def widest_gaps(points: np.ndarray, neighbours: np.ndarray) -> np.ndarray:
-    """(m,) the widest angle (radians) between the directions to the ``neighbours`` (m, j, k) of each of the
-    ``points`` (m, k), seen in the plane of least variance of the neighbourhood (along the line, in 2D: 0 or pi):
-    about 2 pi / j inside a sampled surface, about pi on its rim."""
-    offsets = neighbours - points[:, None, :]
-    local = np.concatenate([points[:, None, :], neighbours], axis=1)
-    axes = np.linalg.svd(local - local.mean(axis=1, keepdims=True))[2]   # (m, k, k): rows by falling variance
-    if points.shape[1] == 2:
-        along = np.einsum("mjk,mk->mj", offsets, axes[:, 0])
-        return np.where((along > 0).any(axis=1) & (along < 0).any(axis=1), 0.0, np.pi)
-    angles = np.sort(np.arctan2(np.einsum("mjk,mk->mj", offsets, axes[:, 1]),
-                                np.einsum("mjk,mk->mj", offsets, axes[:, 0])), axis=1)
-    return np.diff(np.concatenate([angles, angles[:, :1] + 2 * np.pi], axis=1), axis=1).max(axis=1)
-
-
-def check_fidelity(fidelity: Fidelity, parameters: FidelityParameters, units: str = "", where=None,
-                   unsupported=None) -> list:
-    """The bounds of ``parameters`` that ``fidelity`` exceeds, as messages; raise :class:`MeshingError` naming them
-    unless ``parameters.allow_unfaithful``, which turns them into a :class:`BitemeshWarning`.  ``where`` and
-    ``unsupported``: callables () -> a sentence saying where the far samples lie, and where the unsupported
-    boundary is, each with a hint, said instead of the likely causes when not empty (each is called only when its
-    bound is exceeded)."""
-    problems, located = [], ""
-    if fidelity.far_samples > parameters.far_samples:
-        located = where() if where is not None else ""
-        problems.append(
-            f"{fidelity.far_samples:.1f}% of the input points lie farther than {fidelity.far_bound:.3g}{units} "
-            f"(R + 3 x noise) from the mesh boundary (allowed: far_samples = {parameters.far_samples:g}%; up to "
-            f"{fidelity.to_boundary_max:.3g}{units}): the mesh lost part of the shape")
-    if fidelity.unsupported_area > parameters.unsupported_area:
-        problems.append(
-            f"{fidelity.unsupported_area:.1f}% of the boundary's area lies farther than "
-            f"{fidelity.support_bound:.3g}{units} (R + half the data's gap) from every input point (allowed: "
-            f"unsupported_area = {parameters.unsupported_area:g}%; up to {fidelity.from_samples_max:.3g}{units}): "
-            "the mesh has surfaces the data does not support")
-        opened = unsupported() if unsupported is not None else ""
-        located = "; ".join(sentence for sentence in (located, opened) if sentence)
-    if problems:
-        causes = located[:1].upper() + located[1:] if located else (
-            "Likely causes: outliers, normals that do not point outward, a wrong column layout, or parts thinner "
-            "than R; check the input, lower radius")
-        text = ("the mesh does not follow the data: " + "; ".join(problems) + f". {causes}; or set "
-                "allow_unfaithful (--allow-unfaithful) to keep the mesh anyway")
-        if not parameters.allow_unfaithful:
-            raise MeshingError(text)
-        warnings.warn(text, BitemeshWarning, stacklevel=2)
-    return problems
-
-
-def thinner_than_radius(grid, inside: np.ndarray, samples: np.ndarray, radius: float, scale: float = 1.0) -> str:
-    """Where far ``samples`` (m, k) lie on parts of f > 0 thinner than R: a sentence with the radius that resolves
-    them (in user units: lengths x ``scale``), from the half-thickness of f > 0 (``inside``, on the nodes of
-    ``grid``: its largest inscribed distance within R of each sample); "" when most of them do not.  The radius
-    given is half the parts' median thickness there: two node spacings across them, which the optimizer keeps (at
-    one spacing across, its sliver removal takes the thin tips of a slender ellipsoid off)."""
-    from scipy import ndimage
-    if not len(samples):
-        return ""
-    half = ndimage.distance_transform_edt(inside, sampling=grid.spacing)
-    reach = int(np.ceil(radius / float(np.min(grid.spacing))))
-    thickness = ndimage.maximum_filter(half, size=2 * reach + 1)[grid.nearest_nodes(samples)]
-    thin = (thickness > 0) & (thickness < radius)
-    if thin.mean() < 0.5:
-        return ""
-    half = float(np.median(thickness[thin]))   # two node spacings across the part
-    return (f"{int(thin.sum())} of those {len(samples)} points lie on parts thinner than R = {radius * scale:.4g} "
-            f"(about {2 * half * scale:.3g} across there): give radius <= {half * scale:.3g}, or about "
-            f"{max(2.0, (radius / half) ** inside.ndim):.0f} x the cells")

@@ -24,8 +24,9 @@ from .biting import bite
 from .delaunay import delaunay
 from .repair import carve_domain
 from ..errors import BitemeshWarning, InvalidInputError, check_number
-from ..mesh.betti import check_topology, on_dropped_parts
-from .fidelity import Fidelity, check_fidelity, far_from, measure_fidelity, opening, thinner_than_radius
+from ..mesh.betti import check_topology
+from .fidelity import Fidelity
+from .verdict import judge_fidelity
 from ..grid.sampled import (BYTES_PER_NODE, EXACT_WITHIN, SampledGrid, available_memory_mb, grid_shape_unchecked,
                             inside_extents, sample_function)
 from ..mesh.simplicial import Mesh
@@ -52,9 +53,6 @@ MIN_GRID_NODES = 40
 COARSE_REFINEMENTS = 3
 #: the grid I reaches at least this many grid spacings beyond the data's box.
 MIN_MARGIN = 2.0
-#: scattered points whose mesh closes openings of them over more than this percent of its boundary's area (a quarter
-#: of the unsupported share refused by default) get a note saying where.
-CAPPED_NOTE = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -331,20 +329,6 @@ def grid_for_source(source: Source, implicit: ImplicitParameters = ImplicitParam
     return grid, radius, function, notes
 
 
-def samples_kept(samples: np.ndarray, inside: np.ndarray, grid, mesh: Mesh, min_component: float):
-    """(n,) bool, the samples the fidelity measures: all but those of parts dropped on purpose (smaller than
-    ``min_component`` x the largest, :func:`~bitemesh.core.mesh.betti.on_dropped_parts`); and a note when some are
-    not."""
-    dropped, parts = on_dropped_parts(grid, inside, mesh.points[mesh.cells].mean(axis=1), samples, min_component)
-    if not parts:
-        return ~dropped, ()
-    note = f"{parts} part(s) smaller than min_component = {min_component:g} x the largest part's volume dropped; " + (
-        f"their {int(dropped.sum())} samples are left out of the fidelity measure" if dropped.any() else
-        "no sample lies on them (specks of the fitted surface away from the data)")
-    logger.info(note)
-    return ~dropped, (note,)
-
-
 def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameters(),
                 biting: BitingParameters = BitingParameters(), spurious: SpuriousParameters = SpuriousParameters(),
                 optimize: OptimizeParameters = OptimizeParameters(), progress: ProgressCallback = None,
@@ -352,7 +336,7 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     """Mesh a source: choose R and sample the grid I (:func:`grid_for_source`), bite, Delaunay, carve the valid domain,
     optimize (when ``optimize.optimize`` is 1), tag (the source's :attr:`~bitemesh.core.sources.source.Source.tagging`,
     by default one tag per boundary component), quality, measure the fidelity to the source's samples (refused beyond
-    the bounds of ``fidelity``, see :func:`~bitemesh.core.steps.fidelity.check_fidelity`), and map the mesh to user
+    the bounds of ``fidelity``, see :func:`~bitemesh.core.steps.verdict.check_fidelity`), and map the mesh to user
     coordinates.
 
     Lengths in the parameters (radius, grid_spacing, margin) are in user units.  ``spurious.handles`` "auto" takes
@@ -371,47 +355,10 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     measured, inside = None, grid.inside()
     if source.samples is not None:
         report(progress, 0.97, "measuring the fidelity")
-        kept, note = samples_kept(source.samples, inside, grid, result.mesh, spurious.min_component)
-        notes += note
-        samples = source.samples[kept]
         with timed(seconds, "fidelity"):
-            measured = measure_fidelity(result.mesh, samples, radius, source.noise, source.gap,
-                                        source.open_boundary).scaled(frame.scale)
-
-        def where() -> str:   # the far samples' place, as the source (contours: their slice) or f's grid tells it
-            said = source.suspects() if source.suspects is not None else ""
-            if said:
-                return said
-            far = far_from(result.mesh, samples, measured.far_bound / frame.scale)
-            if source.locate is not None:
-                return source.locate(np.flatnonzero(kept)[far])
-            return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
-        def opened() -> tuple:   # (where the boundary lies far from every sample, whether on a rim of them)
-            found = opening(result.mesh, samples, measured.support_bound / frame.scale)
-            if found is None:
-                return "", False
-            centre, width, rim = found
-            place = ', '.join(f'{value:.4g}' for value in frame.to_user(centre[None])[0])
-            if not rim:
-                return f"around ({place}), about {width * frame.scale:.3g} across, samples all round it", False
-            return (f"the samples leave an opening about {width * frame.scale:.3g} across around ({place}), {rim} of "
-                    "them on its rim"), True
-
-        def unsupported() -> str:
-            said, on_rim = opened()
-            return (f"{said}: the surface is open there (a scan with a side or a patch missing) and the mesh closes "
-                    "it where no point is; sample the missing part") if on_rim else ""
-        scattered = source.locate is None and source.open_boundary is None   # not contours: a rim means an opening
-        check_fidelity(measured, fidelity, where=where, unsupported=unsupported if scattered else None)
-        closed = measured.capped_area + measured.unsupported_area
-        if scattered and closed > CAPPED_NOTE:
-            said, on_rim = opened()
-            notes += ((f"{said}, which the mesh closes where no point is" if on_rim else
-                       f"the mesh's boundary lies far from every point {said}: a gap of the samples that the mesh "
-                       "closes, or sampled surfaces that meet there (objects in contact, joined by the mesh)")
-                      + f" ({closed:.1f}% of the boundary's area lies farther than {measured.support_bound:.3g} from "
-                      "every point): the surface there is the fit's guess",)
-            logger.info(notes[-1])
+            measured, judged = judge_fidelity(source, result.mesh, grid, inside, radius, fidelity,
+                                              spurious.min_component)
+        notes += judged
     with timed(seconds, "topology"):
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful),
                        around=grid.inside_offsets, one_fit=source.one_fit, grid=grid, frame=frame)
