@@ -323,8 +323,9 @@ def test_a_wide_opening_the_mesh_closes_is_named_in_a_note(capsys, tmp_path, uni
 
 def test_a_tube_open_at_both_ends_is_noted_with_each_opening(capsys, tmp_path):
     """A tube of radius 0.5 and length 4 sampled without its ends: the fit closes both (a capped cylinder, volume
-    within 3 % at 10,000 cells: -1.8 %), and the note names two openings, each about 1.0 across, at z = -2 and z = 2 (it named one 4.15
-    across at the tube's centre: the two rims taken as one).  A new user's check found it."""
+    within 3 % at 10,000 cells: -1.8 %), and the note names two openings, each about 1.0 across, at z = -2 and
+    z = 2 (it named one 4.15 across at the tube's centre: the two rims taken as one).  A new user's check found
+    it."""
     import re
     rng = np.random.default_rng(4)
     angle, height = rng.uniform(0, 2 * np.pi, 4000), rng.uniform(-2, 2, 4000)
