@@ -303,7 +303,7 @@ def test_a_closed_surface_with_a_small_hole_meshes_as_closed(capsys, tmp_path):
 def test_a_wide_opening_the_mesh_closes_is_named_in_a_note(capsys, tmp_path, unit_sphere_samples):
     """A sphere without its cap below z = -0.6 (a fifth of its area): the fit closes it, within the bounds (the samples
     surround the opening), and a note names the opening, where it is and how wide (the rim's circle is 1.6 across,
-    its centre (0, 0, -0.6)); the whole sphere gets no such note."""
+    its centre (0, 0, -0.6)); the whole sphere gets no such note, nor does one sampled at random."""
     import re
     from bitemesh.core.shapes import sample_surface, sphere
     points, normals = sample_surface(sphere(), 0.05, noise=0.001, seed=1)
@@ -319,6 +319,12 @@ def test_a_wide_opening_the_mesh_closes_is_named_in_a_note(capsys, tmp_path, uni
     whole = write_rows(tmp_path / "whole.xyz", np.hstack([points, normals]))
     code, out, err, output = mesh_cli(capsys, tmp_path, whole)
     assert code == 0 and "opening" not in err
+    # 800 points drawn at random: gaps of random sampling, narrower than the support bound, are no opening (a note
+    # named two, 0.035 and 0 across, "samples all round")
+    directions = np.random.default_rng(11).normal(size=(800, 3))
+    random = write_rows(tmp_path / "random.xyz", directions / np.linalg.norm(directions, axis=1, keepdims=True))
+    code, out, err, output = mesh_cli(capsys, tmp_path, random)
+    assert code == 0 and "opening" not in err and "lies far from every point" not in err, err
 
 
 def test_a_tube_open_at_both_ends_is_noted_with_each_opening(capsys, tmp_path):
@@ -370,14 +376,19 @@ def test_touching_spheres_each_sampled_whole_are_refused_and_each_meshes_apart(c
 
 
 def test_touching_spheres_sampled_densely_are_meshed_with_a_note_at_the_contact(capsys, tmp_path):
-    """Two unit spheres in contact, sampled 0.06 apart without normals: f does not fold at the zero level alone
-    here, and the mesh joins them with a pocket into one sphere beside the contact (volume -2 %); it said nothing
-    (exit 0); now a note says where the boundary lies far from every point, samples all round it, as where sampled
-    surfaces meet (within 0.6 of the contact: the pocket's centre)."""
+    """Two unit spheres in contact, sampled 0.06 apart without normals, 10,000 cells: f does not fold at the zero
+    level alone here, and the mesh joins them with a pocket into one sphere beside the contact (volume -2 %); it
+    said nothing (exit 0); now a note says where the boundary lies far from every point, samples all round it, as
+    where sampled surfaces meet (within 0.6 of the contact: the pocket's centre).  Written with other digits the
+    same points fold f at the contact, and the refusal names the touch there: either outcome is a right one."""
     from bitemesh.core.shapes import sample_surface, sphere
     points = sample_surface(sphere(), 0.06, seed=5)[0]
-    code, out, err, output = mesh_cli(capsys, tmp_path, write_rows(tmp_path / "pair.xyz",
-                                                                   np.vstack([points - [1, 0, 0], points + [1, 0, 0]])))
+    pair = write_rows(tmp_path / "pair.xyz", np.vstack([points - [1, 0, 0], points + [1, 0, 0]]))
+    code, out, err, output = mesh_cli(capsys, tmp_path, pair, "--cells", "10000")
+    if code == 1:   # the rows' last digits decide whether f folds here too: then refused as touching, placed
+        assert_refused(code, err, "cross or touch around (")
+        assert np.linalg.norm(place_in(err, "touch around")) < 0.3   # about R: the spheres are within a grid
+        return                                                        # spacing of each other 0.2 from the contact
     assert code == 0 and "sampled surfaces that meet there" in err, err
     assert "lies far from every point in an area" in err and np.linalg.norm(place_in(err, "across around")) < 0.6
 

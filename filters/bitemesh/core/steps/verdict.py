@@ -166,7 +166,8 @@ def judge_fidelity(source, mesh: Mesh, grid, inside: np.ndarray, radius: float, 
         return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
 
     def opened() -> tuple:   # (where the boundary lies far from every sample, whether on a rim of them)
-        found = openings(mesh, samples, measured.support_bound / frame.scale)
+        bound = measured.support_bound / frame.scale   # narrower: a gap of random sampling, not an opening
+        found = [piece for piece in openings(mesh, samples, bound) if piece[1] >= bound]
         if not found:
             return "", False
         said = [f"about {width * frame.scale:.3g} across around "
@@ -186,8 +187,8 @@ def judge_fidelity(source, mesh: Mesh, grid, inside: np.ndarray, radius: float, 
     scattered = source.locate is None and source.open_boundary is None   # not contours: a rim means an opening
     check_fidelity(measured, parameters, where=where, unsupported=unsupported if scattered else None)
     closed = measured.capped_area + measured.unsupported_area
-    if scattered and closed > CAPPED_NOTE:
-        said, on_rim = opened()
+    said, on_rim = opened() if scattered and closed > CAPPED_NOTE else ("", False)
+    if said:
         extent = "area" if mesh.points.shape[1] == 3 else "length"
         notes += ((f"{said}, which the mesh closes where no point is" if on_rim else
                    f"the mesh's boundary lies far from every point in an area {said}: a gap of the samples that the "
