@@ -4,7 +4,7 @@
 parts dropped on purpose (:func:`samples_kept`), and :func:`check_fidelity` refuses it beyond the bounds, naming the
 cause found in the data: the source's suspects (outliers kept, normals that disagree), where the far samples lie
 (contours: their slice; else parts of f thinner than R, :func:`thinner_than_radius`, with the radius that resolves
-them), or an opening of the samples that the mesh closes (:func:`opening`: an open surface and its rim).  A mesh
+them), or an opening of the samples that the mesh closes (:func:`openings`: an open surface and its rim).  A mesh
 kept that closes a wide area where no point is gets a note saying where.
 """
 from __future__ import annotations
@@ -32,10 +32,10 @@ RIM_NEIGHBOURS, RIM_GAP, RIM_SPREAD = 12, 2 * np.pi / 3, 3.0
 
 def openings(mesh: Mesh, samples: np.ndarray, bound: float) -> list:
     """Where the boundary of ``mesh`` lies farther than ``bound`` from every one of the ``samples`` (n, k), piece by
-    piece (facets joined through shared edges), the largest first: for each, (its centre (k,), its width, the
-    samples on its rim), the rim's samples counted when those nearest to it are mostly on a rim (their neighbours
-    on one side only: an open surface, a scan with a side missing), else 0 (samples all round it: where sampled
-    surfaces meet); [] when no boundary lies that far."""
+    piece (facets joined through shared edges) at least ``bound`` across (narrower: a gap of random sampling), the
+    largest first: for each, (its centre (k,), its width, the samples on its rim), the rim's samples counted when
+    those nearest to it are mostly on a rim (their neighbours on one side only: an open surface, a scan with a side
+    missing), else 0 (samples all round it: where sampled surfaces meet); [] when there is none."""
     facets = boundary_facets(mesh.cells)
     corners = mesh.points[facets]
     centroids = corners.mean(axis=1)
@@ -53,6 +53,8 @@ def openings(mesh: Mesh, samples: np.ndarray, bound: float) -> list:
         mine = pieces == piece
         centre = (centroids[far[mine]] * area[mine, None]).sum(axis=0) / area[mine].sum()
         width, rim_count = 2 * float(np.linalg.norm(centroids[far[mine]] - centre, axis=1).max()), 0
+        if width < bound:
+            continue
         if neighbours >= samples.shape[1] + 1:
             rim = samples[np.unique(nearest[far[mine]])]
             reach, around = tree.query(rim, neighbours + 1)
@@ -166,8 +168,7 @@ def judge_fidelity(source, mesh: Mesh, grid, inside: np.ndarray, radius: float, 
         return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
 
     def opened() -> tuple:   # (where the boundary lies far from every sample, whether on a rim of them)
-        bound = measured.support_bound / frame.scale   # narrower: a gap of random sampling, not an opening
-        found = [piece for piece in openings(mesh, samples, bound) if piece[1] >= bound]
+        found = openings(mesh, samples, measured.support_bound / frame.scale)
         if not found:
             return "", False
         said = [f"about {width * frame.scale:.3g} across around "
