@@ -42,7 +42,18 @@ def test_merged_scans_repeating_every_point_are_meshed_as_one(capsys, tmp_path, 
     np.savetxt(path, repeated, fmt="%.12f")
     code, out, err, output = mesh_cli(capsys, tmp_path, path)
     assert_follows(code, out, err, output)
-    assert f"merged {4 * len(points)} near-duplicate points into the {len(points)}" in err
+    assert f"merged {4 * len(points)} near-duplicate point(s) into the {len(points)} they repeat" in err
+    assert f"; {len(points)} points remain" in err
+
+
+def test_one_repeated_point_is_said_as_one(capsys, tmp_path, unit_sphere_samples):
+    """One point given twice: the note merges 1 into the 1 it repeats (it said 'into the 1499 they repeat', the
+    points kept, which a new user read as every point repeated)."""
+    points, _ = unit_sphere_samples
+    twice = write_rows(tmp_path / "twice.xyz", np.vstack([points, points[:1]]))
+    code, out, err, output = mesh_cli(capsys, tmp_path, twice)
+    assert_follows(code, out, err, output)
+    assert "merged 1 near-duplicate point(s) into the 1 they repeat" in err and f"{len(points)} points remain" in err
 
 
 def test_copies_of_a_scan_a_noise_apart_mesh_with_every_point_kept(capsys, tmp_path, unit_sphere_samples):

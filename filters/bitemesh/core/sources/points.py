@@ -58,8 +58,10 @@ def points_source(points, normals=None, implicit: ImplicitParameters = ImplicitP
     if (first != np.arange(len(points))).any():
         kept = first == np.arange(len(points))   # the first of each group, with its normal
         normals = None if normals is None else normals[kept]
-        notes.append(f"merged {len(points) - int(kept.sum())} near-duplicate points into the {int(kept.sum())} "
-                     "they repeat (within 0.1 % of the spacing: scans merged from several passes)")
+        repeated = len(np.unique(first[~kept]))
+        notes.append(f"merged {len(points) - int(kept.sum())} near-duplicate point(s) into the {repeated} they repeat "
+                     f"(within 0.1 % of the spacing, as scans merged from several passes repeat points); "
+                     f"{int(kept.sum())} points remain")
         logger.info(notes[-1])
         points, slices = points[kept], None if slices is None else slices[kept]
         points = _enough_points(points)
