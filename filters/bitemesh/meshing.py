@@ -102,17 +102,20 @@ def check_applies(data, options: Options, input) -> None:
         [flag(name) for name in given]
     if contour_options and not labelled:
         what = f"'{input}'" if isinstance(input, (str, os.PathLike)) else "the input"
-        raise InvalidInputError(
-            f"{contour_options[0]} applies to labelled contours, and {what} " + (
-                "is a label map (--label chooses its labels); leave " if isinstance(data, Voxels) else
-                "has no label column or Label array (a biv-me GPFile, a table whose header names a label column, a "
-                "VTP with a Label point array); leave ") + f"{contour_options[0]} out" + (
-                "" if isinstance(data, Voxels) else " to mesh the points as one surface"))
-    for name, value in (("label", options.label), ("ras", options.ras or None)):
-        if value is not None and not isinstance(data, Voxels):
-            shown = f" {' '.join(map(str, value))}" if name == "label" else ""
-            raise InvalidInputError(f"--{name}{shown} applies to label maps (points and contours keep the "
-                                    "coordinates they are given in); leave it out to mesh these points")
+        option = contour_options[0]
+        if isinstance(data, Voxels):
+            reason, hint = "is a label map (--label chooses its labels)", ""
+        else:
+            reason, hint = ("has no label column or Label array (a biv-me GPFile, a table whose header names a label "
+                            "column, a VTP with a Label point array)", " to mesh the points as one surface")
+        raise InvalidInputError(f"{option} applies to labelled contours, and {what} {reason}; leave {option} out{hint}")
+    if not isinstance(data, Voxels):
+        if options.label is not None:
+            raise InvalidInputError(f"--label {' '.join(map(str, options.label))} applies to label maps; leave it "
+                                    "out to mesh these points")
+        if options.ras:
+            raise InvalidInputError("--ras applies to label maps (points and contours keep the coordinates they are "
+                                    "given in); leave it out to mesh these points")
     if labelled and options.unit != "mm" and is_bivme(canonical_labels(data.labels)[0]):
         raise InvalidInputError(
             f"unit (--unit {options.unit}): cardiac guide points are meshed in mm (the walls, valves and base are "

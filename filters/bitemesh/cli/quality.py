@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.mesh.betti import mesh_topology
-from ..core.errors import InvalidInputError, MeshingError
+from ..core.errors import InvalidInputError, MeshingError, point_text
 from ..core.fem.check import FemParameters
 from ..core.parameters import OptimizeParameters, QualityParameters
 from ..core.mesh.validity import check_valid_domain
@@ -68,7 +68,7 @@ def poor_cells_line(mesh) -> str:
     angles = smallest_angles(mesh.points, mesh.cells[poor])
     worst = mesh.points[mesh.cells[poor[int(np.argmin(angles))]]].mean(axis=0)
     return (f"poor cells: {len(poor)} with {bound} (the optimizer's bounds), the worst {angles.min():.2f} degrees at "
-            f"({', '.join(f'{value:.4g}' for value in worst)}): slivers stiffen a finite-element solve (--fem "
+            f"{point_text(worst)}: slivers stiffen a finite-element solve (--fem "
             "measures how much)")
 
 

@@ -27,6 +27,11 @@ class Cancelled(BitemeshError):
     """The user asked to stop (a VTK abort, a Slicer cancel button, Ctrl-C in the CLI)."""
 
 
+def point_text(point) -> str:
+    """A point (k,) as a message gives it: "(x, y, z)", four significant digits."""
+    return f"({', '.join(f'{value:.4g}' for value in point)})"
+
+
 def check_number(value, name: str, *, low=None, high=None, low_open=False, high_open=False, hint="") -> float:
     """Return ``value`` as a float after checking that it is finite and inside [low, high].
 

@@ -11,7 +11,7 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
-from ..errors import InvalidInputError, check_number, check_points
+from ..errors import InvalidInputError, check_number, check_points, point_text
 from .samples import scan_copies
 
 logger = logging.getLogger("bitemesh")
@@ -56,10 +56,10 @@ def disagreeing_normals(points, normals) -> str:
     against = np.einsum("ij,ij->i", np.asarray(normals, dtype=np.float64), estimated) < 0
     if not DISAGREEING_SHARE < against.mean() < 1 - DISAGREEING_SHARE:
         return ""
-    centre = ", ".join(f"{value:.4g}" for value in points[against].mean(axis=0))
+    centre = point_text(points[against].mean(axis=0))
     columns = ",".join(["x", "y", "z"][:points.shape[1]] + ["skip"] * points.shape[1])
     return (f"{against.mean():.0%} of the given normals point against the surface their points sample (those "
-            f"around ({centre})): normals flipped on part of the surface; fix them, or leave them out (--columns "
+            f"around {centre}): normals flipped on part of the surface; fix them, or leave them out (--columns "
             f"{columns} for a table of points and normals) to have them estimated")
 
 

@@ -15,7 +15,7 @@ from itertools import combinations
 import numpy as np
 from scipy import ndimage
 
-from ..errors import BitemeshWarning, MeshingError
+from ..errors import BitemeshWarning, MeshingError, point_text
 from .simplicial import Mesh
 from .topology import boundary_facets, connected_components, euler_characteristic
 
@@ -161,7 +161,7 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
             return ""
         point = (grid.origin + index * grid.spacing)[None]
         point = point if frame is None else frame.to_user(point)
-        return f" around ({', '.join(f'{value:.4g}' for value in point[0])})"
+        return f" around {point_text(point[0])}"
     mine, data = mesh_topology(mesh), grid_topology(inside)
     joined, gap, where = joined_parts(mesh, grid, inside) if grid is not None else (0, 0.0, None)
     gap *= float(np.min(grid.spacing)) * scale if grid is not None else 0.0

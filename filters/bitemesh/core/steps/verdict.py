@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import logging
 import warnings
+from functools import cache
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import BitemeshWarning, MeshingError
+from ..errors import BitemeshWarning, MeshingError, point_text
 from ..mesh.betti import on_dropped_parts
 from ..mesh.simplicial import Mesh
 from ..mesh.topology import boundary_facets, connected_components
@@ -167,12 +168,12 @@ def judge_fidelity(source, mesh: Mesh, grid, inside: np.ndarray, radius: float, 
             return source.locate(np.flatnonzero(kept)[far])
         return thinner_than_radius(grid, inside, samples[far], radius, frame.scale)
 
+    @cache   # asked by the refusal (kept with allow_unfaithful) and by the note
     def opened() -> tuple:   # (where the boundary lies far from every sample, whether on a rim of them)
         found = openings(mesh, samples, measured.support_bound / frame.scale)
         if not found:
             return "", False
-        said = [f"about {width * frame.scale:.3g} across around "
-                f"({', '.join(f'{value:.4g}' for value in frame.to_user(centre[None])[0])})"
+        said = [f"about {width * frame.scale:.3g} across around {point_text(frame.to_user(centre[None])[0])}"
                 + (f", {rim} samples on its rim" if rim else ", samples all round it")
                 for centre, width, rim in found[:MAX_NAMED]]
         more = f" (and {len(found) - MAX_NAMED} smaller)" if len(found) > MAX_NAMED else ""
