@@ -225,10 +225,32 @@ def sparse_base(gp: dict) -> dict:
     """The base traced sparsely, as exports of fewer views leave it: the RV's long-axis contour points above the
     basal short-axis slice and the outflow valves' points left out."""
     normal = stack_normal(gp)
-    basal = max(short_axis_slices(gp), key=lambda number: gp["points"][gp["slices"] == number].mean(axis=0) @ normal)
-    height = gp["points"] @ normal - gp["points"][gp["slices"] == basal].mean(axis=0) @ normal
+    height = gp["points"] @ normal - gp["points"][gp["slices"] == basal_slice(gp)].mean(axis=0) @ normal
     right = np.char.startswith(gp["labels"].astype(str), "LAX_RV_")
     return subset(gp, ~((right & (height > 0)) | np.isin(gp["labels"], OUTFLOW_VALVES)))
+
+
+def basal_slice(gp: dict):
+    """The slice id of the most basal short-axis slice."""
+    normal = stack_normal(gp)
+    return max(short_axis_slices(gp), key=lambda number: gp["points"][gp["slices"] == number].mean(axis=0) @ normal)
+
+
+def closed_by_chord(gp: dict, share: float = 0.4) -> dict:
+    """The basal short-axis slice's LV endocardial contour closed by a chord across the outflow tract, as exports
+    trace it where the slice cuts the valves: the contour's points beyond a line across it, ``share`` of its width
+    from its side towards the aortic valve, moved onto that line."""
+    members = (gp["slices"] == basal_slice(gp)) & (gp["labels"] == "SAX_LV_ENDOCARDIAL")
+    points = gp["points"].copy()
+    centre = points[members].mean(axis=0)
+    axes = in_plane_axes(points[members])
+    towards = (points[gp["labels"] == "AORTA_VALVE"].mean(axis=0) - centre) @ axes.T @ axes
+    towards /= np.linalg.norm(towards)
+    reach = (points[members] - centre) @ towards
+    line = reach.max() - share * np.ptp(reach)
+    beyond = np.flatnonzero(members)[reach > line]
+    points[beyond] -= np.outer(reach[reach > line] - line, towards)
+    return {**gp, "points": points}
 
 
 def stray_mitral_point(gp: dict, depth: float = 12.0) -> dict:
@@ -285,6 +307,7 @@ CLASSES = {
     "sparse base": lambda folder, frame: (sparse_base(read_frame(folder, frame)), None),
     "sparser 3x": lambda folder, frame: (thinned_contours(read_frame(folder, frame)), None),
     "stray mitral point": lambda folder, frame: (stray_mitral_point(read_frame(folder, frame)), None),
+    "basal contour closed by a chord": lambda folder, frame: (closed_by_chord(read_frame(folder, frame)), None),
     "base tilted 30 deg": lambda folder, frame: (tilted_base(read_frame(folder, frame)), None),
     "rotated 30 deg": lambda folder, frame: (rotated(read_frame(folder, frame)), None),
     "denser 4x": lambda folder, frame: (denser(read_frame(folder, frame)), None),

@@ -21,6 +21,7 @@ from .core.mesh.simplicial import Mesh
 from .core.mesh.tags import cavity_volumes
 from .core.progress import ProgressCallback, sub_progress
 from .core.sources.contours.cardiac import BIVME_OUTLETS, BIVME_SURFACES, BIVME_VALVES, canonical_labels
+from .core.sources.contours.contradicted import without_contradicted
 from .core.sources.contours.registration import registered
 from .core.sources.contours.slices import infer_slices
 from .io import read_mesh
@@ -76,8 +77,9 @@ def template_mesh(template) -> Mesh:
 
 def fit_data(template: Mesh, data, frame=None):
     """The points that pull the template: a mapping of its surface names to points for labelled data (its slices
-    registered as :func:`bitemesh.mesh` registers them, a slice no other agrees with left out, each with a note on
-    the "bitemesh" logger), an (n, 3) array for scattered points or a label map's boundary voxels."""
+    registered as :func:`bitemesh.mesh` registers them, a slice no other agrees with left out, and the points of a
+    contour the other slices contradict, each with a note on the "bitemesh" logger), an (n, 3) array for scattered
+    points or a label map's boundary voxels."""
     samples = read_input(data, as_options(None if frame is None else {"frame": frame}))
     if isinstance(samples, Voxels):
         return boundary_voxels(samples)
@@ -85,8 +87,10 @@ def fit_data(template: Mesh, data, frame=None):
         return samples.points
     labels = canonical_labels(samples.labels)[0]
     slices = infer_slices(samples.points) if samples.slices is None else np.asarray(samples.slices)
-    points, labels, _, registration = registered(samples.points, labels, slices, BIVME_SURFACES)
-    for note in registration.notes():
+    points, labels, slices, registration = registered(samples.points, labels, slices, BIVME_SURFACES)
+    points, labels, _, left_out = without_contradicted(points, labels, slices, registration.contradicted,
+                                                       BIVME_SURFACES)
+    for note in registration.notes() + left_out:
         logger.info(note)
     surfaces = LV_SURFACE_LABELS if is_left_ventricle(template) else SURFACE_LABELS
     pulled = {name: points[np.isin(labels, surfaces[name])] for name in template.tag_names if name in surfaces}

@@ -145,15 +145,20 @@ def test_a_domain_naming_an_unknown_surface_lists_the_biv_me_surfaces(gpfile):
 
 
 def test_a_contour_that_encloses_nothing_is_a_sample_not_a_refusal(gpfile):
-    """The LV endocardium of slice 4 replaced by a straight line of points in that slice: an arc that does not tell
-    its side (issue 30: a refusal before).  Its points are samples of the LV endocardium all the same."""
+    """The LV endocardium of slice 4 traced only along 8 points of its wall (about 17 mm), as a straight line of
+    points between the first and the eighth: an arc that does not tell its side (issue 30: a refusal before).  Its
+    points are samples of the LV endocardium all the same.  (A line across the cavity is another matter: the long-axis
+    views contradict it, tests/cli/test_real_heart_meshes.py.)"""
     points, labels, slices = read_labelled_points(gpfile)
     contour = np.flatnonzero((labels == "SAX_LV_ENDOCARDIAL") & (slices == 4))
-    start, end = points[contour[0]], points[contour[len(contour) // 2]]
-    points[contour] = start + np.linspace(0, 1, len(contour))[:, None] * (end - start)
+    line, rest = contour[:8], contour[8:]
+    points[line] = points[line[0]] + np.linspace(0, 1, len(line))[:, None] * (points[line[-1]] - points[line[0]])
+    keep = ~np.isin(np.arange(len(points)), rest)
+    points, labels, slices = points[keep], labels[keep], slices[keep]
     function, _, _ = labelled_implicit(points, labels, slices=slices)
     row = function.slices["LV_ENDO"] == 4
-    assert row.sum() >= len(contour) - 1   # distinct points
+    assert row.sum() == len(line)
+    assert not any("contour:" in note and "left out" in note for note in function.notes)
     # on its zero level, but for the sampled surface's interpolation: within its 1 mm spacing (the line's ends, where
     # it meets the slices around at a kink, are where trilinear interpolation errs most)
     assert np.abs(function.surfaces["LV_ENDO"](function.points["LV_ENDO"][row])).max() < 1.0

@@ -56,12 +56,13 @@ from .base import ABOVE_VALVES, choose_base
 from .cardiac import (BIVME_OUTLETS, BIVME_SURFACES, MIN_WALL, OUTLET_WALL, RV_WALL, bivme_domain, canonical_labels,
                       check_millimetres, default_surfaces, grown, is_bivme, needs_derived_epicardium,
                       short_axis_stack, unused_labels_note)
+from .contradicted import without_contradicted
 from .csg import domain_names, parse_domain
 from .function import LabelledImplicit
 from .registration import registered
 from .valves import CAVITY_RINGS, INFLOW_RINGS, across_valves, outlet_points, ring_normals, walls_behind
 from .slices import GAP_FACTOR, contour_normals, infer_slices, slice_planes
-from .surface_fit import OFFSET, fit_contour_rbf
+from .surface_fit import OFFSET, PATCH_PER_GAP, fit_contour_rbf
 
 logger = logging.getLogger("bitemesh")
 
@@ -73,8 +74,6 @@ RING_WALL = MIN_WALL
 #: above it: fitted through the ring alone, the cavity closed in a dome just above it, under a roof of wall thinner
 #: than a cell that the mesh lost, mitral points up to 8 mm from the mesh.
 RING_RISE = 2 * ABOVE_VALVES
-#: no patch of a surface's fit is narrower than this x the median distance between its slices.
-PATCH_PER_GAP = 1.0
 
 
 # --- labels and slices -------------------------------------------------------------------------------------------
@@ -237,6 +236,10 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
                                                           {name: surfaces[name] for name in fitted}, gap_factor)
         notes += registration.notes(reported_scale)
         shifts, disagreement = registration.shifts, registration.disagreement
+        points, labels, slices, note = without_contradicted(
+            points, labels, slices, registration.contradicted, surfaces, gap_factor=gap_factor, scale=reported_scale,
+            kernel=kernel, offset=offset, smoothing=smoothing)
+        notes += note
     planes = slice_planes(points, slices)
     outlets = (BIVME_OUTLETS if is_bivme(labels) else {}) if outlets is None else dict(outlets)
     in_any = np.isin(labels, [label for name in used if name not in grown_from for label in surfaces[name]])
@@ -254,6 +257,7 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
         report(progress, 0.05 + 0.9 * number / len(fitted), f"fitting surface {name}")
         index = _distinct(points, np.flatnonzero(np.isin(labels, surfaces[name])))
         normals = _surface_normals(points[index], slices[index], planes, name, gap_factor)
+        min_patch = PATCH_PER_GAP * slice_spacing(points[index], slices[index])
         if name in CAVITY_RINGS:   # a cavity's inflow annulus lies on its wall, its normal away from the valve's centre
             rings = _distinct(points, np.flatnonzero(np.isin(labels, CAVITY_RINGS[name])))
             index, normals = np.r_[index, rings], np.vstack([normals, ring_normals(
@@ -264,7 +268,6 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
             fitted_points = np.vstack([fitted_points, risen])
             fitted_normals = np.vstack([fitted_normals, normals[-len(rings):]])
         interior = outlet_points(points, labels, outlets.get(name, ()), OUTLET_WALL.get(name, 0.0))
-        min_patch = PATCH_PER_GAP * slice_spacing(points[index], slices[index])
         fit_surface = partial(fit_contour_rbf, fitted_points, fitted_normals, kernel=kernel, offset=offset,
                               smoothing=smoothing, min_patch=min_patch)
         rbf = fit_surface(interior=interior)

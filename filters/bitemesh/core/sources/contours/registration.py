@@ -227,12 +227,17 @@ class Registration:
         :data:`FAR`, :data:`MAX_SHIFT`): contours no other slice agrees with, left out
     disagreement : the median over the slices kept of that distance once moved (input units): how far the contours
         still disagree where the slices cross, which no surface through all of them can undo
+    contradicted : (slice id, surface name) -> how many crossings lie beside that contour (not beyond a tip) farther
+        from it than a slice is left out by (:data:`MISPLACED`, :data:`FAR`), for the short-axis contours of slices
+        kept that have any: where the other slices contradict them; which of their points stay is decided by
+        :mod:`~bitemesh.core.sources.contours.contradicted`
     """
 
     shifts: dict = field(default_factory=dict)
     unpinned: tuple = ()
     outliers: dict = field(default_factory=dict)
     disagreement: float = 0.0
+    contradicted: dict = field(default_factory=dict)
 
     def notes(self, scale: float = 1.0) -> tuple:
         """What was moved, left in place and left out, one sentence each; lengths times ``scale`` (the input's mm
@@ -289,9 +294,27 @@ def register_slices(points, labels, slices, planes, surfaces: dict, gap_factor: 
             break
         outliers.update(far)   # then again without them: they may have pulled the others
         contours = {key: value for key, value in contours.items() if key[0] not in far}
-    moved = {number: shift @ planes[number].axes for number, shift in shifts.items()
-             if number not in fixed and np.linalg.norm(shift) >= SMALLEST}
-    return Registration(moved, tuple(sorted(fixed)), outliers, typical)
+    applied = {number: shift if number not in fixed and np.linalg.norm(shift) >= SMALLEST else np.zeros(2)
+               for number, shift in shifts.items()}
+    moved = {number: shift @ planes[number].axes for number, shift in applied.items() if shift.any()}
+    contradicted = _contradicted(planes, {key: value for key, value in contours.items() if key[0] in (stack or ())},
+                                 contours, applied, max(MISPLACED * typical, FAR))
+    return Registration(moved, tuple(sorted(fixed)), outliers, typical, contradicted)
+
+
+def _contradicted(planes, crossed: dict, contours: dict, shifts: dict, bound: float) -> dict:
+    """(slice id, surface name) -> how many crossings lie beside that contour farther than ``bound``, for the
+    contours of ``crossed`` (the short-axis stack's: the long-axis views see the base and hold the heart's place)
+    that have any; ``contours`` those of :func:`_contours`, the slices moved by ``shifts``."""
+    found: dict = {}
+    for pair in _crossing_pairs(planes, contours):
+        if pair[0] not in crossed:
+            continue
+        for _, _, _, distance, _, _ in _crossing_terms(planes, contours, [pair], shifts):
+            beyond = int((distance[np.isfinite(distance)] > bound).sum())
+            if beyond:
+                found[pair[0]] = found.get(pair[0], 0) + beyond
+    return found
 
 
 def registered(points, labels, slices, surfaces: dict, gap_factor: float = GAP_FACTOR):

@@ -24,6 +24,8 @@ THIN_PER_OFFSET = 0.4
 #: the largest distance (input units) of the off-surface constraints from the contours by default: 4 mm, about a
 #: wall thickness of an adult heart (a smaller heart's is scaled in proportion by its frame).
 OFFSET = 4.0
+#: no patch of a surface's fit is narrower than this x the median distance between its slices.
+PATCH_PER_GAP = 1.0
 
 
 def off_surface_offsets(points, normals, offset) -> np.ndarray:
