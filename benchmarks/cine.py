@@ -103,7 +103,7 @@ def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> 
 def line(row: dict) -> str:
     """One markdown row."""
     if "refused" in row:
-        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 15
+        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 16
     surfaces = row.get("surfaces", {})
     both = " / ".join(f"{surfaces[name][0]:.2f}, {surfaces[name][1]:.2f}" if name in surfaces else "-"
                       for name in ("EPICARDIAL", "LV_ENDOCARDIAL", "RV_ENDOCARDIAL"))
@@ -115,19 +115,21 @@ def line(row: dict) -> str:
     flags = "; ".join(text.split(":")[0][:60] for text in row["warnings"])
     peer = f"{row['bivme_wall_mean']:.2f} / {row['bivme_wall_p95']:.2f}" if "bivme_wall_mean" in row else "-"
     return (f"| {row['name']} | {row['cells']:,} | {'yes' if row['valid'] else 'NO'} | {row['components']} | "
-            f"{row['boundaries']} | {row['euler']} | {row['wall_mean']:.2f} / {row['wall_p95']:.2f} / "
+            f"{row['boundaries']} | {row['euler']} | {row['lips_mm']:.0f} | {row['wall_mean']:.2f} / "
+            f"{row['wall_p95']:.2f} / "
             f"{row['wall_max']:.1f} | {peer} | {valves} | {both} | {row.get('to_bivme', np.nan):.2f} / "
             f"{row.get('from_bivme', np.nan):.2f} | {row.get('to_bivme_deep', np.nan):.2f} | "
             f"{row.get('to_bivme_near_data', np.nan):.2f} | "
             f"{row['myocardium_ml']:.0f} | {volumes} | {row['seconds']:.1f} | {flags} |")
 
 
-HEADER = ("| case | cells | valid | parts | boundaries | Euler | wall guide points mean / 95 % / max (mm) | "
+HEADER = ("| case | cells | valid | parts | boundaries | Euler | hole lips (mm) | "
+          "wall guide points mean / 95 % / max (mm) | "
           "biv-me's fit: wall guide points mean / 95 % (mm) | valves MV / TV / AV / PV max (mm) | "
           "biv-me EPI / LV / RV: ref->mesh, mesh->ref (mm) | mesh->biv-me / biv-me->mesh, mean of 3 (mm) | "
           "mesh->biv-me more than 10 mm below the base (mm) | the same within 1 mm of a wall guide point (mm) | "
           "myocardium (ml) | "
-          "LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 17 + "|")
+          "LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 18 + "|")
 
 
 def main(argv=None) -> None:

@@ -9,7 +9,9 @@ own fitted surfaces of the same frame (``benchmarks/cine.py``).
   surfaces: at the data itself the two fits can disagree no less than biv-me's own distance from it;
 - the cavity volumes, each cavity's surface closed across its openings by a fan from each rim's centroid (the
   mesh's cavity is closed where its endocardium meets the base; biv-me's at its valve rings);
-- topology: components, boundary surfaces, the boundary's Euler characteristic.
+- topology: components, boundary surfaces, the boundary's Euler characteristic, and how long the cavities'
+  endocardium meets the epicardium more than 4 mm (2 R) below the base (the lips of holes through a wall; 0 on a whole
+  heart).
 """
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ from bitemesh.core.steps.fidelity import distances_to_facets, facet_measures
 from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 from bitemesh.core.mesh.topology import connected_components
 from bitemesh.core.mesh.topology import boundary_facets
-from bitemesh.core.mesh.tags import enclosed_volume
+from bitemesh.core.mesh.tags import enclosed_volume, lips
+from bitemesh.core.sources.contours.cardiac import ENDOCARDIAL_TAGS, EPICARDIAL_TAGS
 
 #: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.
 REFERENCE_SURFACES = {"EPICARDIAL": ("EPI", "LV_EPI", "RV_EPI"), "LV_ENDOCARDIAL": ("LV_ENDO", "ENDO"),
@@ -85,6 +88,9 @@ def measure_heart(mesh, points, labels, reference: dict | None = None, below=Non
            "wall_max": float(distance[wall].max()),
            "labels": {label: (float(distance[labels == label].mean()), float(distance[labels == label].max()))
                       for label in np.unique(labels)}}
+    opening = lips(mesh, ENDOCARDIAL_TAGS["LV_ENDO"] + ENDOCARDIAL_TAGS["RV_ENDO"], EPICARDIAL_TAGS)
+    deep = below(mesh.points[opening].mean(axis=1)) > 4.0 if below is not None and len(opening) else slice(None)
+    row["lips_mm"] = float(np.linalg.norm(np.subtract(*mesh.points[opening[deep]].transpose(1, 0, 2)), axis=1).sum())
     for valve in VALVES:
         if (labels == valve).any():
             row[valve] = float(distance[labels == valve].max())

@@ -237,3 +237,19 @@ def cavity_volumes(mesh: Mesh, names=("LV_ENDO", "RV_ENDO")) -> dict:
             if len(facets):
                 volumes[name] = enclosed_volume(mesh.points, facets)
     return volumes
+
+
+def lips(mesh: Mesh, first, second) -> np.ndarray:
+    """(e, 2) the edges (point ids) where the boundary turns from a facet tagged with one of the names ``first`` to one
+    tagged with one of ``second``, the edge in no other facet: the lip of a hole through the wall between them (a
+    cavity's endocardium and the epicardium; an edge in four facets is a pinch, the wall there closed on both sides)."""
+    if mesh.facets is None:
+        return np.zeros((0, 2), np.int64)
+    side = np.zeros(len(mesh.facets), np.int64)
+    for value, names in ((1, first), (2, second)):
+        side[np.isin(mesh.facet_tags, [mesh.tag_names[name][0] for name in names if name in mesh.tag_names])] = value
+    edges = np.sort(np.concatenate([mesh.facets[:, [0, 1]], mesh.facets[:, [1, 2]], mesh.facets[:, [2, 0]]]), axis=1)
+    unique, inverse, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    sides = np.zeros((len(unique), 3), np.int64)
+    np.add.at(sides, (inverse.ravel(), np.tile(side, 3)), 1)
+    return unique[(counts == 2) & (sides[:, 1] == 1) & (sides[:, 2] == 1)]

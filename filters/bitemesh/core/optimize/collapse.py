@@ -7,8 +7,8 @@ on the two-cavity shell at 136,000 cells they left 2 poor cells of 5, against no
 
 A collapse is made only when every cell it makes is positive and its worst radius ratio beats the worst of the cells
 it replaces; when the cells around it stay a manifold with boundary with the same Euler characteristic, no cell
-twice and no interior node brought to the surface; and when it touches no node of another collapse in the same call
-(their checks stay independent).
+twice, no node but the one collapsed left in no cell and no interior node brought to the surface; and when it
+touches no node of another collapse in the same call (their checks stay independent).
 """
 from __future__ import annotations
 
@@ -84,7 +84,9 @@ def _best_collapse(points, cells, alive, quality, incidence, cell, boundary_edge
 
 def _still_manifold(cells, alive, incidence, nodes, changed, made, removed) -> bool:
     """Whether the alive cells around ``nodes`` (those of the cells around v and w) are still a manifold with
-    boundary with the same Euler characteristic, no cell twice and no interior node on the boundary, once
+    boundary with the same Euler characteristic, no cell twice, no node but v left in no cell (cine frame 6: a
+    boundary node whose cells all held the edge, after which every later state was invalid) and no interior node on
+    the boundary, once
     ``changed`` become ``made`` and ``removed`` go.  Only faces with a node in ``nodes`` are judged: all their
     cells are in this neighbourhood.  ``incidence`` may predate earlier collapses: none of them touched ``nodes``."""
     near = np.unique(incidence[nodes].indices)
@@ -92,6 +94,8 @@ def _still_manifold(cells, alive, incidence, nodes, changed, made, removed) -> b
     after = cells.copy()
     after[changed] = made
     after = after[np.setdiff1d(near, removed)]
+    if len(np.setdiff1d(cells[near], after)) > 1:   # a node besides v left in no cell
+        return False
     if euler_characteristic(after) != euler_characteristic(cells[near]):
         return False
     if len(unique_rows(np.sort(after, axis=1))[0]) != len(after):

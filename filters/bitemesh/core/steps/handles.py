@@ -22,6 +22,11 @@ from ..mesh.topology import CellComplex, boundary_facets, connected_components, 
 
 #: the six edges of a tetrahedron, as pairs of its vertex positions.
 TETRAHEDRON_EDGES = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))
+#: a cut or fill has at most this many cells: one across a handle up to four cells thick (THICK_DEPTH) and about 20
+#: cells (40 mm at R = 2 mm) wide.  A larger one runs along a wall instead of across a handle: biv-me patient1's
+#: frame 14 lost its RV free wall from the base to the apex to a cut of 1,300 cells (the RV cavity open along it,
+#: 63 ml against biv-me's 148), frame 9 to one of 641, where fills of 111 and 88 cells remove the same handles.
+MAX_CELLS = 400
 #: clusters tried at most, per handle found.
 TRIES_PER_HANDLE = 20
 #: a cut or fill reaches at most this many cells' size (the edge of a regular tetrahedron of the median volume)
@@ -142,7 +147,8 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
 
     A cluster reaches into the domain (a cut) or out of it (a fill) as far as the largest |f| at its cells'
     centroids; the shallower clusters are tried first, then the smaller, and none reaching farther than
-    ``max_depth`` cells' size (:data:`MAX_DEPTH`: a handle thicker is the data's, not the sampling's).  A cluster is
+    ``max_depth`` cells' size (:data:`MAX_DEPTH`: a handle thicker is the data's, not the sampling's) or larger
+    than :data:`MAX_CELLS` cells (a strip along a wall, not across a handle).  A cluster is
     kept when it raises the Euler characteristic (by one per handle it removes: a cut across two handles side by
     side removes both) and leaves the parts and the boundary surfaces as they were.
     The result may need the repair of :func:`bitemesh.core.steps.repair.repaired` (a cut can pinch the boundary).
@@ -168,7 +174,8 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     fill = ~keep & ~_grown_outside(growth_complex, cells, len(points), keep, value)
     cell_size = float(np.cbrt(6 * np.sqrt(2) * np.median(signed_measures(points, kept_cells))))
     candidates = [candidate for candidate in _clusters(points, cells, cut, value, fill=False)
-                  + _clusters(points, cells, fill, value, fill=True) if candidate[0] <= max_depth * cell_size]
+                  + _clusters(points, cells, fill, value, fill=True)
+                  if candidate[0] <= max_depth * cell_size and len(candidate[2]) <= MAX_CELLS]
     removed, parts_before, pieces_before = 0, parts.max() + 1, complex_.surface_pieces(keep)
     for _, _, members, is_fill in sorted(candidates, key=lambda candidate: candidate[:2])[:TRIES_PER_HANDLE * handles]:
         change = euler_change(complex_.incidence, cells, keep, members, is_fill)

@@ -93,6 +93,10 @@ CARDIAC_RADIUS = 2.0
 #: the walls, from an RV free wall (2 mm) to beyond hypertrophic LV walls (20 mm).
 MYOCARDIAL_VOLUME = (10.0, 800.0)
 WALL_THICKNESS = (1.5, 20.0)
+#: a heart mesh's tags of each cavity's endocardium (biventricular, LV-only) and of the epicardium (derived too):
+#: where they meet (:func:`~bitemesh.core.mesh.tags.lips`) a cavity opens beside the base.
+ENDOCARDIAL_TAGS = {"LV_ENDO": ("LV_ENDO", "ENDO"), "RV_ENDO": ("RV_ENDO",)}
+EPICARDIAL_TAGS = ("EPI", "LV_EPI", "RV_EPI")
 #: the least and the largest span (mm, the diagonal of the contours' bounding box) of a heart: a mouse heart is
 #: about 8 mm long, a horse's about 250 mm.
 SMALLEST_HEART, LARGEST_HEART = 5.0, 1000.0
