@@ -297,18 +297,17 @@ def register_slices(points, labels, slices, planes, surfaces: dict, gap_factor: 
     applied = {number: shift if number not in fixed and np.linalg.norm(shift) >= SMALLEST else np.zeros(2)
                for number, shift in shifts.items()}
     moved = {number: shift @ planes[number].axes for number, shift in applied.items() if shift.any()}
-    contradicted = _contradicted(planes, {key: value for key, value in contours.items() if key[0] in (stack or ())},
-                                 contours, applied, max(MISPLACED * typical, FAR))
+    contradicted = _contradicted(planes, contours, applied, max(MISPLACED * typical, FAR), set(stack or ()))
     return Registration(moved, tuple(sorted(fixed)), outliers, typical, contradicted)
 
 
-def _contradicted(planes, crossed: dict, contours: dict, shifts: dict, bound: float) -> dict:
+def _contradicted(planes, contours: dict, shifts: dict, bound: float, stack: set) -> dict:
     """(slice id, surface name) -> how many crossings lie beside that contour farther than ``bound``, for the
-    contours of ``crossed`` (the short-axis stack's: the long-axis views see the base and hold the heart's place)
-    that have any; ``contours`` those of :func:`_contours`, the slices moved by ``shifts``."""
+    contours (of :func:`_contours`, the slices moved by ``shifts``) on the slices of the short-axis ``stack`` that
+    have any (the long-axis views see the base and hold the heart's place)."""
     found: dict = {}
     for pair in _crossing_pairs(planes, contours):
-        if pair[0] not in crossed:
+        if pair[0][0] not in stack:
             continue
         for _, _, _, distance, _, _ in _crossing_terms(planes, contours, [pair], shifts):
             beyond = int((distance[np.isfinite(distance)] > bound).sum())
