@@ -325,6 +325,17 @@ def check_heart(mesh, function, radius: float, fidelity, *, scale: float = 1.0,
     return problems
 
 
+def opening_beside_base(mesh, below, depth: float, cavities=tuple(ENDOCARDIAL_TAGS)) -> float:
+    """How long (input units) the endocardium of ``cavities`` meets the epicardium more than ``depth`` below the base
+    (:func:`~bitemesh.core.mesh.tags.lips`: the rim of an opening that is not the base; 0 on a heart whose cavities
+    open through the base alone); ``mesh`` tagged, ``below`` (m, 3) -> (m,) the depth below its base."""
+    from ...mesh.tags import lips
+
+    rim = lips(mesh, [tag for cavity in cavities for tag in ENDOCARDIAL_TAGS[cavity]], EPICARDIAL_TAGS)
+    rim = rim[below(mesh.points[rim].mean(axis=1)) > depth] if len(rim) else rim
+    return float(np.linalg.norm(mesh.points[rim[:, 0]] - mesh.points[rim[:, 1]], axis=1).sum())
+
+
 def _volume_below(grid, base) -> float:
     """The volume (input units^3) of {f > 0} below the base, counted on the grid's nodes."""
     inside = np.flatnonzero(grid.values.reshape(-1) > 0)

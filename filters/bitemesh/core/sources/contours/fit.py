@@ -168,7 +168,9 @@ def labelled_implicit(points, labels, domain=None, base_plane="auto", *, slices=
     slices : (n,) int slice id per point (a GPFile's frameID), or None to find them
         (:func:`~bitemesh.core.sources.contours.slices.infer_slices`)
     slice_shifts : "auto" (for cardiac labels, every slice moved in its plane so that the contours of each surface meet
-        where the slices cross: :mod:`bitemesh.core.sources.contours.registration`; other labels as given) or "none"
+        where the slices cross: :mod:`bitemesh.core.sources.contours.registration`, and the points of a short-axis
+        contour the other slices contradict left out: :mod:`~bitemesh.core.sources.contours.contradicted`; other
+        labels as given) or "none"
     surfaces : dict name -> labels, default :func:`default_surfaces`
     outlets : dict surface name -> valve labels through which that cavity opens (see :data:`BIVME_OUTLETS`, the
         default for biv-me labels; {} for none)
