@@ -166,6 +166,19 @@ def test_a_systolic_frame_keeps_its_thin_rv_free_wall_whole(meshed):
     assert enclosed_volume(mesh.points, rv) >= 0.7 * enclosed_volume(vertices, triangles)
 
 
+@pytest.mark.parametrize("frame", [5, 15])
+def test_no_cavity_opens_through_its_wall_below_the_base(meshed, frame):
+    """Frames 5 and 15: the RV endocardium's fit runs up to 7 mm beyond the epicardium's over 5 ml (frame 5), and a
+    handle's cut ran from there to the base: the cavity opened through its free wall, its endocardium meeting the
+    epicardium along 278 and 202 mm of edges more than 4 mm below the base, valid, Euler 2, exit 0.  Below the base
+    a cavity is now closed by a wall min_wall thick however far its fit crosses the epicardium, and no cut that
+    removes a handle joins two surfaces: no endocardium meets the epicardium more than 2 R below the base along
+    more than 5 R (the lips of a hole a cell across)."""
+    result, _, _ = meshed(frame)
+    assert_valid_domain(result.mesh, euler=2, components=1)
+    assert opening_beside_base(result.mesh, result.function.base.below, 2 * result.radius) <= 5 * result.radius
+
+
 @pytest.mark.parametrize("size", [0.4, 0.1])
 def test_a_small_heart_meshes_at_its_own_scale(tmp_path, size):
     """Frame 0 shrunk to 0.4 of its size (a young child's heart, 178 ml -> 11 ml) and to 0.1 (a mouse's, 0.2 ml of

@@ -137,6 +137,9 @@ class Source:
         (:func:`~bitemesh.core.mesh.betti.check_topology`)
     locate : callable (indices into ``samples``) -> a sentence saying where those samples lie, with a hint that
         fits ("" when it cannot tell), for a refusal of samples far from the mesh; or None
+    surface_of : callable (f, (b, k) points) -> (b,) int, which of the data's surfaces gives the meshed f at each
+        point (-1: none, a heart's base), or None; a cut that removes a handle touches one of them at most (a cut
+        from a cavity to the epicardium would open the cavity through its wall)
     suspects : callable () -> what in the samples may make a mesh leave them, with a hint (outliers kept on
         request, given normals that disagree with their surface), said first in a refusal of samples far from the
         mesh ("" for nothing; asked only then); or None
@@ -162,6 +165,7 @@ class Source:
     locate: Optional[Callable[[np.ndarray], str]] = None
     one_fit: bool = False
     suspects: Optional[Callable[[], str]] = None
+    surface_of: Optional[Callable[[Callable, np.ndarray], np.ndarray]] = None
 
     @property
     def size(self) -> float:

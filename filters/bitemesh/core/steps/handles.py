@@ -17,7 +17,7 @@ import numpy as np
 
 from ..compiled import kernel
 from ..grid.sampled import ImplicitGrid
-from ..mesh.simplicial import signed_measures
+from ..mesh.simplicial import facet_corners, signed_measures
 from ..mesh.topology import CellComplex, boundary_facets, connected_components, euler_change, euler_characteristic
 
 #: the six edges of a tetrahedron, as pairs of its vertex positions.
@@ -142,7 +142,7 @@ def _take(cell, vertices, edges, facets, vertex_count, edge_count, facet_count, 
 
 
 def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex, keep: np.ndarray,
-                  max_depth: float = MAX_DEPTH):
+                  max_depth: float = MAX_DEPTH, surface_of=None):
     """``keep`` with the handles of the kept cells thinner than about 2 x ``max_depth`` cells cut or filled.
 
     A cluster reaches into the domain (a cut) or out of it (a fill) as far as the largest |f| at its cells'
@@ -150,13 +150,16 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     ``max_depth`` cells' size (:data:`MAX_DEPTH`: a handle thicker is the data's, not the sampling's) or larger
     than :data:`MAX_CELLS` cells (a strip along a wall, not across a handle).  A cluster is
     kept when it raises the Euler characteristic (by one per handle it removes: a cut across two handles side by
-    side removes both) and leaves the parts and the boundary surfaces as they were.
+    side removes both) and leaves the parts and the boundary surfaces as they were; with ``surface_of``, a cut
+    touches the boundary on one of the data's surfaces at most (:func:`_joins_surfaces`).
     The result may need the repair of :func:`bitemesh.core.steps.repair.repaired` (a cut can pinch the boundary).
 
     Parameters
     ----------
     grid : f on the grid I; points : (n, 3) float64 nodes; complex_ : the tables of every Delaunay cell (m, 4)
     keep : (m,) bool, the cells of a valid domain (a manifold boundary)
+    surface_of : callable (b, 3) points -> (b,) int, which of the data's surfaces gives f there (-1: none, the
+        base, which a cut may touch too), or None
 
     Returns
     -------
@@ -179,7 +182,9 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     removed, parts_before, pieces_before = 0, parts.max() + 1, complex_.surface_pieces(keep)
     for _, _, members, is_fill in sorted(candidates, key=lambda candidate: candidate[:2])[:TRIES_PER_HANDLE * handles]:
         change = euler_change(complex_.incidence, cells, keep, members, is_fill)
-        if not 1 <= change <= handles - removed:
+        opens_wall = not is_fill and surface_of is not None and _joins_surfaces(complex_, points, keep, members,
+                                                                                 surface_of)
+        if opens_wall or not 1 <= change <= handles - removed:
             continue
         trial = keep.copy()
         trial[members] = is_fill
@@ -189,6 +194,19 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
             if removed == handles:
                 break
     return keep, removed
+
+
+def _joins_surfaces(complex_: CellComplex, points: np.ndarray, keep: np.ndarray, members: np.ndarray,
+                    surface_of) -> bool:
+    """Whether the cells ``members`` touch the boundary of the kept cells on two of the data's surfaces besides the
+    base: cutting them would open a cavity through its wall (its endocardium turned into the epicardium along the
+    cut's rim, a hole in a heart's side) or two cavities into each other, not break a bridge across one."""
+    facet_ids = complex_.facet_ids[members]
+    on_boundary = complex_.facet_counts(keep)[facet_ids] == 1
+    cells, opposite = np.nonzero(on_boundary)
+    corners = complex_.cells[members][cells[:, None], facet_corners(4)[opposite]]
+    touched = np.unique(surface_of(points[corners].mean(axis=1)))
+    return np.count_nonzero(touched >= 0) > 1
 
 
 def _grown_inside(complex_: _Complex, n_points: int, keep: np.ndarray, value: np.ndarray,

@@ -206,11 +206,11 @@ def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, para
 
 
 def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
-                    progress: ProgressCallback = None) -> np.ndarray:
+                    progress: ProgressCallback = None, surface_of=None) -> np.ndarray:
     """``keep`` with its handles thinner than about two cells cut or filled, then those up to about four cells
     thick (a domain with no handle by nature), repaired (a repair can reopen a fill: then once more), and every
     enclosed void filled (a domain without handles has none: a spurious bubble of a fitted surface inside a wall);
-    what was done is logged."""
+    what was done is logged.  ``surface_of``: see :func:`~bitemesh.core.steps.handles.break_handles`."""
     points, cells = delaunay.points, delaunay.cells
     voids = enclosed_inside_voids(grid, delaunay, keep, every=True)
     if voids.any():
@@ -222,7 +222,7 @@ def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarra
         before, handles = keep, handle_count(cells[keep])
         for round_ in range(HANDLE_ROUNDS):
             report(progress, round_ / HANDLE_ROUNDS, "removing handles")
-            keep, removed = break_handles(grid, points, delaunay.complex, keep, depth)
+            keep, removed = break_handles(grid, points, delaunay.complex, keep, depth, surface_of)
             if not removed:
                 break
             keep = repaired(grid, delaunay, keep, parameters)
@@ -237,7 +237,7 @@ def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarra
 
 def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
                  parameters: SpuriousParameters = SpuriousParameters(),
-                 progress: ProgressCallback = None) -> Mesh:
+                 progress: ProgressCallback = None, surface_of=None) -> Mesh:
     """Keep the Delaunay cells of the domain and make it a valid one; with ``parameters.handles`` "remove" (3D),
     without handles too (:func:`bitemesh.core.steps.handles.break_handles`).
 
@@ -246,12 +246,14 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
     grid : the implicit function f on the grid I
     points : (n, k) float64, the nodes
     cells : (m, k + 1) int64, all Delaunay cells of the nodes, positively oriented
+    surface_of : which of the data's surfaces gives f where (see :func:`~bitemesh.core.steps.handles.break_handles`),
+        or None
 
     Returns
     -------
     The valid domain mesh; unused nodes are dropped.
     """
-    keep = _domain_cells(grid, points, cells, parameters, progress)
+    keep = _domain_cells(grid, points, cells, parameters, progress, surface_of)
     report(progress, 1.0, "repairing the boundary")
     mesh = compact(points, cells[keep])   # the tables of all Delaunay cells (about 10x the cells' bytes) are gone
     problems = check_valid_domain(mesh)
@@ -262,7 +264,7 @@ def carve_domain(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray,
 
 
 def _domain_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, parameters: SpuriousParameters,
-                  progress: ProgressCallback) -> np.ndarray:
+                  progress: ProgressCallback, surface_of) -> np.ndarray:
     """(m,) bool, the Delaunay cells of the valid domain: inside f > 0 (and the voids they enclose), repaired,
     without handles when asked."""
     keep = ~outside_cells(grid, points, cells, parameters.threshold)
@@ -270,7 +272,7 @@ def _domain_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, par
     keep |= enclosed_inside_voids(grid, delaunay, keep)
     keep = repaired(grid, delaunay, keep, parameters, sub_progress(progress, 0.0, 0.8))
     if parameters.handles == "remove" and cells.shape[1] == 4:
-        keep = without_handles(grid, delaunay, keep, parameters, sub_progress(progress, 0.8, 1.0))
+        keep = without_handles(grid, delaunay, keep, parameters, sub_progress(progress, 0.8, 1.0), surface_of)
     return keep
 
 

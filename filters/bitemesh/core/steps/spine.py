@@ -106,7 +106,8 @@ def timed(seconds: dict, name: str):
 def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: SpuriousParameters = SpuriousParameters(),
                    progress: ProgressCallback = None, seconds: dict | None = None,
                    optimize: OptimizeParameters = OptimizeParameters(),
-                   tagging: Callable[[Mesh], Mesh] = component_tags, interfaces=None) -> MeshingResult:
+                   tagging: Callable[[Mesh], Mesh] = component_tags, interfaces=None,
+                   surface_of=None) -> MeshingResult:
     """Mesh {f > 0} of a sampled implicit function; R is ``biting.radius`` or chosen for ``biting.cells`` cells.
 
     Any dimension k = 2..5 (a k-D grid: :class:`~bitemesh.core.grid.sampled.FunctionGrid`).  With
@@ -115,7 +116,8 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
     mesh before its quality is measured (it may move interface nodes, :mod:`bitemesh.core.mesh.interfaces`); by
     default one tag per boundary component.
     ``interfaces`` (a :class:`~bitemesh.core.mesh.interfaces.LabelRegions`, or None): regions whose interfaces the
-    biting samples like the boundary.
+    biting samples like the boundary.  ``surface_of`` (or None): which of the data's surfaces gives f where; a cut
+    that removes a handle touches one of them at most (:func:`~bitemesh.core.steps.handles.break_handles`).
     """
     seconds = {} if seconds is None else seconds
     radius = biting.radius or radius_on_grid(grid, biting.aimed_cells)
@@ -131,7 +133,8 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
         cells = delaunay(nodes)
     report(progress, 0.45, "delaunay")
     with timed(seconds, "spurious cells"):
-        mesh = carve_domain(grid, nodes, cells, spurious, progress=sub_progress(progress, 0.45, carved))
+        mesh = carve_domain(grid, nodes, cells, spurious, progress=sub_progress(progress, 0.45, carved),
+                            surface_of=surface_of)
     del cells   # all of Delaunay's cells (32 bytes each): not held through the optimizer
     if optimize is not None:
         with timed(seconds, "optimize"):
@@ -349,8 +352,9 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
         grid, radius, function, notes = grid_for_source(source, implicit, biting, sub_progress(progress, 0.0, 0.3))
     fixed = BitingParameters(radius=radius, cells=biting.cells, order=biting.order, seed=biting.seed)
     tagging = component_tags if source.tagging is None else partial(source.tagging, function=function)
+    surface_of = None if source.surface_of is None else partial(source.surface_of, function)
     result = mesh_from_grid(grid, fixed, spurious, sub_progress(progress, 0.3, 0.97), seconds, optimize, tagging,
-                            source.interfaces)
+                            source.interfaces, surface_of)
     frame = source.frame
     measured, inside = None, grid.inside()
     if source.samples is not None:

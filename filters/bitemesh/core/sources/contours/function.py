@@ -10,10 +10,13 @@ from scipy.spatial import cKDTree
 from ...errors import check_number, check_points
 from ...implicit.samples import contour_gap
 from ...mesh.topology import boundary_facets
+from .cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, LV_DOMAIN
 from .csg import evaluate_domain
 
 #: the name the base takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
 BASE = "BASE"
+#: the rim of the cavities' openings reaches this many thinnest walls below the base (:meth:`data_surface`).
+BASE_RIM = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,6 +59,15 @@ class LabelledImplicit:
     notes: tuple = ()
 
     @property
+    def is_myocardium(self) -> bool:
+        """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV): with a base, a ball, its
+        cavities open through it alone (a cavity's fit crossing the epicardium below it is closed by a wall, see
+        :func:`~bitemesh.core.sources.contours.csg.evaluate_domain`; handles = "auto" removes the handles of its
+        mesh and fills its voids); without one, its cavities are closed voids."""
+        return (set(self.surfaces) <= set(BIVME_SURFACES) | set(self.derived)
+                and self.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
+
+    @property
     def names(self) -> tuple:
         """The surface names, then :data:`BASE`: the values of :meth:`active_surface`."""
         return (*self.surfaces, BASE)
@@ -63,7 +75,7 @@ class LabelledImplicit:
     def _evaluate(self, x):
         x = check_points(x, "x", dims=(3,))
         value, source = evaluate_domain(self.tree, {name: function(x) for name, function in self.surfaces.items()},
-                                        self.min_wall)
+                                        self.min_wall, closed=self.base is not None and self.is_myocardium)
         if self.base is not None:
             below = self.base.below(x)
             cut = below < value
@@ -77,6 +89,16 @@ class LabelledImplicit:
     def active_surface(self, x) -> np.ndarray:
         """(m,) index into :attr:`names` of the surface (or the base) whose implicit gives f at each point."""
         return self._evaluate(x)[1]
+
+    def data_surface(self, x) -> np.ndarray:
+        """(m,) index into :attr:`surfaces` of the surface whose implicit gives f at (m, 3) points; -1 where the
+        base does or within :data:`BASE_RIM` x min_wall below it (the rim of the cavities' openings: a notch there
+        is part of them)."""
+        index = self.active_surface(x)
+        rim = index == len(self.surfaces)
+        if self.base is not None:
+            rim |= self.base.below(x) < BASE_RIM * self.min_wall
+        return np.where(rim, -1, index)
 
     def with_min_wall(self, min_wall: float) -> LabelledImplicit:
         """The same surfaces, with another thinnest wall (input units)."""

@@ -19,7 +19,7 @@ from ...progress import ProgressCallback, sub_progress
 from ..source import Frame, Source
 from ...steps.spine import MeshingResult, mesh_source, timed
 from ...mesh.tags import DOMAIN, MYOCARDIUM, renamed_tags, surface_tags
-from .cardiac import (BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, CARDIAC_RADIUS, DERIVED_EPI_TAGS, LV_DOMAIN, LV_REGION,
+from .cardiac import (BIVME_SURFACES, CARDIAC_RADIUS, DERIVED_EPI_TAGS, LV_DOMAIN, LV_REGION,
                       LV_TAGS, MIN_WALL, canonical_labels, check_heart, check_millimetres, heart_scale,
                       is_bivme)
 from .fit import labelled_implicit
@@ -52,14 +52,6 @@ def two_cells_across(radius: float) -> float:
 LabelledMeshingResult = MeshingResult
 
 
-def is_myocardium(function: LabelledImplicit) -> bool:
-    """Whether the domain is a biv-me heart's myocardium (both ventricles, or the LV): with a base, a ball, its
-    cavities open through it (handles = "auto" removes the handles of its mesh and fills its voids); without one,
-    its cavities are closed voids."""
-    return (set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
-            and function.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
-
-
 def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
     """``mesh`` of ``function``'s domain (its frame) with every boundary triangle tagged by the surface it lies on
     (:func:`~bitemesh.core.mesh.tags.surface_tags`: tag = position in ``function.names`` + 1; biv-me EPI 1, LV_ENDO 2,
@@ -73,10 +65,10 @@ def labelled_tags(mesh: Mesh, function: LabelledImplicit) -> Mesh:
     cap for all its valves; splitting that cap by valve is not done.
     """
     tagged = surface_tags(mesh, function.active_surface, function.names,
-                          MYOCARDIUM if is_myocardium(function) else DOMAIN)
-    if is_myocardium(function) and function.expression == LV_DOMAIN:
+                          MYOCARDIUM if function.is_myocardium else DOMAIN)
+    if function.is_myocardium and function.expression == LV_DOMAIN:
         return renamed_tags(tagged, LV_TAGS, LV_REGION)
-    if is_myocardium(function) and "RV_EPI" in function.derived:
+    if function.is_myocardium and "RV_EPI" in function.derived:
         return renamed_tags(tagged, DERIVED_EPI_TAGS, 1)
     return tagged
 
@@ -127,7 +119,7 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
     for note in function.notes:
         logger.info(note)
     cardiac = set(function.surfaces) <= set(BIVME_SURFACES) | set(function.derived)
-    ball = is_myocardium(function) and function.base is not None   # no handle, no void
+    ball = function.is_myocardium and function.base is not None   # no handle, no void
     size = f" (a heart {scale:.2g} the size of an adult's, meshed as one: R and every wall with it)" if scale < 1 \
         else ""
     return Source(function, lower, upper, frame, samples=function.surface_samples(),
@@ -138,7 +130,7 @@ def labelled_source(points, labels, *, domain=None, base_plane="auto", slices=No
                   notes=function.notes, radius=CARDIAC_RADIUS if cardiac else None,
                   radius_note=f"cardiac contours: R = {CARDIAC_RADIUS * scale:.3g} mm{size} (give radius or cells "
                   "for another size)" if cardiac else "", handles="remove" if ball else "keep",
-                  tagging=labelled_tags, locate=function.locate)
+                  tagging=labelled_tags, locate=function.locate, surface_of=LabelledImplicit.data_surface)
 
 
 #: the options of :func:`labelled_implicit` that are lengths (input units).
@@ -193,14 +185,14 @@ def run_labelled(points, labels, *, domain=None, base_plane="auto", slices=None,
     scale = source.frame.scale
     result = replace(result, function=result.function.mapped(scale, source.frame.shift))
     wall = thinnest_wall(result.radius / scale) * scale
-    if min_wall is None and wall > MIN_WALL * scale and is_myocardium(source.function):
+    if min_wall is None and wall > MIN_WALL * scale and source.function.is_myocardium:
         note = (f"at R = {result.radius:.3g} the thinnest wall kept is {wall:.3g} (about a cell): walls traced "
                 f"thinner (an RV free wall, 2 to 5 mm in an adult) are that thick in the mesh, and the myocardium "
                 f"larger than the contours' own; for walls as traced give radius <= "
                 f"{MIN_WALL * scale / WALL_PER_RADIUS:.3g} (or min_wall down to {MIN_WALL * scale:.3g})")
         logger.info(note)
         result = replace(result, notes=result.notes + (note,))
-    if is_myocardium(source.function):
+    if source.function.is_myocardium:
         with timed(seconds, "plausibility"):
             check_heart(result.mesh, result.function, result.radius, result.fidelity, scale=scale,
                         allow_implausible=allow_implausible)
