@@ -29,7 +29,10 @@ from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_val
 from bitemesh.core.mesh.topology import connected_components
 from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.mesh.tags import enclosed_volume
-from bitemesh.core.sources.contours.cardiac import ENDOCARDIAL_TAGS, EPICARDIAL_TAGS, opening_beside_base
+from bitemesh.core.sources.contours.cardiac import (CARDIAC_RADIUS, ENDOCARDIAL_TAGS, EPICARDIAL_TAGS,
+                                                    opening_beside_base)
+from bitemesh.core.sources.contours.function import BASE_RIM
+from bitemesh.core.sources.contours.run import thinnest_wall
 
 #: biv-me's fitted surfaces (patient1_<NAME>_<frame>.vtk) and the mesh tags that correspond to each.
 REFERENCE_SURFACES = {"EPICARDIAL": EPICARDIAL_TAGS, "LV_ENDOCARDIAL": ENDOCARDIAL_TAGS["LV_ENDO"],
@@ -41,9 +44,11 @@ VALVES = ("MITRAL_VALVE", "TRICUSPID_VALVE", "AORTA_VALVE", "PULMONARY_VALVE")
 #: biv-me's template shape lies 1.3-2.9 mm from them (the mesh 0.2-0.5 mm; patient1, frame 0), so the surfaces are
 #: compared below it too.
 BASAL_BAND = 10.0
-#: mm (2 R) below the base: an opening of a cavity deeper than this is no part of its opening through the base (within
-#: it the wall's top meets the base cap in a knife edge here and there: frame 0, 55 mm of the LV's, 85 of the RV's).
-OPENING_DEPTH = 4.0
+#: mm below the base: an opening of a cavity deeper than this is no part of its opening through the base.  Above it lie
+#: the rim of the openings (BASE_RIM thinnest walls, 5 mm at R = 2 mm: a cavity's fit may run through the
+#: epicardium's there and a handle's cut may notch it; the wall's top meets the base cap in a knife edge here and
+#: there) and a cell.
+OPENING_DEPTH = BASE_RIM * thinnest_wall(CARDIAC_RADIUS) + CARDIAC_RADIUS
 #: mm: the mesh's facets this near a wall guide point are where the data holds the surface; their distance to biv-me's
 #: surfaces is what the two fits disagree on at the data itself.
 NEAR_DATA = 1.0

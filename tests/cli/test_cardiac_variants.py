@@ -103,17 +103,8 @@ def inside_mesh(mesh, point) -> bool:
 #: still (benchmarks/bivme.py --variants meshes every one)
 MESHED = [name for name in VARIANTS if name not in ("shipped", "denser 6x", "sliceID header, frame 1",
                                                      "no SAX/LAX prefix")]
-#: the shipped frame's contours 4 x denser keep a tunnel through the RV free wall that no cut or fill of at most
-#: handles.MAX_CELLS cells removes (the one fill is 2.1 cells deep, beyond the second pass's reach); the cut of 890
-#: cells that removed it before opened the RV along a slit 64 mm deep (1,484 mm of lips): a wrong mesh with Euler
-#: characteristic 2.  Now the handle is kept and warned about; strict, so that the fix shows.
-KEEPS_A_HANDLE = pytest.mark.xfail(strict=True, reason="a tunnel through the RV free wall that no cut or fill of "
-                                   "at most 400 cells removes (the 890-cell cut before was a slit)")
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [pytest.param(name, marks=KEEPS_A_HANDLE) if name == "denser 4x" else name
-                                  for name in MESHED])
+@pytest.mark.parametrize("name", MESHED)
 def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart):
     path = variant_file(shipped(shared_data), name, tmp_path)
     points, labels, slices = read_labelled_points(path)

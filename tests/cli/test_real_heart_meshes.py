@@ -17,6 +17,7 @@ from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.mesh.tags import enclosed_volume
 from bitemesh.core.sources.contours.cardiac import opening_beside_base
+from bitemesh.core.sources.contours.function import BASE_RIM
 from bitemesh.io import read_labelled_points
 from bitemesh.core.sources.contours.cardiac import heart_scale
 from tests.cardiac_variants import class_file, read_frame, read_surface, write_gpfile
@@ -170,13 +171,15 @@ def test_a_systolic_frame_keeps_its_thin_rv_free_wall_whole(meshed):
 def test_no_cavity_opens_through_its_wall_below_the_base(meshed, frame):
     """Frames 5 and 15: the RV endocardium's fit runs up to 7 mm beyond the epicardium's over 5 ml (frame 5), and a
     handle's cut ran from there to the base: the cavity opened through its free wall, its endocardium meeting the
-    epicardium along 278 and 202 mm of edges more than 4 mm below the base, valid, Euler 2, exit 0.  Below the base
-    a cavity is now closed by a wall min_wall thick however far its fit crosses the epicardium, and no cut that
-    removes a handle joins two surfaces: no endocardium meets the epicardium more than 2 R below the base along
-    more than 5 R (the lips of a hole a cell across)."""
+    epicardium along 278 and 202 mm of edges more than 4 mm below the base, valid, Euler 2, exit 0.  Below the rim
+    of the cavities' openings (BASE_RIM thinnest walls) a cavity is now closed by a wall min_wall thick however far
+    its fit crosses the epicardium, and no cut that removes a handle joins two surfaces: no endocardium meets the
+    epicardium more than the rim and a cell below the base along more than 5 R (the lips of a hole a cell across)."""
     result, _, _ = meshed(frame)
     assert_valid_domain(result.mesh, euler=2, components=1)
-    assert opening_beside_base(result.mesh, result.function.base.below, 2 * result.radius) <= 5 * result.radius
+    function = result.function
+    below_rim = BASE_RIM * function.min_wall + result.radius
+    assert opening_beside_base(result.mesh, function.base.below, below_rim) <= 5 * result.radius
 
 
 @pytest.mark.parametrize("size", [0.4, 0.1])

@@ -220,7 +220,7 @@ def test_csg_by_min_and_max_and_the_thinnest_wall():
     value, source = evaluate_domain(tree, values, min_wall=1.0)
     assert value.tolist() == [2.0, -1.0, -1.0, 0.25, -1.5] and source.tolist() == [1, 1, 0, 1, 1]
     # closed (a heart below its base): the layer stays however far B reaches (point 4: 2.5 beyond A)
-    value, _ = evaluate_domain(tree, values, min_wall=1.0, closed=True)
+    value, _ = evaluate_domain(tree, values, min_wall=1.0, closed=np.inf)
     assert value.tolist() == [2.0, 0.0, -1.0, 0.25, 0.5]
     assert evaluate_domain(parse_domain("A + B", values), values)[0].tolist() == [5.0, 3.0, -1.0, 1.0, 3.0]
     assert evaluate_domain(parse_domain("A & B", values), values)[0].tolist() == [-2.0, 1.0, -4.0, 0.75, 0.5]

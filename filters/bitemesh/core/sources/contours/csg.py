@@ -102,7 +102,7 @@ def domain_names(tree) -> list:
     return list(dict.fromkeys(domain_names(tree[1]) + domain_names(tree[2])))
 
 
-def evaluate_domain(tree, values: dict, min_wall: float = 0.0, closed: bool = False):
+def evaluate_domain(tree, values: dict, min_wall: float = 0.0, closed=0.0):
     """The CSG value of a parsed domain and, per point, the index (into ``values``' keys) of the surface giving it.
 
     ``A + B = max(f_A, f_B)``, ``A & B = min(f_A, f_B)``, ``A - B = min(f_A, -f_B)``, and with ``min_wall`` = t > 0
@@ -110,11 +110,11 @@ def evaluate_domain(tree, values: dict, min_wall: float = 0.0, closed: bool = Fa
     domain where B reaches less than t beyond A's boundary (f_B - f_A < t, f_B - f_A being about how far B's
     boundary lies beyond A's).  Where two independently interpolated surfaces (a thin RV free wall's epicardium
     and endocardium) cross between slices, the wall keeps the thickness t instead of opening in a hole; where B
-    leaves A by more, nothing is added, unless ``closed`` (a heart below its base, where a cavity never opens
-    through its wall: the base opens it), which keeps the shell however far B reaches.  The shell's inner boundary
-    is the offset of A's, attributed to B (the cavity's wall).  A node ``("grow", name, t)`` (built by
-    :func:`labelled_implicit`, not parsed) is f_name + t: the region grown by t (f_name about a signed distance; t
-    None: ``min_wall``).
+    leaves A by more, nothing is added.  ``closed`` (a float or (m,) floats >= 0, inf allowed) keeps the shell
+    where B reaches up to t + closed beyond A (a heart below its base, where a cavity never opens through its wall:
+    the base opens it).  The shell's inner boundary is the offset of A's, attributed to B (the cavity's wall).  A
+    node ``("grow", name, t)`` (built by :func:`labelled_implicit`, not parsed) is f_name + t: the region grown by t
+    (f_name about a signed distance; t None: ``min_wall``).
     """
     names = list(values)
 
@@ -128,7 +128,7 @@ def evaluate_domain(tree, values: dict, min_wall: float = 0.0, closed: bool = Fa
         if node[0] == "-":
             right = -right
             if min_wall > 0:   # right is -f_B here
-                shell = min_wall - left if closed else np.minimum(min_wall - left, min_wall + left + right)
+                shell = np.minimum(min_wall - left, min_wall + closed + left + right)
                 right = np.maximum(right, shell)
         take_right = right > left if node[0] == "+" else right < left
         return np.where(take_right, right, left), np.where(take_right, right_source, left_source)
