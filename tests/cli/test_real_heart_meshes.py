@@ -17,9 +17,10 @@ from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.mesh.tags import enclosed_volume
 from bitemesh.core.sources.contours.cardiac import opening_beside_base
-from bitemesh.core.sources.contours.function import BASE_RIM
 from bitemesh.io import read_labelled_points
 from bitemesh.core.sources.contours.cardiac import heart_scale
+from bitemesh.core.sources.contours import function as function_module
+from bitemesh.core.errors import MeshingError
 from tests.cardiac_variants import class_file, read_frame, read_surface, write_gpfile
 from tests.conftest import DATA
 from tests.meshcheck import assert_valid_domain
@@ -178,8 +179,21 @@ def test_no_cavity_opens_through_its_wall_below_the_base(meshed, frame):
     result, _, _ = meshed(frame)
     assert_valid_domain(result.mesh, euler=2, components=1)
     function = result.function
-    below_rim = BASE_RIM * function.min_wall + result.radius
-    assert opening_beside_base(result.mesh, function.base.below, below_rim) <= 5 * result.radius
+    assert opening_beside_base(result.mesh, function.base.below, function.rim + result.radius) <= 5 * result.radius
+
+
+def test_a_cavity_open_through_its_wall_is_refused_naming_where(monkeypatch):
+    """The check behind the test above, on the case it was written for: frame 5 meshed as before the cavities were
+    closed below the rim (function.CLOSING 0: the RV endocardium's fit runs through the epicardium's, open) is
+    refused, naming the cavity, the length of its lips, where and how deep, and the contours to check."""
+    if not (CINE / "GPFile_005.txt").is_file():
+        pytest.skip(f"no biv-me cine in {CINE}")
+    monkeypatch.setattr(function_module, "CLOSING", 0.0)
+    with pytest.raises(MeshingError, match=r"the RV_ENDO cavity opens through its wall beside the base: its "
+                                           r"endocardium meets the epicardium along \d+ mm more than 7.0 mm below the "
+                                           r"base, around \(.*\), down to \d+ mm \(allowed 20 mm, 10 R\); check the "
+                                           r"RV_ENDO and epicardial contours"):
+        mesh(CINE / "GPFile_005.txt")
 
 
 @pytest.mark.parametrize("size", [0.4, 0.1])

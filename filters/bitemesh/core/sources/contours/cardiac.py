@@ -93,6 +93,10 @@ CARDIAC_RADIUS = 2.0
 #: the walls, from an RV free wall (2 mm) to beyond hypertrophic LV walls (20 mm).
 MYOCARDIAL_VOLUME = (10.0, 800.0)
 WALL_THICKNESS = (1.5, 20.0)
+#: how long (in R) a cavity's endocardium may meet the epicardium below the rim of its opening (check_heart): a hole
+#: about three cells across (its rim pi x 3 R).  On biv-me patient1's cine the most is 4.5 R, on every class of
+#: variation 6 R; the cavities opened through their walls before were 25-140 R.
+OPENING = 10.0
 #: a heart mesh's tags of each cavity's endocardium (biventricular, LV-only) and of the epicardium (derived too):
 #: where they meet (:func:`~bitemesh.core.mesh.tags.lips`) a cavity opens beside the base.
 ENDOCARDIAL_TAGS = {"LV_ENDO": ("LV_ENDO", "ENDO"), "RV_ENDO": ("RV_ENDO",)}
@@ -255,6 +259,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, scale: float = 1.0,
       :func:`heart_scale`);
     - the guide points near the boundary: mean <= 0.5 x noise + R / 4 and 95th percentile <= noise + R (the
       tracing noise, and a linear boundary of edges R);
+    - no cavity open through its wall below the base (:data:`OPENING`);
     - and, as a warning only, a boundary of genus 0 (a myocardium open at the base has no handle).
 
     Parameters
@@ -302,6 +307,8 @@ def check_heart(mesh, function, radius: float, fidelity, *, scale: float = 1.0,
     low, high = WALL_THICKNESS
     if not low * scale <= thickness <= high:
         problems.append(f"the mean wall thickness {thickness:.2g} mm is outside [{low * scale:.2g}, {high:g}] mm")
+    if function.base is not None and mesh.facets is not None:
+        problems += _openings_beside_base(mesh, function, radius)
     euler = euler_characteristic(facets)
     handles = (2 * count_boundary_components(mesh) - euler) // 2
     if handles > 0:
@@ -325,15 +332,41 @@ def check_heart(mesh, function, radius: float, fidelity, *, scale: float = 1.0,
     return problems
 
 
+def _openings_beside_base(mesh, function, radius: float) -> list:
+    """A problem for each cavity whose endocardium meets the epicardium more than the rim of the openings and a cell
+    below the base along more than :data:`OPENING` x R: where, how long, how deep."""
+    depth = function.rim + radius
+    problems = []
+    for name in ENDOCARDIAL_TAGS:
+        rim = opening_lips(mesh, function.base.below, depth, (name,))
+        length = float(np.linalg.norm(mesh.points[rim[:, 0]] - mesh.points[rim[:, 1]], axis=1).sum())
+        if length > OPENING * radius:
+            ends = mesh.points[rim].reshape(-1, 3)
+            centre = ", ".join(f"{value:.1f}" for value in ends.mean(axis=0))
+            problems.append(
+                f"the {name} cavity opens through its wall beside the base: its endocardium meets the epicardium "
+                f"along {length:.0f} mm more than {depth:.1f} mm below the base, around ({centre}), down to "
+                f"{function.base.below(ends).max():.0f} mm (allowed {OPENING * radius:.0f} mm, {OPENING:g} R); check "
+                f"the {name} and epicardial contours near there (a contour of the wrong surface, or slices of another "
+                "breath-hold, make the cavity's surface run through the epicardium's)")
+    return problems
+
+
 def opening_beside_base(mesh, below, depth: float, cavities=tuple(ENDOCARDIAL_TAGS)) -> float:
     """How long (input units) the endocardium of ``cavities`` meets the epicardium more than ``depth`` below the base
-    (:func:`~bitemesh.core.mesh.tags.lips`: the rim of an opening that is not the base; 0 on a heart whose cavities
-    open through the base alone); ``mesh`` tagged, ``below`` (m, 3) -> (m,) the depth below its base."""
+    (:func:`opening_lips`); 0 on a heart whose cavities open through the base alone."""
+    rim = opening_lips(mesh, below, depth, cavities)
+    return float(np.linalg.norm(mesh.points[rim[:, 0]] - mesh.points[rim[:, 1]], axis=1).sum())
+
+
+def opening_lips(mesh, below, depth: float, cavities=tuple(ENDOCARDIAL_TAGS)) -> np.ndarray:
+    """(e, 2) the edges (point ids) where the endocardium of ``cavities`` meets the epicardium more than ``depth``
+    below the base (:func:`~bitemesh.core.mesh.tags.lips`: the rim of an opening that is not the base); ``mesh``
+    tagged, ``below`` (m, 3) -> (m,) the depth below its base."""
     from ...mesh.tags import lips
 
     rim = lips(mesh, [tag for cavity in cavities for tag in ENDOCARDIAL_TAGS[cavity]], EPICARDIAL_TAGS)
-    rim = rim[below(mesh.points[rim].mean(axis=1)) > depth] if len(rim) else rim
-    return float(np.linalg.norm(mesh.points[rim[:, 0]] - mesh.points[rim[:, 1]], axis=1).sum())
+    return rim[below(mesh.points[rim].mean(axis=1)) > depth] if len(rim) else rim
 
 
 def _volume_below(grid, base) -> float:

@@ -73,6 +73,12 @@ class LabelledImplicit:
                 and self.expression in (BIVME_DEFAULT_DOMAIN, LV_DOMAIN))
 
     @property
+    def rim(self) -> float:
+        """How far below the base (input units) the rim of the cavities' openings reaches: :data:`BASE_RIM` x
+        min_wall."""
+        return BASE_RIM * self.min_wall
+
+    @property
     def names(self) -> tuple:
         """The surface names, then :data:`BASE`: the values of :meth:`active_surface`."""
         return (*self.surfaces, BASE)
@@ -81,7 +87,7 @@ class LabelledImplicit:
         x = check_points(x, "x", dims=(3,))
         below = None if self.base is None else self.base.below(x)
         closed = 0.0 if below is None or not self.is_myocardium else \
-            np.maximum(below - BASE_RIM * self.min_wall, 0) * CLOSING
+            np.maximum(below - self.rim, 0) * CLOSING
         value, source = evaluate_domain(self.tree, {name: function(x) for name, function in self.surfaces.items()},
                                         self.min_wall, closed)
         if below is not None:
@@ -104,7 +110,7 @@ class LabelledImplicit:
         index = self.active_surface(x)
         rim = index == len(self.surfaces)
         if self.base is not None:
-            rim |= self.base.below(x) < BASE_RIM * self.min_wall
+            rim |= self.base.below(x) < self.rim
         return np.where(rim, -1, index)
 
     def with_min_wall(self, min_wall: float) -> LabelledImplicit:
