@@ -248,6 +248,27 @@ PLAN = ("Radius", "Myocardium", "SampleNoise", "SampleGap", "OneFit")
 #: a point array of the implicit image, 1 where the boundary near a node is made by the method rather than the
 #: data (a heart's base, a derived surface), left out of the fidelity's boundary-to-samples measure.
 UNSAMPLED_ARRAY = "Unsampled"
+#: a point array of the implicit image: which of the data's surfaces gives f near each node (-1: none, the base),
+#: so that the handle repair cuts no wall from one surface to another (labelled contours).
+SURFACE_ARRAY = "DataSurface"
+
+
+def attach_surfaces(image, surfaces) -> None:
+    """Put which of the data's surfaces gives f at each node (an ImplicitGrid of ``image``'s layout, -1 for none)
+    on ``image`` as a point array (:data:`SURFACE_ARRAY`), for the handle repair; nothing for None."""
+    if surfaces is not None:
+        array = numpy_support.numpy_to_vtk(np.ascontiguousarray(surfaces.values.ravel(order="F")), deep=True)
+        array.SetName(SURFACE_ARRAY)
+        image.GetPointData().AddArray(array)
+
+
+def attached_surfaces(image):
+    """callable (m, k) points -> (m,) int, the surface :func:`attach_surfaces` put at the node nearest each point, or
+    None when ``image`` carries none."""
+    if image is None or not image.GetPointData().GetArray(SURFACE_ARRAY):
+        return None
+    grid = image_to_grid(image, SURFACE_ARRAY)
+    return lambda points: grid.values[grid.nearest_nodes(points)].astype(np.int64)
 
 
 def attach_samples(image, samples: np.ndarray, noise: float, gap: float, unsampled=None) -> None:

@@ -30,9 +30,10 @@ from ..core.progress import sub_progress
 from ..core.mesh.quality import cell_quality, quality_histogram, quality_summary
 from .base import BitemeshAlgorithm, with_parameters
 from ..meshing import mesh as mesh_input, source as input_source
-from ..convert import (add_field_values, attach_plan, attach_samples, attached_samples, field_array, grid_to_image,
-                       image_to_grid, mesh_to_unstructured, nodes_to_polydata, plan_of, planar_as_2d,
-                       point_coordinates, tags_to_polydata, unstructured_to_mesh)
+from ..convert import (add_field_values, attach_plan, attach_samples, attach_surfaces, attached_samples,
+                       attached_surfaces, field_array, grid_to_image, image_to_grid, mesh_to_unstructured,
+                       nodes_to_polydata, plan_of, planar_as_2d, point_coordinates, tags_to_polydata,
+                       unstructured_to_mesh)
 
 
 #: the parameters of BitingParameters that lay out the grid I (R); the others are the BitingSampler's alone.
@@ -78,16 +79,17 @@ class PointsToImplicit(BitemeshAlgorithm):
         return found
 
     def grid_of(self, data):
-        """(f on the grid I in user coordinates, R in user units, the Source), sampled once per source and grid
-        options."""
+        """(f on the grid I in user coordinates, R in user units, the Source, the f meshed (local frame)), sampled
+        once per source and grid options."""
         from ..core.steps.spine import grid_for_source
         source = self.source_of(data)
         implicit, biting = self.parameters(ImplicitParameters), self.parameters(BitingParameters)
         key = (id(self._source[1]), self.parameters(LabelledParameters).min_wall, implicit, biting.radius,
                biting.cells)
         if self._grid is None or self._grid[0] != key:
-            grid, radius, _, _ = grid_for_source(source, implicit, biting, sub_progress(self.progress, 0.4, 1.0))
-            self._grid = (key, (source.frame.grid_to_user(grid), radius * source.frame.scale, source))
+            grid, radius, function, _ = grid_for_source(source, implicit, biting,
+                                                        sub_progress(self.progress, 0.4, 1.0))
+            self._grid = (key, (source.frame.grid_to_user(grid), radius * source.frame.scale, source, function))
         return self._grid[1]
 
     def RequestInformation(self, request, inInfo, outInfo):
@@ -106,9 +108,10 @@ class PointsToImplicit(BitemeshAlgorithm):
         return 1
 
     def execute(self, request, inInfo, outInfo):
-        grid, radius, source = self.grid_of(vtkDataSet.GetData(inInfo[0]))
+        grid, radius, source, function = self.grid_of(vtkDataSet.GetData(inInfo[0]))
         output = vtkImageData.GetData(outInfo)
         grid_to_image(grid, output)
+        attach_surfaces(output, source.surfaces_on(grid, function))
         # the plan: R, for a myocardium SpuriousCellFilter's Handles "auto" removes handles, and for one fit of
         # scattered points it refuses a fold of f that the mesh does not show
         attach_plan(output, Radius=radius, Myocardium=float(source.handles == "remove"), OneFit=float(source.one_fit))
@@ -205,7 +208,8 @@ class SpuriousCellFilter(MeshWithImplicitFilter):
         parameters = self.parameters(SpuriousParameters)
         if parameters.handles == "auto" and plan_of(vtkImageData.GetData(inInfo[1])).get("Myocardium"):
             parameters = replace(parameters, handles="remove")   # a myocardium is a ball, its cavities open
-        domain = carve_domain(grid, mesh.points, mesh.cells, parameters, self.progress)
+        domain = carve_domain(grid, mesh.points, mesh.cells, parameters, self.progress,
+                              surface_of=attached_surfaces(vtkImageData.GetData(inInfo[1])))
         output = vtkUnstructuredGrid.GetData(outInfo)
         mesh_to_unstructured(domain, output)
         output.GetFieldData().PassData(delaunay_mesh.GetFieldData())

@@ -178,8 +178,21 @@ class Source:
         an open boundary."""
         if self.open_boundary is None:
             return None
+        return self._near_surface(grid, self.open_boundary, 0.0)
+
+    def surfaces_on(self, grid: ImplicitGrid, function) -> Optional[ImplicitGrid]:
+        """:attr:`surface_of` the meshed ``function`` on the nodes of ``grid`` (f sampled in user coordinates)
+        within two spacings of f = 0, -1 elsewhere (the VTK chain carries it to the handle repair); None without
+        it."""
+        if self.surface_of is None:
+            return None
+        return self._near_surface(grid, lambda x: self.surface_of(function, x), -1.0)
+
+    def _near_surface(self, grid: ImplicitGrid, value, elsewhere: float) -> ImplicitGrid:
+        """``value`` (local (m, k) points -> (m,)) on the nodes of ``grid`` within two spacings of f = 0,
+        ``elsewhere`` on the others."""
         values = grid.values
         near = np.flatnonzero(np.abs(values.reshape(-1)) <= 2 * float(np.max(grid.spacing)))
-        mask = np.zeros(values.size)
-        mask[near] = self.open_boundary(self.frame.to_local(grid.node_coordinates(near)))
-        return ImplicitGrid(origin=grid.origin, spacing=grid.spacing, values=mask.reshape(values.shape))
+        out = np.full(values.size, elsewhere)
+        out[near] = value(self.frame.to_local(grid.node_coordinates(near)))
+        return ImplicitGrid(origin=grid.origin, spacing=grid.spacing, values=out.reshape(values.shape))
