@@ -19,8 +19,8 @@ BASE = "BASE"
 #: through the epicardium's there (where the contours end short of the base), and a handle's cut may notch it
 #: (:meth:`LabelledImplicit.data_surface`).
 BASE_RIM = 2.0
-#: below the rim a cavity is closed off by the thinnest wall however far its fit runs beyond the epicardium's:
-#: up to this many mm per mm below the rim (10 mm, beyond the 7 mm measured on biv-me patient1's cine, 1 mm below).
+#: below the rim a cavity is closed off by the thinnest wall wherever its fit runs beyond the epicardium's by up to
+#: this many times its depth below the rim: 1 mm below it, 10 mm (the most measured on biv-me patient1's cine: 7 mm).
 CLOSING = 10.0
 
 
@@ -105,8 +105,8 @@ class LabelledImplicit:
 
     def data_surface(self, x) -> np.ndarray:
         """(m,) index into :attr:`surfaces` of the surface whose implicit gives f at (m, 3) points; -1 where the
-        base does or within :data:`BASE_RIM` x min_wall below it (the rim of the cavities' openings: a notch there
-        is part of them)."""
+        base does or within :attr:`rim` below it (the rim of the cavities' openings: a notch there is part of
+        them)."""
         index = self.active_surface(x)
         rim = index == len(self.surfaces)
         if self.base is not None:
