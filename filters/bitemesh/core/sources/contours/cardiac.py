@@ -339,7 +339,7 @@ def _openings_beside_base(mesh, function, radius: float) -> list:
     problems = []
     for name in ENDOCARDIAL_TAGS:
         rim = opening_lips(mesh, function.base.below, depth, (name,))
-        length = float(np.linalg.norm(mesh.points[rim[:, 0]] - mesh.points[rim[:, 1]], axis=1).sum())
+        length = _length(mesh.points, rim)
         if length > OPENING * radius:
             ends = mesh.points[rim].reshape(-1, 3)
             centre = ", ".join(f"{value:.1f}" for value in ends.mean(axis=0))
@@ -355,8 +355,12 @@ def _openings_beside_base(mesh, function, radius: float) -> list:
 def opening_beside_base(mesh, below, depth: float, cavities=tuple(ENDOCARDIAL_TAGS)) -> float:
     """How long (input units) the endocardium of ``cavities`` meets the epicardium more than ``depth`` below the base
     (:func:`opening_lips`); 0 on a heart whose cavities open through the base alone."""
-    rim = opening_lips(mesh, below, depth, cavities)
-    return float(np.linalg.norm(mesh.points[rim[:, 0]] - mesh.points[rim[:, 1]], axis=1).sum())
+    return _length(mesh.points, opening_lips(mesh, below, depth, cavities))
+
+
+def _length(points: np.ndarray, edges: np.ndarray) -> float:
+    """The summed length of ``edges`` (e, 2) point ids into ``points`` (n, 3)."""
+    return float(np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1).sum())
 
 
 def opening_lips(mesh, below, depth: float, cavities=tuple(ENDOCARDIAL_TAGS)) -> np.ndarray:
