@@ -227,7 +227,7 @@ def _solve(centres, values, kernel: str, smoothing: float, shift, scale: float, 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", linalg.LinAlgWarning)   # judged by the residual below
-            solution = linalg.solve(matrix, right, assume_a="sym")
+            solution = linalg.lu_solve(linalg.lu_factor(matrix, check_finite=False), right, check_finite=False)
     except (linalg.LinAlgError, ValueError) as error:
         solution, reason = None, str(error)
     else:

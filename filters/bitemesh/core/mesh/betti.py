@@ -14,6 +14,7 @@ from itertools import combinations
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from ..errors import BitemeshWarning, MeshingError, point_text
 from .simplicial import Mesh
@@ -238,6 +239,12 @@ def on_dropped_parts(grid, inside: np.ndarray, centroids: np.ndarray, samples: n
     small = np.flatnonzero(volume < min_component * volume.max()) + 1
     dropped = np.setdiff1d(small, parts[grid.nearest_nodes(centroids)])
     if len(dropped):   # a sample belongs to the part nearest to it (on f = 0 or, noisy, beside it)
-        nearest = ndimage.distance_transform_edt(parts == 0, return_distances=False, return_indices=True)
-        on_them = np.isin(parts[tuple(nearest)][grid.nearest_nodes(samples)], dropped)
+        node = grid.nearest_nodes(samples)
+        part = parts[node]
+        outside = part == 0
+        if outside.any():   # the part node nearest an outside node has a face neighbour outside: on a part's rim
+            rim = np.argwhere((parts > 0) & ~ndimage.binary_erosion(parts > 0))
+            nearest = rim[cKDTree(rim).query(np.stack(node, axis=1)[outside])[1]]
+            part[outside] = parts[tuple(nearest.T)]
+        on_them = np.isin(part, dropped)
     return on_them, len(dropped)
