@@ -9,6 +9,8 @@ from math import factorial
 
 import numpy as np
 import pytest
+from scipy.spatial import Delaunay
+
 import bitemesh
 from bitemesh.core.fem import assembly as fem
 from bitemesh.core.optimize.measures import boundary_nodes, mean_edge_length
@@ -60,6 +62,27 @@ def test_the_element_matrices_know_constants_rigid_motions_and_uniform_strain():
     lam, mu = fem.lame(2.0, 0.25)
     # twice the strain energy of the cube: lambda tr(eps)^2 + 2 mu eps : eps
     assert u @ elasticity @ u == pytest.approx(lam * np.trace(strain) ** 2 + 2 * mu * np.sum(strain ** 2))
+
+
+@pytest.mark.parametrize("per_node", [1, 2, 3])
+def test_the_assembly_pattern_sums_every_element_entry_where_a_coo_sum_does(per_node):
+    # every entry of random element matrices, summed at (per_node a + i, per_node b + j) entry by entry, against
+    # the pattern's CSR: same values, ascending columns, no duplicates, and reused for a second set of elements
+    points = np.random.default_rng(2).random((60, 3))
+    cells, n = Delaunay(points).simplices.astype(np.int64), len(points)
+    size = 4 * per_node
+    dofs = (per_node * cells[:, :, None] + np.arange(per_node)).reshape(len(cells), size)
+    pattern = fem.Pattern.of(cells, n, per_node)
+    for seed in (0, 1):
+        elements = np.random.default_rng(seed).normal(size=(len(cells), size, size))
+        expected = np.zeros((per_node * n, per_node * n))
+        np.add.at(expected, (dofs[:, :, None], dofs[:, None, :]), elements)
+        matrix = pattern.assemble(elements)
+        assert np.allclose(matrix.toarray(), expected, rtol=0, atol=1e-12)
+        assert all(np.all(np.diff(matrix.indices[start:end]) > 0)
+                   for start, end in zip(matrix.indptr[:-1], matrix.indptr[1:]))
+        neighbours = {(a, b) for cell in cells for a in cell for b in cell}
+        assert matrix.nnz == per_node ** 2 * len(neighbours)
 
 
 def test_zero_volume_and_2d_meshes_are_refused():

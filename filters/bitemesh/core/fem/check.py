@@ -211,7 +211,7 @@ def fem_check(mesh, parameters: FemParameters = FemParameters()) -> FemReport:
     elasticity_conditioning, elastic = None, None
     if parameters.elasticity:
         elasticity = fem.assemble(fem.elasticity_elements(gradients, volumes, parameters.young, parameters.poisson),
-                                  fem.element_dofs(cells, 3), 3 * len(points))
+                                  cells, len(points), per_node=3)
         body = fem.source_load(points, cells, np.array([0.0, 0.0, -1.0])).ravel()
         free = ~np.repeat(fixed, 3)
         elastic_reduced, elastic_rhs, _ = fem.eliminate(elasticity, body, ~free)

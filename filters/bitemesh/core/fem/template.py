@@ -35,7 +35,7 @@ from ..parameters import Parameters, parameter
 from ..progress import ProgressCallback, report
 from ..steps.fidelity import distances_to_facets
 from ..optimize.measures import inverse_mean_ratio, mean_edge_length, smallest_angles
-from .assembly import assemble, basis_gradients, elasticity_elements, element_dofs, solve
+from .assembly import Pattern, basis_gradients, elasticity_elements, solve
 
 #: the rounds of iterated closest points of the similarity pre-alignment.
 ALIGN_ROUNDS = 50
@@ -122,39 +122,42 @@ def align(points: np.ndarray, groups: list):
         if np.linalg.det(turn) < 0:
             turn = axes_to @ np.diag(signs) @ np.diag([1, 1, -1]) @ axes_from.T
         starts.append((float(size), turn, data.mean(axis=0) - size * turn @ surface.mean(axis=0)))
-    best = None
+    best, paired = None, nearest_pairs(points, groups)
     for start in starts:
-        found, residual = iterate_closest_points(points, groups, start)
+        found, residual = iterate_closest_points(paired, start)
         if best is None or residual < best[1]:
             best = (found, residual)
     return best[0]
 
 
-def pairs(points: np.ndarray, groups: list):
-    """(template points (p, 3), data points (p, 3)): each data point with its nearest node of its surface."""
-    sources, targets = [], []
-    for nodes, _, data, _ in groups:
-        surface = points[nodes]
-        sources.append(surface[cKDTree(surface).query(data)[1]])
-        targets.append(data)
-    return np.vstack(sources), np.vstack(targets)
+def nearest_pairs(points: np.ndarray, groups: list):
+    """A callable: a similarity (scale, rotation, shift) -> (template points (p, 3), data points (p, 3)), each data
+    point with the nearest node of its surface once the template is moved by it: the data moved back into the
+    template's frame instead (a similarity keeps which node is nearest), so that each surface's k-d tree is built
+    once."""
+    surfaces = [(points[nodes], cKDTree(points[nodes]), data) for nodes, _, data, _ in groups]
+    targets = np.vstack([data for _, _, data in surfaces])
+
+    def paired(current: tuple):
+        scale, rotation, shift = current
+        return np.vstack([surface[tree.query((data - shift) @ rotation / scale)[1]]
+                          for surface, tree, data in surfaces]), targets
+    return paired
 
 
-def iterate_closest_points(points: np.ndarray, groups: list, current: tuple):
-    """The similarity from ``current`` on, refined by closest points within each surface until it stops
-    changing, and the mean distance between the pairs it leaves."""
+def iterate_closest_points(paired, current: tuple):
+    """The similarity from ``current`` on, refined by closest points within each surface (``paired``:
+    :func:`nearest_pairs`) until it stops changing, and the mean distance between the pairs it leaves."""
     for _ in range(ALIGN_ROUNDS):
-        moved = current[0] * points @ current[1].T + current[2]
-        paired = pairs(moved, groups)
-        found = similarity(np.linalg.solve(current[0] * current[1], (paired[0] - current[2]).T).T, paired[1])
+        found = similarity(*paired(current))
         converged = np.allclose(found[1], current[1], rtol=0, atol=1e-13) and \
             abs(found[0] - current[0]) <= 1e-13 * current[0] and \
             np.allclose(found[2], current[2], rtol=0, atol=1e-13 * (1 + np.abs(current[2]).max()))
         current = found
         if converged:
             break
-    paired = pairs(current[0] * points @ current[1].T + current[2], groups)
-    return current, float(np.linalg.norm(paired[0] - paired[1], axis=1).mean())
+    source, target = paired(current)
+    return current, float(np.linalg.norm(current[0] * source @ current[1].T + current[2] - target, axis=1).mean())
 
 
 def node_normals(points: np.ndarray, facets: np.ndarray) -> np.ndarray:
@@ -323,11 +326,11 @@ def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, 
     (:data:`ROUND_GAIN`); a cell whose inverse mean ratio exceeds its
     ``original`` (m,) stiffens (:data:`STIFFENING`)."""
     gradients, volumes = basis_gradients(reference, cells)
-    elements, dofs = elasticity_elements(gradients, volumes), element_dofs(cells, 3)
+    elements, pattern = elasticity_elements(gradients, volumes), Pattern.of(cells, len(points), 3)
     squeeze = np.maximum(inverse_mean_ratio(points, cells) / original, 1.0) ** STIFFENING
-    stiffness = assemble(elements * squeeze[:, None, None], dofs, points.size)
+    stiffness = pattern.assemble(elements * squeeze[:, None, None])
     surfaces = np.unique(np.concatenate([nodes for nodes, _, _, _ in groups]))
-    weight = pull * float(assemble(elements, dofs, points.size).diagonal().reshape(-1, 3)[surfaces].mean())
+    weight = pull * float(pattern.assemble(elements).diagonal().reshape(-1, 3)[surfaces].mean())
     edge = mean_edge_length(points, cells)
     total = (points - reference).ravel()
     done, gap = 0, np.inf
@@ -346,7 +349,7 @@ def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, 
         if np.sqrt(np.mean(step ** 2)) < step_bound:
             break
         squeeze = np.maximum(inverse_mean_ratio(points, cells) / original, 1.0) ** STIFFENING
-        stiffness = assemble(elements * squeeze[:, None, None], dofs, points.size)
+        stiffness = pattern.assemble(elements * squeeze[:, None, None])
     return points, done
 
 
@@ -376,11 +379,16 @@ def damped_step(points: np.ndarray, cells: np.ndarray, step: np.ndarray) -> np.n
     floor = np.minimum(smallest_angles(points, cells), ANGLE_FLOOR)
     ratio_floor = np.minimum(radius_ratio(points, cells), RATIO_FLOOR)
     fraction = np.ones(len(points))
+    suffer, check = np.zeros(len(cells), bool), np.arange(len(cells))   # check: the cells a halving moved
     for halving in range(HALVINGS + len(points)):
         moved = points + fraction[:, None] * step
-        suffer = (signed_measures(moved, cells) <= SHRINK * volumes) | (smallest_angles(moved, cells) < floor) \
-            | (radius_ratio(moved, cells) < ratio_floor)
+        some = cells[check]
+        suffer[check] = (signed_measures(moved, some) <= SHRINK * volumes[check]) \
+            | (smallest_angles(moved, some) < floor[check]) | (radius_ratio(moved, some) < ratio_floor[check])
         if not suffer.any():
             return moved
-        fraction[cells[suffer]] = 0.5 * fraction[cells[suffer]] if halving < HALVINGS else 0.0
+        halved = np.zeros(len(points), bool)
+        halved[cells[suffer]] = True
+        fraction[halved] = 0.5 * fraction[halved] if halving < HALVINGS else 0.0
+        check = np.flatnonzero(halved[cells].any(axis=1))
     return points
