@@ -103,15 +103,17 @@ def run_case(name: str, path: Path, frame=None, surfaces=None, options=None) -> 
 def line(row: dict) -> str:
     """One markdown row."""
     if "refused" in row:
-        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 16
+        return f"| {row['name']} | refused: {row['refused'][:160]} |" + " |" * 17
     surfaces = row.get("surfaces", {})
     both = " / ".join(f"{surfaces[name][0]:.2f}, {surfaces[name][1]:.2f}" if name in surfaces else "-"
                       for name in ("EPICARDIAL", "LV_ENDOCARDIAL", "RV_ENDOCARDIAL"))
     valves = " / ".join(f"{row[valve]:.1f}" if valve in row else "-"
                         for valve in ("MITRAL_VALVE", "TRICUSPID_VALVE", "AORTA_VALVE", "PULMONARY_VALVE"))
     volumes = f"{row['LV_ENDO_ml']:.0f} / {row['RV_ENDO_ml']:.0f}"
+    offsets = f"{row['lv_offset']:+.2f}"
     if "bivme_LV_ENDO_ml" in row:
         volumes += f" ({row['bivme_LV_ENDO_ml']:.0f} / {row['bivme_RV_ENDO_ml']:.0f})"
+        offsets += f" / {row['bivme_lv_offset']:+.2f}"
     flags = "; ".join(text.split(":")[0][:60] for text in row["warnings"])
     peer = f"{row['bivme_wall_mean']:.2f} / {row['bivme_wall_p95']:.2f}" if "bivme_wall_mean" in row else "-"
     return (f"| {row['name']} | {row['cells']:,} | {'yes' if row['valid'] else 'NO'} | {row['components']} | "
@@ -120,7 +122,7 @@ def line(row: dict) -> str:
             f"{row['wall_max']:.1f} | {peer} | {valves} | {both} | {row.get('to_bivme', np.nan):.2f} / "
             f"{row.get('from_bivme', np.nan):.2f} | {row.get('to_bivme_deep', np.nan):.2f} | "
             f"{row.get('to_bivme_near_data', np.nan):.2f} | "
-            f"{row['myocardium_ml']:.0f} | {volumes} | {row['seconds']:.1f} | {flags} |")
+            f"{row['myocardium_ml']:.0f} | {volumes} | {offsets} | {row['seconds']:.1f} | {flags} |")
 
 
 HEADER = ("| case | cells | valid | parts | boundaries | Euler | hole lips (mm) | "
@@ -129,7 +131,8 @@ HEADER = ("| case | cells | valid | parts | boundaries | Euler | hole lips (mm) 
           "biv-me EPI / LV / RV: ref->mesh, mesh->ref (mm) | mesh->biv-me / biv-me->mesh, mean of 3 (mm) | "
           "mesh->biv-me more than 10 mm below the base (mm) | the same within 1 mm of a wall guide point (mm) | "
           "myocardium (ml) | "
-          "LV / RV cavity (ml) (biv-me) | time (s) | warnings |\n" + "|---" * 18 + "|")
+          "LV / RV cavity (ml) (biv-me) | LV cavity outward of its guide points: mesh / biv-me (mm) | time (s) | "
+          "warnings |\n" + "|---" * 19 + "|")
 
 
 def main(argv=None) -> None:

@@ -23,8 +23,10 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 sys.path.insert(0, str(HERE.parent))
 
+from bitemesh.core.sources.contours.base import annulus_surface  # noqa: E402
 from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, canonical_labels  # noqa: E402
 from bitemesh.core.sources.contours.registration import registered  # noqa: E402
+from bitemesh.core.sources.contours.slices import slice_planes  # noqa: E402
 from bitemesh.fitting import fit_cycle, frame_fit_row  # noqa: E402
 from bitemesh.io import read_labelled_points  # noqa: E402
 from bitemesh.meshing import mesh  # noqa: E402
@@ -32,8 +34,9 @@ from cine import cine_folder, reference  # noqa: E402
 from heart_measures import measure_heart  # noqa: E402
 
 HEADER = ("| frame | fit (s) | rounds | wall guide points mean / 95 % (mm) | biv-me's fit: mean / 95 % (mm) | "
-          "mesh -> biv-me / biv-me -> mesh (mm) | LV ml (biv-me) | RV ml (biv-me) | myocardium ml | "
-          "min dihedral (deg) | min radius ratio | valid |\n" + "|---" * 12 + "|")
+          "mesh -> biv-me / biv-me -> mesh (mm) | the same more than 10 mm below the base (mm) | LV ml (biv-me) | "
+          "LV cavity outward of its guide points: mesh / biv-me (mm) | RV ml (biv-me) | myocardium ml | "
+          "min dihedral (deg) | min radius ratio | valid |\n" + "|---" * 14 + "|")
 
 
 def main(argv=None) -> None:
@@ -54,12 +57,16 @@ def main(argv=None) -> None:
         *_, registration = registered(points, canonical_labels(labels)[0], slices, BIVME_SURFACES)
         for number, shift in registration.shifts.items():   # every point measured where the fit took its slice
             points[slices == number] += shift
-        row = {**measure_heart(fitted.mesh, points, labels, reference(folder, frame)), **frame_fit_row(fitted)}
+        base, _ = annulus_surface(points, canonical_labels(labels)[0], slices, slice_planes(points, slices))
+        row = {**measure_heart(fitted.mesh, points, labels, reference(folder, frame), base.below),
+               **frame_fit_row(fitted)}
         bivme.append(row["bivme_LV_ENDO_ml"])
         lines.append(f"| {frame} | {row['seconds']:.1f} | {row['rounds']} | {row['wall_mean']:.2f} / "
                      f"{row['wall_p95']:.2f} | {row['bivme_wall_mean']:.2f} / {row['bivme_wall_p95']:.2f} | "
-                     f"{row['to_bivme']:.2f} / {row['from_bivme']:.2f} | {row['LV_ENDO_ml']:.0f} "
-                     f"({row['bivme_LV_ENDO_ml']:.0f}) | {row['RV_ENDO_ml']:.0f} ({row['bivme_RV_ENDO_ml']:.0f}) | "
+                     f"{row['to_bivme']:.2f} / {row['from_bivme']:.2f} | {row['to_bivme_deep']:.2f} | "
+                     f"{row['LV_ENDO_ml']:.0f} ({row['bivme_LV_ENDO_ml']:.0f}) | "
+                     f"{row['lv_offset']:+.2f} / {row['bivme_lv_offset']:+.2f} | "
+                     f"{row['RV_ENDO_ml']:.0f} ({row['bivme_RV_ENDO_ml']:.0f}) | "
                      f"{row['myocardium_ml']:.0f} | {row['min_dihedral']:.1f} | {row['min_radius_ratio']:.3f} | "
                      f"{'yes' if row['valid'] else 'NO'} |")
         print(lines[-1], flush=True)

@@ -8,7 +8,10 @@ own fitted surfaces of the same frame (``benchmarks/cine.py``).
 - apart, the mesh's facets more than 10 mm below the base and within 1 mm of a wall guide point against biv-me's
   surfaces: at the data itself the two fits can disagree no less than biv-me's own distance from it;
 - the cavity volumes, each cavity's surface closed across its openings by a fan from each rim's centroid (the
-  mesh's cavity is closed where its endocardium meets the base; biv-me's at its valve rings);
+  mesh's cavity is closed where its endocardium meets the base; biv-me's at its valve rings), and how far the LV
+  cavity's surface lies outward of the LV endocardial guide points more than 10 mm below the base on average (signed:
+  > 0 where a point is inside the cavity), the mesh's and biv-me's: a fit biased outward has a larger cavity than its
+  contours;
 - topology: components, boundary surfaces, the boundary's Euler characteristic, and how long the cavities'
   endocardium meets the epicardium more than 4 mm (2 R) below the base (the lips of holes through a wall; 0 on a whole
   heart).
@@ -28,7 +31,7 @@ from bitemesh.core.steps.fidelity import distances_to_facets, facet_measures
 from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 from bitemesh.core.mesh.topology import connected_components
 from bitemesh.core.mesh.topology import boundary_facets
-from bitemesh.core.mesh.tags import enclosed_volume
+from bitemesh.core.mesh.tags import closed_by_fans, enclosed_volume
 from bitemesh.core.sources.contours.cardiac import (CARDIAC_RADIUS, ENDOCARDIAL_TAGS, EPICARDIAL_TAGS,
                                                     opening_beside_base)
 from bitemesh.core.sources.contours.function import BASE_RIM
@@ -80,6 +83,28 @@ def surface_distances(mesh, names, vertices, triangles, below=None):
             float(np.percentile(np.r_[to_mesh, to_reference], 95)), deep)
 
 
+def winding_inside(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(n,) bool, which of (n, 3) points the closed triangle surface (vertices, triangles) winds around (the solid
+    angles of its triangles, Van Oosterom and Strackee 1983, summed: 4 pi inside, 0 outside; any orientation)."""
+    inside = np.zeros(len(points), bool)
+    for start in range(0, len(points), 256):
+        corners = vertices[triangles][None] - points[start:start + 256, None, None]   # (p, t, 3, 3)
+        a, b, c = corners[:, :, 0], corners[:, :, 1], corners[:, :, 2]
+        la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
+        top = np.einsum("ptk,ptk->pt", a, np.cross(b, c))
+        bottom = la * lb * lc + np.einsum("ptk,ptk->pt", a, b) * lc + np.einsum("ptk,ptk->pt", a, c) * lb \
+            + np.einsum("ptk,ptk->pt", b, c) * la
+        inside[start:start + 256] = np.abs((2 * np.arctan2(top, bottom)).sum(axis=1)) > 2 * np.pi
+    return inside
+
+
+def cavity_offset(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray) -> float:
+    """The mean over (n, 3) points of their distance to a cavity's surface (vertices, triangles), + where the point
+    is inside the cavity closed across its openings (the surface passes outward of it), - outside (mm)."""
+    distance = distances_to_facets(points, vertices[triangles])
+    return float(np.where(winding_inside(points, *closed_by_fans(vertices, triangles)), distance, -distance).mean())
+
+
 def measure_heart(mesh, points, labels, reference: dict | None = None, below=None) -> dict:
     """Every measure of the module docstring on ``mesh`` (a tagged bitemesh heart, mm) of the guide ``points``
     (n, 3) with their ``labels`` (n,); ``reference``: biv-me surface name -> (vertices, triangles); ``below``: (m, 3)
@@ -103,6 +128,11 @@ def measure_heart(mesh, points, labels, reference: dict | None = None, below=Non
     for cavity in ("LV_ENDO", "RV_ENDO"):
         facets = tagged(mesh, (cavity,))
         row[f"{cavity}_ml"] = enclosed_volume(mesh.points, facets) / 1000 if len(facets) else np.nan
+    lv_points = points[np.char.endswith(labels.astype(str), "LV_ENDOCARDIAL")]
+    if below is not None:
+        lv_points = lv_points[below(lv_points) > BASAL_BAND]
+    facets = tagged(mesh, ENDOCARDIAL_TAGS["LV_ENDO"])
+    row["lv_offset"] = cavity_offset(lv_points, mesh.points, facets) if len(facets) and len(lv_points) else np.nan
     row["surfaces"] = {}
     if reference:   # the peer: biv-me's own fit against the same guide points
         offsets = np.cumsum([0] + [len(vertices) for vertices, _ in reference.values()])
@@ -115,6 +145,8 @@ def measure_heart(mesh, points, labels, reference: dict | None = None, below=Non
         row["surfaces"][name] = surface_distances(mesh, REFERENCE_SURFACES[name], vertices, triangles, below)
         if name != "EPICARDIAL":
             row[f"bivme_{REFERENCE_SURFACES[name][0]}_ml"] = enclosed_volume(vertices, triangles) / 1000
+        if name == "LV_ENDOCARDIAL" and len(lv_points):
+            row["bivme_lv_offset"] = cavity_offset(lv_points, vertices, triangles)
     if reference and below is not None:
         corners = mesh.points[boundary_facets(mesh.cells)]
         centroids, area = corners.mean(axis=1), facet_measures(corners)

@@ -3,9 +3,9 @@
 
 The data are read as :func:`bitemesh.mesh` reads an input (:func:`~bitemesh.meshing.read_input`): labelled guide
 points, their slices registered as the mesher registers them, pull each of the template's surfaces to their own
-contours (EPI to the epicardial, LV_ENDO and RV_ENDO to the endocardial, BASE to the valve points; a left
-ventricle's EPI, ENDO and BASE to the LV's own), scattered points pull the whole boundary, a label map its boundary
-voxels.
+contours (EPI to the epicardial, LV_ENDO and RV_ENDO to the endocardial, BASE to the valve points and to the base
+the mesher puts on the frame, through the wall points below it carried onto it; a left ventricle's EPI, ENDO and
+BASE to the LV's own), scattered points pull the whole boundary, a label map its boundary voxels.
 """
 from __future__ import annotations
 
@@ -20,10 +20,11 @@ from .core.mesh.quality import quality_summary
 from .core.mesh.simplicial import Mesh
 from .core.mesh.tags import cavity_volumes
 from .core.progress import ProgressCallback, sub_progress
+from .core.sources.contours.base import annulus_surface
 from .core.sources.contours.cardiac import BIVME_OUTLETS, BIVME_SURFACES, BIVME_VALVES, canonical_labels
 from .core.sources.contours.contradicted import without_contradicted
 from .core.sources.contours.registration import registered
-from .core.sources.contours.slices import infer_slices
+from .core.sources.contours.slices import infer_slices, slice_planes
 from .io import read_mesh
 from .meshing import Samples, Voxels, read_input
 from .options import as_options
@@ -35,6 +36,11 @@ logger = logging.getLogger("bitemesh")
 SURFACE_LABELS = {**BIVME_SURFACES, "BASE": BIVME_VALVES}
 LV_SURFACE_LABELS = {"EPI": BIVME_SURFACES["LV_EPI"], "ENDO": BIVME_SURFACES["LV_ENDO"],
                      "BASE": BIVME_OUTLETS["LV_ENDO"]}
+#: mm below the frame's base: the wall guide points this near it, carried along its normal onto it, pull the
+#: template's BASE with the valve points, so that the fitted walls end where the mesher's base (the annulus surface)
+#: puts them; pulled by the valve points alone, the free walls' tops rode up to 12 mm above it at end-systole (biv-me
+#: patient1, frame 10: 18 cm2 of EPI, the surfaces 3-4 mm from biv-me's in the top 10 mm).
+ANNULUS_BAND = 10.0
 
 
 @dataclass(frozen=True)
@@ -76,19 +82,20 @@ def template_mesh(template) -> Mesh:
 
 
 def fit_data(template: Mesh, data, frame=None):
-    """The points that pull the template: a mapping of its surface names to points for labelled data (its slices
-    registered as :func:`bitemesh.mesh` registers them, a slice no other agrees with left out, and the points of a
-    contour the other slices contradict, each with a note on the "bitemesh" logger), an (n, 3) array for scattered
-    points or a label map's boundary voxels."""
+    """(measured, carried): the points that pull the template, a mapping of its surface names to points for
+    labelled data (its slices registered as :func:`bitemesh.mesh` registers them, a slice no other agrees with left
+    out, and the points of a contour the other slices contradict, each with a note on the "bitemesh" logger), an
+    (n, 3) array for scattered points or a label map's boundary voxels; and for a template with a BASE, the wall
+    points carried onto the base (:func:`on_the_base`) as {"BASE": (k, 3)}, else None."""
     samples = read_input(data, as_options(None if frame is None else {"frame": frame}))
     if isinstance(samples, Voxels):
-        return boundary_voxels(samples)
+        return boundary_voxels(samples), None
     if samples.labels is None:
-        return samples.points
+        return samples.points, None
     labels = canonical_labels(samples.labels)[0]
     slices = infer_slices(samples.points) if samples.slices is None else np.asarray(samples.slices)
     points, labels, slices, registration = registered(samples.points, labels, slices, BIVME_SURFACES)
-    points, labels, _, left_out = without_contradicted(points, labels, slices, registration.contradicted,
+    points, labels, slices, left_out = without_contradicted(points, labels, slices, registration.contradicted,
                                                        BIVME_SURFACES)
     for note in registration.notes() + left_out:
         logger.info(note)
@@ -98,7 +105,23 @@ def fit_data(template: Mesh, data, frame=None):
         raise InvalidInputError(f"data: none of its labels ({', '.join(sorted(set(labels))[:6])}, ...) samples a "
                                 f"surface of the template ({', '.join(sorted(template.tag_names))}); give biv-me "
                                 "labels (SAX_LV_ENDOCARDIAL, ...) or scattered points of the whole boundary")
-    return pulled
+    if "BASE" not in pulled:
+        return pulled, None
+    walls = [label for name, members in surfaces.items() if name != "BASE" for label in members]
+    return pulled, {"BASE": on_the_base(points, labels, slices, walls)}
+
+
+def on_the_base(points, labels, slices, walls) -> np.ndarray:
+    """(k, 3) the points labelled with one of ``walls`` within :data:`ANNULUS_BAND` below the base the mesher puts
+    on these guide points (:func:`~bitemesh.core.sources.contours.base.annulus_surface`), carried along its normal
+    onto it; none without a base."""
+    base, _ = annulus_surface(points, labels, slices, slice_planes(points, slices))
+    if base is None:
+        return np.empty((0, 3))
+    wall = points[np.isin(labels, walls)]
+    depth = base.below(wall)
+    near = (depth >= 0) & (depth <= ANNULUS_BAND)
+    return wall[near] + depth[near, None] * base.outward(wall[near])
 
 
 def is_left_ventricle(mesh: Mesh) -> bool:
@@ -129,8 +152,9 @@ def fit(template, data, *, frame=None, pull: float = 3.0, rest=None,
     Returns the :class:`~bitemesh.core.fem.template.TemplateFit`: ``mesh`` (the moved points, the same cells and
     tags, the fibres carried), ``distances`` (each data point to the boundary, mm), ``similarity``, ``rounds``."""
     template = template_mesh(template)
-    return fit_template(template, fit_data(template, data, frame), pull=pull,
-                        rest=None if rest is None else template_mesh(rest), progress=progress)
+    measured, carried = fit_data(template, data, frame)
+    return fit_template(template, measured, pull=pull, rest=None if rest is None else template_mesh(rest),
+                        carried=carried, progress=progress)
 
 
 def fit_cycle(template, frames, *, pull: float = 3.0, progress: ProgressCallback = None) -> CycleFit:

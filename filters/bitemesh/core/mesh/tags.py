@@ -208,23 +208,29 @@ def region_tags(mesh: Mesh, regions: np.ndarray, labels) -> Mesh:
     return mesh.with_tags(facets[keep], tags[keep], tag_names, region_values)
 
 
-def enclosed_volume(points: np.ndarray, triangles: np.ndarray) -> float:
-    """|volume| (input units^3) enclosed by a consistently oriented triangle patch (t, 3), each hole closed by a fan
-    from its rim's centroid (a cavity's endocardium closed across its valves at the base)."""
-    corners = points[triangles]
-    volume = np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6
+def closed_by_fans(points: np.ndarray, triangles: np.ndarray):
+    """A consistently oriented triangle patch (t, 3) on (n, 3) points with each hole closed by a fan from its rim's
+    centroid (a cavity's endocardium closed across its valves at the base): (points (n + h, 3), the centroids
+    appended; triangles (t + r, 3), the caps oriented as the patch)."""
     directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
     keys = directed[:, 0] * len(points) + directed[:, 1]
     rim = directed[~np.isin(keys, directed[:, 1] * len(points) + directed[:, 0])]
-    if len(rim):
-        graph = sparse.coo_matrix((np.ones(len(rim)), (rim[:, 0], rim[:, 1])), shape=(len(points),) * 2)
-        loop = csgraph.connected_components(graph, directed=False)[1][rim[:, 0]]
-        for number in np.unique(loop):
-            ring = rim[loop == number]
-            centre = points[np.unique(ring)].mean(axis=0)
-            a, b = points[ring[:, 1]], points[ring[:, 0]]   # reversed: the cap continues the patch's orientation
-            volume += np.einsum("ij,ij->i", a, np.cross(b, np.broadcast_to(centre, a.shape))).sum() / 6
-    return abs(float(volume))
+    if not len(rim):
+        return points, triangles
+    graph = sparse.coo_matrix((np.ones(len(rim)), (rim[:, 0], rim[:, 1])), shape=(len(points),) * 2)
+    loop = csgraph.connected_components(graph, directed=False)[1][rim[:, 0]]
+    numbers, loop = np.unique(loop, return_inverse=True)
+    centres = np.array([points[np.unique(rim[loop == number])].mean(axis=0) for number in range(len(numbers))])
+    caps = np.column_stack([rim[:, 1], rim[:, 0], len(points) + loop])   # reversed: continuing the orientation
+    return np.vstack([points, centres]), np.vstack([triangles, caps])
+
+
+def enclosed_volume(points: np.ndarray, triangles: np.ndarray) -> float:
+    """|volume| (input units^3) enclosed by a consistently oriented triangle patch (t, 3), its holes closed
+    (:func:`closed_by_fans`)."""
+    points, triangles = closed_by_fans(points, triangles)
+    corners = points[triangles]
+    return abs(float(np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6))
 
 
 def cavity_volumes(mesh: Mesh, names=("LV_ENDO", "RV_ENDO")) -> dict:
