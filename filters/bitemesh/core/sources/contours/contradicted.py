@@ -8,26 +8,18 @@ myocardium 15 mm thick across the LV outflow tract, the LV cavity 12 % under biv
 10-18 mm away and follows the long-axis views.
 
 The registration names such a contour (:attr:`~bitemesh.core.sources.contours.registration.Registration.contradicted`);
-here its surface is fitted without that slice, from the other contours' points within :data:`REACH` slice gaps of
-it (the fit's patches there see no farther), and the contour's points farther than :data:`FAR` from that fit are
+here its surface is fitted without that slice, and the contour's points farther than :data:`FAR` from that fit are
 left out, with a note naming the slice, the surface and how many; the points the other slices agree with stay.  The
 mesher and the template fit (:mod:`bitemesh.fitting`) leave out the same points.
 """
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ...implicit.samples import slice_spacing
 from .registration import FAR
 from .slices import GAP_FACTOR, contour_normals, slice_planes
 from .surface_fit import PATCH_PER_GAP, fit_contour_rbf
-
-#: slice gaps: a contour is checked against the surface fitted to the other contours' points this near it, twice the
-#: reach of a patch of the fit (a ball of at least PATCH_PER_GAP gaps round its centre, grown to hold enough
-#: points): the farther points do not change the fit at the contour, and fitting them cost 7 of 47 s on a dense
-#: export of 15,000 points with 22 contradicted contours (biv-me's test patient_1).
-REACH = 4.0
 
 
 def without_contradicted(points, labels, slices, contradicted: dict, surfaces: dict, *,
@@ -56,13 +48,8 @@ def without_contradicted(points, labels, slices, contradicted: dict, surfaces: d
             others = members[~mine]
             if len(others) < 10:   # no surface without it
                 continue
-            gap = slice_spacing(points[others], slices[others])
-            near = np.isfinite(cKDTree(points[members[mine]]).query(points[others],
-                                                                     distance_upper_bound=REACH * gap)[0])
-            if near.sum() < 10:
-                continue
-            function = fit_contour_rbf(points[others[near]], normals[~mine][near], min_patch=PATCH_PER_GAP * gap,
-                                       **rbf)
+            function = fit_contour_rbf(points[others], normals[~mine], min_patch=PATCH_PER_GAP * slice_spacing(
+                points[others], slices[others]), **rbf)
             distance = np.abs(function(points[members[mine]]))
             beyond = distance > FAR
             if beyond.any():
