@@ -326,7 +326,10 @@ def check_follows(distances: np.ndarray, edge: float, pull: float) -> None:
             f"mean edge ({edge:.3g}) from its boundary (allowed {100 * FAR_SHARE:g}%; the farthest "
             f"{distances.max():.3g}); the data may sample another shape than the template's (other parts, another "
             f"topology, points of another surface), or be labelled for other surfaces; if they are the template's "
-            f"shape, raise pull (now {pull:g}, allowed (0, inf]) so that the surfaces follow them closer")
+            f"shape far deformed (end-systole from an end-diastolic template: the cells' quality floor holds it "
+            f"back), fit through the data between, each from the last (bitemesh fit TEMPLATE FIRST ... LAST, "
+            f"bitemesh.fit_cycle); or raise pull (now {pull:g}, allowed (0, inf]) so that the surfaces follow "
+            f"them closer")
 
 
 def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, groups: list, measured: list,
