@@ -218,16 +218,16 @@ def median_gap(points: np.ndarray, groups: list) -> float:
     return float(np.median(np.concatenate([cKDTree(points[nodes]).query(data)[0] for nodes, _, data, _ in groups])))
 
 
-def surface_groups(template: Mesh, data) -> list:
-    """(node indices, facets over them (f, 3), data points, their cKDTree) per surface: ``data`` an (n, 3) array
-    for the whole boundary, or a mapping of the template's facet tag names to the points of that surface (a tag
-    without data is left free)."""
+def surface_groups(template: Mesh, data) -> dict:
+    """Surface name -> (node indices, facets over them (f, 3), data points, their cKDTree): ``data`` an (n, 3)
+    array for the whole boundary (named "boundary"), or a mapping of the template's facet tag names to the points of
+    that surface (a tag without data is left free)."""
     if not isinstance(data, dict):
         data = check_points(data, dims=(3,))
         if len(data) < 4:
             raise InvalidInputError(f"data: at least 4 points are needed, got {len(data)}")
-        return [local(boundary_facets(template.cells), data)]
-    groups = []
+        return {"boundary": local(boundary_facets(template.cells), data)}
+    groups = {}
     for name, points in data.items():
         if name not in template.tag_names or template.facets is None:
             raise InvalidInputError(f"data: {name!r} is no surface of the template; its surfaces are "
@@ -235,8 +235,8 @@ def surface_groups(template: Mesh, data) -> list:
         points = check_points(points, dims=(3,))
         facets = template.facets[template.facet_tags == template.tag_names[name][0]]
         if len(points) and len(facets):
-            groups.append(local(facets, points))
-    if sum(len(points) for _, _, points, _ in groups) < 4:
+            groups[name] = local(facets, points)
+    if sum(len(points) for _, _, points, _ in groups.values()) < 4:
         raise InvalidInputError("data: at least 4 points on the template's surfaces are needed")
     return groups
 
@@ -283,7 +283,7 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     rounds = int(check_number(rounds, "rounds", low=1, high=10000))
     stages = int(check_number(stages, "stages", low=1, high=100))
     cells = template.cells
-    scale, rotation, shift = align(template.points, measured)
+    scale, rotation, shift = align(template.points, list(measured.values()))
     points = scale * template.points @ rotation.T + shift
     reference = points if rest is None else scale * rest.points @ rotation.T + shift
     edge = mean_edge_length(points, cells)
@@ -292,8 +292,8 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     for stage in range(stages):
         report(progress, stage / stages, f"elastic stage {stage + 1}")
         start_points = points
-        points, taken = elastic_stage(points, reference, cells, groups, measured, pull, original, rounds,
-                                      tolerance * edge)
+        points, taken = elastic_stage(points, reference, cells, list(groups.values()), list(measured.values()),
+                                      pull, original, rounds, tolerance * edge)
         reference = points
         done += taken
         if np.sqrt(np.mean((points - start_points) ** 2)) < STAGE_END * edge:
@@ -303,8 +303,10 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     cell_data.update({name: values for name, values in cell_quality(Mesh(points, cells)).items() if name in cell_data})
     moved = Mesh(points, cells, cell_data, template.facets, template.facet_tags, dict(template.tag_names),
                  dict(template.point_data), template.unit)   # node i stays the same material point: its data stay
-    distances = distances_to_facets(np.vstack([data for _, _, data, _ in measured]), points[boundary_facets(cells)])
-    check_follows(distances, mean_edge_length(points, cells), pull)
+    distances = distances_to_facets(np.vstack([data for _, _, data, _ in measured.values()]),
+                                    points[boundary_facets(cells)])
+    check_follows(distances, mean_edge_length(points, cells), pull,
+                  {name: len(data) for name, (_, _, data, _) in measured.items()})
     report(progress, 1.0, "fitted")
     return TemplateFit(moved, (scale, rotation, shift), done, distances, time.perf_counter() - start)
 
@@ -317,14 +319,19 @@ def _with(data, carried: dict) -> dict:
             for name in {**data, **carried}}
 
 
-def check_follows(distances: np.ndarray, edge: float, pull: float) -> None:
-    """Refuse a fit that leaves more than :data:`FAR_SHARE` of the data (distances (n,)) farther than ``edge``."""
-    far = float(np.mean(distances > edge))
+def check_follows(distances: np.ndarray, edge: float, pull: float, sizes: dict) -> None:
+    """Refuse a fit that leaves more than :data:`FAR_SHARE` of the data (distances (n,), of the surfaces and their
+    numbers of points ``sizes`` in order) farther than ``edge``, naming the surface most of them belong to."""
+    beyond = distances > edge
+    far = float(np.mean(beyond))
     if far > FAR_SHARE:
+        counts = {name: int(part.sum()) for name, part in zip(sizes, np.split(beyond, np.cumsum(list(sizes.values()))))}
+        worst = max(counts, key=counts.get)
         raise MeshingError(
             f"the fitted template does not follow the data: {100 * far:.1f}% of the data points lie farther than a "
             f"mean edge ({edge:.3g}) from its boundary (allowed {100 * FAR_SHARE:g}%; the farthest "
-            f"{distances.max():.3g}); the data may sample another shape than the template's (other parts, another "
+            f"{distances.max():.3g}; most on {worst}: {counts[worst]} of its {sizes[worst]}); the data may sample "
+            f"another shape than the template's (other parts, another "
             f"topology, points of another surface), or be labelled for other surfaces; if they are the template's "
             f"shape far deformed (end-systole from an end-diastolic template: the cells' quality floor holds it "
             f"back), fit through the data between, each from the last (bitemesh fit TEMPLATE FIRST ... LAST, "
