@@ -21,8 +21,8 @@ from bitemesh.core.errors import MeshingError
 from bitemesh.core.steps.fidelity import Fidelity
 from bitemesh.core.steps.verdict import check_fidelity
 from bitemesh.core.parameters import FidelityParameters
-from tests.cardiac_variants import (long_axis_view_shifted, open_arcs, read_frame, shifted_slices, short_arcs,
-                                    short_axis_slices, subset)
+from tests.cardiac_variants import (RV_EPICARDIUM, long_axis_view_shifted, open_arcs, read_frame, shifted_slices,
+                                    short_arcs, short_axis_slices, subset, without)
 from tests.conftest import DATA
 
 CINE = DATA / "bivme_patient1_cine" / "guidepoints"
@@ -144,6 +144,23 @@ def test_a_heart_traced_in_part_is_fitted_not_refused(variant):
     assert function.expression == "EPI - LV_ENDO - RV_ENDO" and not function.derived
     for name, points in function.points.items():   # the domain's boundary passes through its surfaces' points
         assert np.median(np.abs(function(points))) < 0.5, name
+
+
+def test_a_derived_rv_epicardium_is_one_surface_with_the_lv_epicardium_for_the_handle_cuts():
+    """Without RV epicardial contours the RV epicardium is derived (RV_EPI beside LV_EPI), and the mesh tags both
+    EPI: a handle's cut touching both opens no cavity, so data_surface gives them one index (a cut touching two is
+    refused), while each endocardium keeps its own."""
+    gp = without(read_frame(CINE, 0), RV_EPICARDIUM)
+    function, lower, upper = labelled_implicit(gp["points"], gp["labels"], slices=gp["slices"])
+    assert function.derived == ("RV_EPI",)
+    axes = [np.arange(low, high, 2.0) for low, high in zip(lower, upper)]
+    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    nodes = nodes[(np.abs(function(nodes)) < 2.0) & (function.base.below(nodes) > function.rim)]
+    names, data = np.array(function.names)[function.active_surface(nodes)], function.data_surface(nodes)
+    index = {name: number for number, name in enumerate(function.surfaces)}
+    assert (names == "RV_EPI").sum() > 100 and (names == "LV_EPI").sum() > 100
+    assert np.all(data[np.isin(names, ("LV_EPI", "RV_EPI"))] == index["LV_EPI"])
+    assert np.all(data[names == "LV_ENDO"] == index["LV_ENDO"]) and np.all(data[names == "RV_ENDO"] == index["RV_ENDO"])
 
 
 def test_a_long_axis_contour_traced_across_the_valve_is_cut_there():

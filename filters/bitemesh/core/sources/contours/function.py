@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 from ...errors import check_number, check_points
 from ...implicit.samples import contour_gap
 from ...mesh.topology import boundary_facets
-from .cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, LV_DOMAIN
+from .cardiac import BIVME_DEFAULT_DOMAIN, BIVME_SURFACES, EPICARDIAL_TAGS, LV_DOMAIN
 from .csg import evaluate_domain
 
 #: the name the base takes among the surfaces (in :meth:`LabelledImplicit.active_surface`).
@@ -104,13 +104,16 @@ class LabelledImplicit:
         return self._evaluate(x)[1]
 
     def data_surface(self, x) -> np.ndarray:
-        """(m,) index into :attr:`surfaces` of the surface whose implicit gives f at (m, 3) points; -1 where the
-        base does or within :attr:`rim` below it (the rim of the cavities' openings: a notch there is part of
-        them)."""
+        """(m,) index into :attr:`surfaces` of the surface whose implicit gives f at (m, 3) points, the epicardium's
+        parts (LV_EPI and RV_EPI, one EPI on the mesh) counted as its first; -1 where the base does or within
+        :attr:`rim` below it (the rim of the cavities' openings: a notch there is part of them)."""
         index = self.active_surface(x)
         rim = index == len(self.surfaces)
         if self.base is not None:
             rim |= self.base.below(x) < self.rim
+        epicardium = [number for number, name in enumerate(self.surfaces) if name in EPICARDIAL_TAGS]
+        if epicardium:
+            index = np.where(np.isin(index, epicardium), epicardium[0], index)
         return np.where(rim, -1, index)
 
     def with_min_wall(self, min_wall: float) -> LabelledImplicit:
