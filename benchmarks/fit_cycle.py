@@ -26,11 +26,9 @@ sys.path.insert(0, str(HERE.parent / "filters"))
 sys.path.insert(0, str(HERE.parent))
 
 from bitemesh.core.errors import BitemeshError  # noqa: E402
-from bitemesh.core.sources.contours.base import annulus_surface  # noqa: E402
 from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, canonical_labels  # noqa: E402
 from bitemesh.core.sources.contours.registration import registered  # noqa: E402
-from bitemesh.core.sources.contours.slices import slice_planes  # noqa: E402
-from bitemesh.fitting import fit, fit_cycle, frame_fit_row  # noqa: E402
+from bitemesh.fitting import fit, fit_cycle, frame_base, frame_fit_row  # noqa: E402
 from bitemesh.io import read_labelled_points  # noqa: E402
 from bitemesh.meshing import mesh  # noqa: E402
 from cine import cine_folder, model_surfaces, reference  # noqa: E402
@@ -49,7 +47,7 @@ def measured_row(name: str, fitted, path: Path, frame, surfaces: dict | None) ->
     *_, registration = registered(points, canonical_labels(labels)[0], slices, BIVME_SURFACES)
     for number, shift in registration.shifts.items():   # every point measured where the fit took its slice
         points[slices == number] += shift
-    base, _ = annulus_surface(points, canonical_labels(labels)[0], slices, slice_planes(points, slices))
+    base = frame_base(points, canonical_labels(labels)[0], slices)
     row = {**measure_heart(fitted.mesh, points, labels, surfaces, base.below), **frame_fit_row(fitted)}
     line = (f"| {name} | {row['seconds']:.1f} | {row['rounds']} | {row['wall_mean']:.2f} / "
             f"{row['wall_p95']:.2f} | {row['bivme_wall_mean']:.2f} / {row['bivme_wall_p95']:.2f} | "

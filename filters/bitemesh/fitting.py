@@ -111,11 +111,17 @@ def fit_data(template: Mesh, data, frame=None):
     return pulled, {"BASE": on_the_base(points, labels, slices, walls)}
 
 
+def frame_base(points, labels, slices):
+    """The base the mesher puts on biv-me guide points (registered; canonical labels): the
+    :class:`~bitemesh.core.sources.contours.base.BaseSurface` of
+    :func:`~bitemesh.core.sources.contours.base.annulus_surface`, or None."""
+    return annulus_surface(points, labels, slices, slice_planes(points, slices))[0]
+
+
 def on_the_base(points, labels, slices, walls) -> np.ndarray:
     """(k, 3) the points labelled with one of ``walls`` within :data:`ANNULUS_BAND` below the base the mesher puts
-    on these guide points (:func:`~bitemesh.core.sources.contours.base.annulus_surface`), carried along its normal
-    onto it; none without a base."""
-    base, _ = annulus_surface(points, labels, slices, slice_planes(points, slices))
+    on these guide points (:func:`frame_base`), carried along its normal onto it; none without a base."""
+    base = frame_base(points, labels, slices)
     if base is None:
         return np.empty((0, 3))
     wall = points[np.isin(labels, walls)]

@@ -13,11 +13,10 @@ from bitemesh.core.fem.template import fit_template
 from bitemesh.core.mesh.tags import cavity_volumes, enclosed_volume
 from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.optimize.measures import mean_edge_length
-from bitemesh.core.sources.contours.base import annulus_surface
 from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, canonical_labels
 from bitemesh.core.sources.contours.registration import registered
-from bitemesh.core.sources.contours.slices import slice_planes
 from bitemesh.core.steps.fidelity import distances_to_facets, facet_measures
+from bitemesh.fitting import frame_base
 from bitemesh.io import read_labelled_points, read_mesh
 
 from tests.cardiac_variants import read_surface
@@ -84,7 +83,7 @@ def test_a_cycle_is_a_time_series_with_its_volumes(cine, tmp_path, capsys):
     assert f"ejection fraction {100 * (lv[0] - lv[2]) / lv[0]:.1f} %" in printed
     points, labels, slices = read_labelled_points(gpfile(folder, 8))
     points, labels, slices, _ = registered(points, canonical_labels(labels)[0], slices, BIVME_SURFACES)
-    base, _ = annulus_surface(points, labels, slices, slice_planes(points, slices))
+    base = frame_base(points, labels, slices)
     walls = fitted.points[fitted.facets[np.isin(fitted.facet_tags, [fitted.tag_names[name][0]
                                                                     for name in ("EPI", "LV_ENDO", "RV_ENDO")])]]
     area = facet_measures(walls)

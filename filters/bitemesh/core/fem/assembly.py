@@ -110,7 +110,7 @@ class Pattern:
         indices[at.ravel()] = np.broadcast_to(c * columns[:, None, None] + j, at.shape).ravel()
         indptr = np.r_[(c * c * starts[:-1, None] + c * degree[:, None] * np.arange(c)).ravel(), total]
         position = at[pair_of.reshape(m, k, k)].transpose(0, 1, 3, 2, 4).reshape(m, k * c, k * c)
-        return cls(indptr.astype(dtype), indices, position)   # intp: numpy's bincount takes no other
+        return cls(indptr.astype(dtype), indices, position)   # position intp: bincount would cast it each time
 
     def assemble(self, elements: np.ndarray) -> sparse.csr_matrix:
         """The CSR sum of the (m, d, d) element matrices."""

@@ -288,12 +288,13 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     reference = points if rest is None else scale * rest.points @ rotation.T + shift
     edge = mean_edge_length(points, cells)
     original = inverse_mean_ratio(reference, cells)
+    pattern = Pattern.of(cells, len(points), 3)   # the stiffness's layout, the same in every stage
     done = 0
     for stage in range(stages):
         report(progress, stage / stages, f"elastic stage {stage + 1}")
         start_points = points
-        points, taken = elastic_stage(points, reference, cells, list(groups.values()), list(measured.values()),
-                                      pull, original, rounds, tolerance * edge)
+        points, taken = elastic_stage(points, reference, cells, pattern, list(groups.values()),
+                                      list(measured.values()), pull, original, rounds, tolerance * edge)
         reference = points
         done += taken
         if np.sqrt(np.mean((points - start_points) ** 2)) < STAGE_END * edge:
@@ -339,16 +340,17 @@ def check_follows(distances: np.ndarray, edge: float, pull: float, sizes: dict) 
             f"them closer")
 
 
-def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, groups: list, measured: list,
-                  pull: float, original: np.ndarray, rounds: int, step_bound: float):
+def elastic_stage(points: np.ndarray, reference: np.ndarray, cells: np.ndarray, pattern: Pattern, groups: list,
+                  measured: list, pull: float, original: np.ndarray, rounds: int, step_bound: float):
     """(points, rounds run): one load step from ``points``, the paper's K U = F with K the elasticity of
-    ``reference`` (the template at rest, or the stage's start) and F the springs to the data (``groups``), the
+    ``reference`` (the template at rest, or the stage's start; assembled by ``pattern``, the cells' 3-dof
+    :class:`~bitemesh.core.fem.assembly.Pattern`) and F the springs to the data (``groups``), the
     correspondences recomputed each round until the RMS step is below ``step_bound`` or a round brings the
     ``measured`` data (their groups, without the carried points) no closer (median; a gain of 1 % ended the
     rounds of an end-systolic frame at 0.45 mm mean, its data still coming closer); a cell whose
     inverse mean ratio exceeds its ``original`` (m,) stiffens (:data:`STIFFENING`)."""
     gradients, volumes = basis_gradients(reference, cells)
-    elements, pattern = elasticity_elements(gradients, volumes), Pattern.of(cells, len(points), 3)
+    elements = elasticity_elements(gradients, volumes)
     squeeze = np.maximum(inverse_mean_ratio(points, cells) / original, 1.0) ** STIFFENING
     stiffness = pattern.assemble(elements * squeeze[:, None, None])
     surfaces = np.unique(np.concatenate([nodes for nodes, _, _, _ in groups]))
