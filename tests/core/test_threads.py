@@ -97,3 +97,28 @@ def test_a_bad_environment_variable_is_refused_by_name_before_any_work(monkeypat
     monkeypatch.setenv(THREADS_VARIABLE, "many")
     with pytest.raises(InvalidInputError, match=f"{THREADS_VARIABLE} must be a whole number.*got 'many'"):
         mesh(SAMPLES[0], cells=1000)
+
+
+
+def test_rbf_patches_run_blas_on_one_thread(monkeypatch):
+    """OpenBLAS splits its sums by its thread count (every core by default): the RBF patches, solved and evaluated
+    on bitemesh's threads, made the heart's mesh depend on the machine's cores (cine frame 8, 2 BLAS threads
+    against 1: another mesh).  There BLAS takes one thread, and its count outside is given back."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from bitemesh.core.implicit import rbf
+
+    def blas_threads():
+        return {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
+
+    seen, solve, slope = [], rbf._solve, rbf.LocalRBF.value_and_slope
+    monkeypatch.setattr(rbf, "_solve", lambda *args: (seen.append(blas_threads()), solve(*args))[1])
+    monkeypatch.setattr(rbf.LocalRBF, "value_and_slope",
+                        lambda self, *args: (seen.append(blas_threads()), slope(self, *args))[1])
+    points = SAMPLES[0][:1500]
+    with threadpool_limits(limits=2, user_api="blas"):
+        outside = blas_threads()
+        function = rbf.fit_rbf(points, SAMPLES[1][:1500])
+        function(points)
+        assert blas_threads() == outside
+    assert len(function.patches) > 1 and seen and all(counts == {1} for counts in seen)

@@ -7,6 +7,11 @@ only its own outputs, so that the result does not depend on the thread count, bi
 threads: the count :func:`using_threads` set in this context, else the environment variable ``BITEMESH_THREADS``,
 else every core numba sees (``NUMBA_NUM_THREADS``).  Launches are taken one at a time: numba's threading layer of
 the PyPI wheels (workqueue) stops the whole process when two Python threads launch at once.
+
+Where bitemesh runs BLAS on its own threads (the RBF patches' solves and evaluations), BLAS takes one thread
+(:func:`one_blas_thread`): OpenBLAS's sums, split by its own thread count (every core by default), gave a mesh that
+depended on the machine's cores, and one thread a solve is faster (patches of 1,100 constraints: 34 ms each on 1
+BLAS thread, 49 ms on 2, 20 ms two at a time).
 """
 from __future__ import annotations
 
@@ -18,6 +23,8 @@ from contextlib import contextmanager
 
 import numba
 from numba import njit
+
+from threadpoolctl import threadpool_limits
 
 from .errors import InvalidInputError
 
@@ -101,3 +108,8 @@ def using_threads(count=None):
         yield
     finally:
         _chosen.reset(token)
+
+
+def one_blas_thread():
+    """A context in which BLAS takes one thread, its count given back after (see the module)."""
+    return threadpool_limits(limits=1, user_api="blas")

@@ -31,7 +31,7 @@ def addBitemeshToPath() -> None:
 addBitemeshToPath()
 
 #: what bitemesh needs beyond the Python packages Slicer bundles (numpy, VTK, SimpleITK): module -> pip requirement.
-REQUIREMENTS = {"scipy": "scipy>=1.9", "numba": "numba>=0.56"}
+REQUIREMENTS = {"scipy": "scipy>=1.9", "numba": "numba>=0.56", "threadpoolctl": "threadpoolctl>=3.1"}
 #: Slicer bundles these and breaks if pip replaces them: never installed, whatever a requirement says.
 NEVER_INSTALL = ("vtk", "simpleitk", "itk", "numpy")
 
@@ -46,7 +46,7 @@ def missingRequirements() -> list:
 
 
 def installRequirements(pipInstall=None, confirm=None) -> list:
-    """Install the missing requirements (scipy, numba) with Slicer's pip, on first use.
+    """Install the missing requirements (scipy, numba, threadpoolctl) with Slicer's pip, on first use.
 
     Parameters
     ----------

@@ -380,3 +380,20 @@ def test_copies_of_a_scan_give_the_normals_of_one(jitter):
     alone = np.einsum("ij,ij->i", estimate_normals(points), normals) > 0.5
     agree = np.einsum("ij,ij->i", estimate_normals(copies), np.tile(normals, (5, 1))) > 0.5
     assert agree.mean() >= alone.mean() - 0.01, (agree.mean(), alone.mean())
+
+
+def test_rbf_near_points_solves_only_their_patches_and_gives_the_whole_functions_values():
+    """fit_partition(near=q) solves only the patches the evaluation at q takes (the balls holding a point of q, and
+    each point's nearest patch): f there is the whole function's, bit for bit (the contradicted contours' refits
+    need f at one slice only)."""
+    from bitemesh.core.implicit.rbf import fit_partition
+    points, normals, _ = sphere_sample(3000)
+    constraints = np.vstack([points, 0.9 * points, 1.1 * points])
+    values = np.r_[np.zeros(3000), np.full(3000, 0.1), np.full(3000, -0.1)]
+    whole = fit_partition(constraints, values, kernel="linear", frame=(np.zeros(3), 2.0), what="test")
+    cap = points[points[:, 2] > 0.9]
+    beyond = np.array([[0.0, 0.0, -30.0]])   # beyond every ball, below: its nearest patch alone
+    near = np.vstack([cap, beyond])
+    part = fit_partition(constraints, values, kernel="linear", frame=(np.zeros(3), 2.0), what="test", near=near)
+    assert 0 < len(part.patches) < len(whole.patches) / 2
+    assert np.array_equal(part(near), whole(near)) and np.array_equal(part.gradient(near), whole.gradient(near))

@@ -26,7 +26,7 @@ from scipy import linalg
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist, squareform
 
-from ..compiled import threads
+from ..compiled import one_blas_thread, threads
 from ..errors import InvalidInputError, check_choice, check_number, check_points
 from ..grid.sampled import bounding_box, box_depth, box_depth_gradient
 from .normals import unit_normals
@@ -178,7 +178,7 @@ class RBFImplicit:
             jobs = [(part, slope, centre, radius, patch, np.asarray(index))
                     for centre, radius, patch, index in zip(self.centres, self.radii, self.patches, members) if index]
             # the patches on threads (numpy and BLAS release the GIL), their terms summed in the patches' order
-            with ThreadPoolExecutor(threads()) as pool:
+            with ThreadPoolExecutor(threads()) as pool, one_blas_thread():
                 for index, w, f, df, direction in pool.map(lambda job: _patch_terms(*job), jobs):
                     total[index] += w * f
                     weights[index] += w
@@ -285,7 +285,8 @@ def _patches(constraints: np.ndarray, min_radius: float):
 
 
 def fit_partition(constraints, values, *, kernel: str, smoothing: float = 0.0, min_patch: float = 0.0,
-                  shared: int = 0, frame, what: str, box=None, progress: ProgressCallback = None) -> RBFImplicit:
+                  shared: int = 0, frame, what: str, box=None, near=None,
+                  progress: ProgressCallback = None) -> RBFImplicit:
     """The partition-of-unity RBF through (m, k) ``constraints`` with (m,) ``values``.
 
     Parameters
@@ -297,25 +298,48 @@ def fit_partition(constraints, values, *, kernel: str, smoothing: float = 0.0, m
     frame : (shift (k,), scale float): the coordinates of the global RBF when there is one patch
     what : names the data in the message of a singular system ("120 contour points")
     box : (lower (k,), upper (k,)) the function is clamped by (f <= depth in the box), or None
-    progress : callable(fraction, message), optional, called before each patch's solve
+    near : (q, k) float64, optional: the function will be evaluated at these points only; only the patches it
+        takes there are solved (the values there are the whole function's, bit for bit; elsewhere they are not)
+    progress : callable(fraction, message), optional, called as the patches are solved
 
     Returns
     -------
     RBFImplicit
     """
     centres, radii = _patches(constraints, min_patch)
+    if near is not None and len(centres) > 1:
+        chosen = _patches_taken(centres, radii, np.asarray(near, dtype=np.float64))
+        centres, radii = centres[chosen], radii[chosen]
     tree = cKDTree(constraints)
     everywhere = np.arange(len(constraints) - shared, len(constraints))
-    patches = []
-    for number, (centre, radius) in enumerate(zip(centres, radii)):
-        report(progress, number / len(centres), f"fitting RBF patch {number + 1} of {len(centres)}")
+
+    def solve(patch):
+        centre, radius = patch
         index = np.arange(len(constraints)) if np.isinf(radius) else np.union1d(
             tree.query_ball_point(centre, radius), everywhere)
         shift, scale = frame if np.isinf(radius) else (centre, 2.0 * radius)
-        patches.append(_solve(constraints[index], values[index], kernel, smoothing, shift, scale, what))
-    report(progress, 1.0, "fitting RBF: done")
+        return _solve(constraints[index], values[index], kernel, smoothing, shift, scale, what)
+
+    patches, pool = [], ThreadPoolExecutor(threads())
+    try:   # LAPACK releases the GIL; the results come in the patches' order
+        with one_blas_thread():
+            for patch in pool.map(solve, zip(centres, radii)):
+                patches.append(patch)
+                report(progress, len(patches) / len(centres), f"fitted RBF patch {len(patches)} of {len(centres)}")
+    finally:   # cancelled (or refused): the patches not yet started are dropped
+        pool.shutdown(cancel_futures=True)
     lower, upper = (None, None) if box is None else box
     return RBFImplicit(centres=centres, radii=radii, patches=tuple(patches), lower=lower, upper=upper)
+
+
+def _patches_taken(centres, radii, points) -> np.ndarray:
+    """(p,) bool: the patches (centres (p, k), radii (p,)) whose ball holds one of the (q, k) ``points``, and each
+    point's nearest patch (the one :meth:`RBFImplicit._blend` takes for a point beyond every ball)."""
+    taken = np.zeros(len(centres), bool)
+    taken[cKDTree(centres).query(points)[1]] = True
+    for patch, index in enumerate(cKDTree(points).query_ball_point(centres, radii, return_sorted=False)):
+        taken[patch] |= bool(index)
+    return taken
 
 
 def fit_rbf(points, normals, *, offset=None, smoothing: float = 0.0, kernel=None,

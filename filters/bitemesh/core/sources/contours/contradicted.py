@@ -49,7 +49,7 @@ def without_contradicted(points, labels, slices, contradicted: dict, surfaces: d
             if len(others) < 10:   # no surface without it
                 continue
             function = fit_contour_rbf(points[others], normals[~mine], min_patch=PATCH_PER_GAP * slice_spacing(
-                points[others], slices[others]), **rbf)
+                points[others], slices[others]), near=points[members[mine]], **rbf)
             distance = np.abs(function(points[members[mine]]))
             beyond = distance > FAR
             if beyond.any():

@@ -83,7 +83,7 @@ def thinned(points: np.ndarray, spacing: float) -> np.ndarray:
 
 def fit_contour_rbf(points, normals, *, kernel: str = LabelledParameters.kernel,
                     offset: float = OFFSET, smoothing: float = LabelledParameters.smoothing,
-                    interior=None, min_patch: float = 0.0, min_spacing=None) -> RBFImplicit:
+                    interior=None, min_patch: float = 0.0, min_spacing=None, near=None) -> RBFImplicit:
     """The implicit of contour points with (in-plane) outward normals: RBFs on patches blended by a partition of
     unity (:func:`bitemesh.core.implicit.rbf.fit_partition`).
 
@@ -107,6 +107,8 @@ def fit_contour_rbf(points, normals, *, kernel: str = LabelledParameters.kernel,
         patch sees contours on several slices); 0 splits by the number of constraints alone
     min_spacing : float, input units: the points are fitted :func:`thinned` to this spacing; default
         :data:`THIN_PER_OFFSET` x offset
+    near : (q, 3) float64, optional: the function will be evaluated at these points only (see
+        :func:`~bitemesh.core.implicit.rbf.fit_partition`)
 
     Returns
     -------
@@ -127,4 +129,4 @@ def fit_contour_rbf(points, normals, *, kernel: str = LabelledParameters.kernel,
     return fit_partition(constraints, values, kernel=kernel, smoothing=smoothing,
                          min_patch=check_number(min_patch, "min_patch", low=0),
                          shared=0 if interior is None else len(interior[0]), frame=(shift, scale),
-                         what=f"{len(points)} contour points")
+                         near=near, what=f"{len(points)} contour points")
