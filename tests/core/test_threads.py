@@ -122,3 +122,26 @@ def test_rbf_patches_run_blas_on_one_thread(monkeypatch):
         function(points)
         assert blas_threads() == outside
     assert len(function.patches) > 1 and seen and all(counts == {1} for counts in seen)
+
+
+def test_threaded_map_keeps_the_order_and_drops_what_a_cancel_leaves():
+    """threaded_map yields in the items' order on any thread count; when its caller stops (a cancel raised by a
+    progress callback), the items not yet started are not run."""
+    import time
+
+    from bitemesh.core.compiled import threaded_map
+
+    def slow(item):
+        started.append(item)
+        time.sleep(0.02 * (item % 3))
+        return item * item
+
+    for count in (1, MOST):
+        started = []
+        with using_threads(count):
+            assert list(threaded_map(slow, range(12))) == [item * item for item in range(12)]
+            started = []
+            results = threaded_map(slow, range(40))
+            assert next(results) == 0
+            results.close()   # as when the caller's loop raises
+        assert len(started) < 10

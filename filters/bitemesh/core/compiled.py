@@ -19,6 +19,7 @@ import contextvars
 import functools
 import os
 import threading
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
 import numba
@@ -113,3 +114,18 @@ def using_threads(count=None):
 def one_blas_thread():
     """A context in which BLAS takes one thread, its count given back after (see the module)."""
     return threadpool_limits(limits=1, user_api="blas")
+
+
+def threaded_map(function, items):
+    """``function(item)`` for each of ``items`` on :func:`threads` Python threads (work that releases the GIL: numpy,
+    LAPACK, compiled kernels), yielded in the items' order, so that a sum over them is the same whatever the count;
+    the items not yet started are dropped when the caller stops early (an error, a cancel)."""
+    count = threads()
+    if count == 1:
+        yield from map(function, items)
+        return
+    pool = ThreadPoolExecutor(count)
+    try:
+        yield from pool.map(function, items)
+    finally:
+        pool.shutdown(cancel_futures=True)

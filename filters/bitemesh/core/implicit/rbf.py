@@ -17,7 +17,6 @@ Convention: f > 0 inside, about the signed distance (input units) near f = 0.
 from __future__ import annotations
 
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -26,7 +25,7 @@ from scipy import linalg
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist, squareform
 
-from ..compiled import one_blas_thread, threads
+from ..compiled import one_blas_thread, threaded_map
 from ..errors import InvalidInputError, check_choice, check_number, check_points
 from ..grid.sampled import bounding_box, box_depth, box_depth_gradient
 from .normals import unit_normals
@@ -178,8 +177,8 @@ class RBFImplicit:
             jobs = [(part, slope, centre, radius, patch, np.asarray(index))
                     for centre, radius, patch, index in zip(self.centres, self.radii, self.patches, members) if index]
             # the patches on threads (numpy and BLAS release the GIL), their terms summed in the patches' order
-            with ThreadPoolExecutor(threads()) as pool, one_blas_thread():
-                for index, w, f, df, direction in pool.map(lambda job: _patch_terms(*job), jobs):
+            with one_blas_thread():
+                for index, w, f, df, direction in threaded_map(lambda job: _patch_terms(*job), jobs):
                     total[index] += w * f
                     weights[index] += w
                     if slope:
@@ -320,14 +319,11 @@ def fit_partition(constraints, values, *, kernel: str, smoothing: float = 0.0, m
         shift, scale = frame if np.isinf(radius) else (centre, 2.0 * radius)
         return _solve(constraints[index], values[index], kernel, smoothing, shift, scale, what)
 
-    patches, pool = [], ThreadPoolExecutor(threads())
-    try:   # LAPACK releases the GIL; the results come in the patches' order
-        with one_blas_thread():
-            for patch in pool.map(solve, zip(centres, radii)):
-                patches.append(patch)
-                report(progress, len(patches) / len(centres), f"fitted RBF patch {len(patches)} of {len(centres)}")
-    finally:   # cancelled (or refused): the patches not yet started are dropped
-        pool.shutdown(cancel_futures=True)
+    patches = []
+    with one_blas_thread():
+        for patch in threaded_map(solve, zip(centres, radii)):
+            patches.append(patch)
+            report(progress, len(patches) / len(centres), f"fitted RBF patch {len(patches)} of {len(centres)}")
     lower, upper = (None, None) if box is None else box
     return RBFImplicit(centres=centres, radii=radii, patches=tuple(patches), lower=lower, upper=upper)
 
