@@ -61,37 +61,41 @@ def _facet_key(cells: np.ndarray, c: int, skip: int):
 
 @kernel
 def _neighbours(cells: np.ndarray, slots: np.ndarray) -> np.ndarray:
-    """(m, k + 1) int64, see :func:`cell_neighbours`: each facet looked up by :func:`_facet_key` in an
-    open-addressing hash table (multiplicative hashing, linear probing) of ``slots`` (a power of two, -1: empty),
-    each holding the first facet row (c (k + 1) + i) that has its key; the second is the cell across it."""
+    """(m, k + 1) int64, see :func:`cell_neighbours`: each facet row (c (k + 1) + i) keyed once by
+    :func:`_facet_key`, then looked up in an open-addressing hash table (multiplicative hashing, linear probing) of
+    ``slots`` (a power of two, -1: empty), each holding the first facet row that has its key; the second is the cell
+    across it."""
     m, corners = cells.shape
     size, bits = len(slots), 0
     while (1 << bits) < size:
         bits += 1
-    across = np.full((m, corners), BOUNDARY, np.int64)
+    lows, rests = np.empty(m * corners, np.int64), np.empty(m * corners, np.int64)
     for c in range(m):
         for skip in range(corners):
-            low, rest = _facet_key(cells, c, skip)
-            mixed = (low * np.int64(-7046029254386353131) + rest) * np.int64(-7046029254386353131)   # wraps
-            slot = np.int64(np.uint64(mixed) >> np.uint64(64 - bits))
+            lows[c * corners + skip], rests[c * corners + skip] = _facet_key(cells, c, skip)
+    across = np.full((m, corners), BOUNDARY, np.int64)
+    for row in range(m * corners):
+        c, skip, low, rest = row // corners, row % corners, lows[row], rests[row]
+        mixed = (low * np.int64(-7046029254386353131) + rest) * np.int64(-7046029254386353131)   # wraps
+        slot = np.int64(np.uint64(mixed) >> np.uint64(64 - bits))
+        first = np.int64(slots[slot])
+        while first >= 0 and (lows[first] != low or rests[first] != rest):
+            slot = (slot + 1) & (size - 1)
             first = np.int64(slots[slot])
-            while first >= 0 and _facet_key(cells, first // corners, first % corners) != (low, rest):
-                slot = (slot + 1) & (size - 1)
-                first = np.int64(slots[slot])
-            if first < 0:
-                slots[slot] = c * corners + skip
-                continue
-            first_cell, first_skip = first // corners, first % corners
-            second = across[first_cell, first_skip]
-            if second == BOUNDARY:
-                across[c, skip], across[first_cell, first_skip] = first_cell, c
-                continue
-            for j in range(corners if second >= 0 else 0):   # a third cell on this facet: the second's row too
-                if (across[second, j] == first_cell and second * corners + j != first
-                        and _facet_key(cells, second, j) == (low, rest)):
-                    across[second, j] = NON_MANIFOLD
-                    break
-            across[c, skip] = across[first_cell, first_skip] = NON_MANIFOLD
+        if first < 0:
+            slots[slot] = row
+            continue
+        first_cell, first_skip = first // corners, first % corners
+        second = across[first_cell, first_skip]
+        if second == BOUNDARY:
+            across[c, skip], across[first_cell, first_skip] = first_cell, c
+            continue
+        for j in range(corners if second >= 0 else 0):   # a third cell on this facet: the second's row too
+            other = second * corners + j
+            if across[second, j] == first_cell and other != first and lows[other] == low and rests[other] == rest:
+                across[second, j] = NON_MANIFOLD
+                break
+        across[c, skip] = across[first_cell, first_skip] = NON_MANIFOLD
     return across
 
 
