@@ -1,6 +1,6 @@
 """The shape of a domain as topology counts it: parts, holes through it (handles), and voids inside it.
 
-For a mesh (2D triangles or 3D tetrahedra) they come from its cells and its boundary; for the region {f > 0} on a
+For a mesh (2D triangles, 3D tetrahedra; beyond, simplices) they come from its cells and its boundary; for {f > 0} on a
 grid, from the union of the closed voxels (pixels) whose nodes are inside: its Euler characteristic counted on the
 cubical complex, its parts labelled with 26- (8-) connectivity and its enclosed background with 6- (4-).  A mesh of
 f holds no handle or void that f's region on the grid I lacks: the grid resolves f four times finer than R, so a
@@ -23,8 +23,8 @@ from .topology import boundary_facets, connected_components, euler_characteristi
 
 @dataclass(frozen=True)
 class Topology:
-    """Betti numbers of a domain: ``parts`` (b0), ``handles`` (b1: tunnels through it, in 2D its holes) and
-    ``voids`` (b2: closed cavities inside it; 0 in 2D)."""
+    """Betti numbers of a domain: ``parts`` (b0), ``handles`` (b1: tunnels through it, in 2D its holes; beyond 3D
+    see :func:`_from_euler`) and ``voids`` (b_(k-1): closed cavities inside it; 0 in 2D)."""
 
     parts: int
     handles: int
@@ -46,8 +46,17 @@ def mesh_topology(mesh: Mesh) -> Topology:
     surfaces = int(connected_components(facets).max() + 1) if len(facets) else 0
     if cells.shape[1] == 3:
         return Topology(parts, surfaces - parts, 0)
-    genus = (2 * surfaces - euler_characteristic(facets)) // 2
-    return Topology(parts, int(genus), surfaces - parts)
+    if cells.shape[1] == 4:
+        genus = (2 * surfaces - euler_characteristic(facets)) // 2
+        return Topology(parts, int(genus), surfaces - parts)
+    return _from_euler(parts, surfaces - parts, euler_characteristic(cells), cells.shape[1] - 1)
+
+
+def _from_euler(parts: int, voids: int, euler: int, k: int) -> Topology:
+    """The :class:`Topology` of a k-D domain (k >= 3) from its parts (b0), voids (b_(k-1)) and Euler characteristic:
+    ``handles`` is b1 - b2 + b3 - ... over the dimensions between (b1 in 3D; in 4-D b1 - b2, which a tunnel raises
+    and a closed surface of cavity lowers: the count compared between a mesh and f's grid)."""
+    return Topology(parts, int(parts + (-1) ** (k - 1) * voids - euler), voids)
 
 
 def grid_topology(inside: np.ndarray) -> Topology:
@@ -58,7 +67,7 @@ def grid_topology(inside: np.ndarray) -> Topology:
     enclosed = ndimage.label(np.pad(~inside, 1, constant_values=True))[1] - 1   # the background all round is one
     if inside.ndim == 2:
         return Topology(parts, enclosed, 0)
-    return Topology(parts, parts + enclosed - cubical_euler(inside), enclosed)
+    return _from_euler(parts, enclosed, cubical_euler(inside), inside.ndim)
 
 
 def grid_parts(inside: np.ndarray):

@@ -1,7 +1,8 @@
 """Fidelity: how closely a mesh's boundary follows the samples it was made from, measured both ways.
 
 - **samples to the boundary**: the distance of every input sample to the boundary surface (triangles; segments
-  in 2D).  A mesh that lost a part of the shape, or filled a cavity, leaves samples far from its boundary.
+  in 2D, tetrahedra in 4-D).  A mesh that lost a part of the shape, or filled a cavity, leaves samples far from its
+  boundary.
 - **the boundary to the samples**: the distance of every boundary facet (its centroid, weighted by its area) to
   the nearest sample.  A surface that the data does not support (a blob around outliers, a sheet from wrong
   normals) lies far from every sample, off to one side of them; a surface the data leaves a wide gap in (a scan's
@@ -17,9 +18,11 @@ fraction of either measure exceeds its bound.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import nnls
 from scipy.spatial import cKDTree
 
 from ..mesh.simplicial import Mesh
@@ -83,29 +86,33 @@ class Fidelity:
 
 
 def closest_on_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """(m, k) the point of each facet nearest to each point: triangles (corners (m, 3, 3)) or, in 2D, segments
-    (corners (m, 2, 2)); ``points`` (m, k) pairs with ``corners`` row by row."""
+    """(m, k) the point of each facet nearest to each point: simplices of s vertices (corners (m, s, k)): segments
+    and triangles, and in 4-D and 5-D tetrahedra and 4-simplices; ``points`` (m, k) pairs with ``corners`` row by
+    row.  The projection onto the facet's plane where it falls inside, else the nearest of its own facets."""
     a, b = corners[:, 0], corners[:, 1]
     if corners.shape[1] == 2:
         edge = b - a
         t = np.einsum("mi,mi->m", points - a, edge) / np.maximum(np.einsum("mi,mi->m", edge, edge), 1e-300)
         return a + np.clip(t, 0.0, 1.0)[:, None] * edge
-    c = corners[:, 2]
-    ab, ac = b - a, c - a
-    # barycentric minimisation over the triangle: the unconstrained projection, then the three edges if outside
-    d00, d01, d11 = (np.einsum("mi,mi->m", u, v) for u, v in ((ab, ab), (ab, ac), (ac, ac)))
-    ap = points - a
-    d20, d21 = np.einsum("mi,mi->m", ap, ab), np.einsum("mi,mi->m", ap, ac)
-    denominator = np.maximum(d00 * d11 - d01 * d01, 1e-300)
-    v = (d11 * d20 - d01 * d21) / denominator
-    w = (d00 * d21 - d01 * d20) / denominator
-    best = a + v[:, None] * ab + w[:, None] * ac
-    inside = (v >= 0) & (w >= 0) & (v + w <= 1)
+    if corners.shape[1] == 3:
+        c = corners[:, 2]
+        ab, ac = b - a, c - a
+        d00, d01, d11 = (np.einsum("mi,mi->m", u, v) for u, v in ((ab, ab), (ab, ac), (ac, ac)))
+        ap = points - a
+        d20, d21 = np.einsum("mi,mi->m", ap, ab), np.einsum("mi,mi->m", ap, ac)
+        denominator = np.maximum(d00 * d11 - d01 * d01, 1e-300)
+        weights = np.column_stack([(d11 * d20 - d01 * d21) / denominator, (d00 * d21 - d01 * d20) / denominator])
+    else:   # the barycentric coordinates of the projection onto the facet's affine hull
+        edges = corners[:, 1:] - a[:, None]
+        gram = np.einsum("msi,mti->mst", edges, edges)
+        weights = np.linalg.solve(gram, np.einsum("msi,mi->ms", edges, points - a)[..., None])[..., 0]
+    best = a + np.einsum("ms,msi->mi", weights, corners[:, 1:] - a[:, None])
+    inside = (weights >= 0).all(axis=1) & (weights.sum(axis=1) <= 1)
     nearest = np.where(inside[:, None], best, np.inf)
-    for start, end in ((a, b), (b, c), (c, a)):
-        on_edge = closest_on_facets(points, np.stack([start, end], axis=1))
-        closer = ~inside & (np.linalg.norm(points - on_edge, axis=1) < np.linalg.norm(points - nearest, axis=1))
-        nearest[closer] = on_edge[closer]
+    for skip in range(corners.shape[1]):   # outside: the nearest point lies on one of the facet's own facets
+        on_face = closest_on_facets(points, np.delete(corners, skip, axis=1))
+        closer = ~inside & (np.linalg.norm(points - on_face, axis=1) < np.linalg.norm(points - nearest, axis=1))
+        nearest[closer] = on_face[closer]
     return nearest
 
 
@@ -153,10 +160,15 @@ def _nearer(points, corners, best, rows, facets) -> None:
 
 
 def facet_measures(corners: np.ndarray) -> np.ndarray:
-    """(f,) area of each triangle (length of each segment in 2D)."""
+    """(f,) the (k-1)-measure of each facet (corners (f, k, k)): the area of a triangle, the length of a segment in
+    2D, the volume of a tetrahedron in 4-D."""
     if corners.shape[1] == 2:
         return np.linalg.norm(corners[:, 1] - corners[:, 0], axis=1)
-    return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    if corners.shape[1] == 3:
+        return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    edges = corners[:, 1:] - corners[:, :1]
+    gram = np.einsum("msi,mti->mst", edges, edges)
+    return np.sqrt(np.maximum(np.linalg.det(gram), 0.0)) / math.factorial(edges.shape[1])
 
 
 def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: float, gap: float,
@@ -197,12 +209,15 @@ def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: floa
 
 
 def facet_normals(corners: np.ndarray) -> np.ndarray:
-    """(f, k) unit normals of triangles (f, 3, 3) or segments (f, 2, 2)."""
+    """(f, k) unit normals of facets (f, k, k): segments in 2D, triangles in 3D, tetrahedra in 4-D..."""
+    edges = corners[:, 1:] - corners[:, :1]
     if corners.shape[1] == 2:
-        edge = corners[:, 1] - corners[:, 0]
-        normal = np.column_stack([edge[:, 1], -edge[:, 0]])
-    else:
-        normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        normal = np.column_stack([edges[:, 0, 1], -edges[:, 0, 0]])
+    elif corners.shape[1] == 3:
+        normal = np.cross(edges[:, 0], edges[:, 1])
+    else:   # the generalised cross product: the cofactors of the edges' matrix
+        k = corners.shape[2]
+        normal = np.stack([(-1) ** i * np.linalg.det(np.delete(edges, i, axis=2)) for i in range(k)], axis=1)
     return normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
 
 
@@ -217,10 +232,18 @@ def surrounded(points: np.ndarray, normals: np.ndarray, samples: np.ndarray, tre
             along = offsets @ np.array([-normals[row, 1], normals[row, 0]])
             result[row] = (along > 0).any() and (along < 0).any()
             continue
-        first = np.cross(normals[row], [1.0, 0.0, 0.0] if abs(normals[row, 0]) < 0.9 else [0.0, 1.0, 0.0])
-        angles = np.sort(np.arctan2(offsets @ np.cross(normals[row], first), offsets @ first))
-        if len(angles) >= 3:
-            result[row] = np.diff(np.r_[angles, angles[0] + 2 * np.pi]).max() < np.pi
+        if points.shape[1] == 3:
+            first = np.cross(normals[row], [1.0, 0.0, 0.0] if abs(normals[row, 0]) < 0.9 else [0.0, 1.0, 0.0])
+            angles = np.sort(np.arctan2(offsets @ np.cross(normals[row], first), offsets @ first))
+            if len(angles) >= 3:
+                result[row] = np.diff(np.r_[angles, angles[0] + 2 * np.pi]).max() < np.pi
+            continue
+        # in k-D the directions leave no half-space empty: the point lies inside their convex hull (non-negative
+        # weights, summing to 1, that give it)
+        directions = offsets / np.maximum(np.linalg.norm(offsets, axis=1, keepdims=True), 1e-300)
+        if len(directions) >= points.shape[1]:
+            system = np.vstack([directions.T, np.ones(len(directions))])
+            result[row] = nnls(system, np.r_[np.zeros(points.shape[1]), 1.0])[1] < 1e-9
     return result
 
 
