@@ -145,3 +145,33 @@ def test_threaded_map_keeps_the_order_and_drops_what_a_cancel_leaves():
             assert next(results) == 0
             results.close()   # as when the caller's loop raises
         assert len(started) < 10
+
+
+def test_blas_stays_on_one_thread_until_the_last_python_thread_leaves():
+    """Two Python threads meshing at once: the first to leave must not give BLAS its threads back while the other
+    still solves its patches (the limit is the process's)."""
+    from threadpoolctl import threadpool_info
+
+    from bitemesh.core.compiled import one_blas_thread
+
+    def blas_threads():
+        return {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
+
+    outside = blas_threads()
+    if outside == {1}:
+        pytest.skip("BLAS runs on one thread here: nothing to give back")
+    entered, leave, seen = threading.Event(), threading.Event(), []
+
+    def first():
+        with one_blas_thread():
+            entered.set()
+            leave.wait(10)
+
+    worker = threading.Thread(target=first)
+    worker.start()
+    entered.wait(10)
+    with one_blas_thread():
+        leave.set()
+        worker.join(10)
+        seen.append(blas_threads())   # the first thread has left
+    assert seen == [{1}] and blas_threads() == outside

@@ -24,7 +24,6 @@ from contextlib import contextmanager
 
 import numba
 from numba import njit
-
 from threadpoolctl import threadpool_limits
 
 from .errors import InvalidInputError
@@ -111,9 +110,31 @@ def using_threads(count=None):
         _chosen.reset(token)
 
 
-def one_blas_thread():
-    """A context in which BLAS takes one thread, its count given back after (see the module)."""
-    return threadpool_limits(limits=1, user_api="blas")
+class _OneBlasThread:
+    """BLAS held to one thread while any Python thread is inside :func:`one_blas_thread` (the limit is the
+    process's: the first to enter sets it, the last to leave gives the count back)."""
+
+    def __init__(self):
+        self.lock, self.inside, self.limit = threading.Lock(), 0, None
+
+    @contextmanager
+    def __call__(self):
+        with self.lock:
+            if not self.inside:
+                self.limit = threadpool_limits(limits=1, user_api="blas")
+            self.inside += 1
+        try:
+            yield
+        finally:
+            with self.lock:
+                self.inside -= 1
+                if not self.inside:
+                    self.limit.restore_original_limits()
+
+
+#: a context in which BLAS takes one thread, its count given back after, whatever other Python threads do (see the
+#: module)
+one_blas_thread = _OneBlasThread()
 
 
 def threaded_map(function, items):
