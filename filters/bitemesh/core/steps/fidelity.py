@@ -102,17 +102,17 @@ def closest_on_facets(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
         d20, d21 = np.einsum("mi,mi->m", ap, ab), np.einsum("mi,mi->m", ap, ac)
         denominator = np.maximum(d00 * d11 - d01 * d01, 1e-300)
         weights = np.column_stack([(d11 * d20 - d01 * d21) / denominator, (d00 * d21 - d01 * d20) / denominator])
-    else:   # the barycentric coordinates of the projection onto the facet's affine hull
+    else:   # the barycentric coordinates of the projection onto the facet's affine hull (pinv: a flat facet too)
         edges = corners[:, 1:] - a[:, None]
         gram = np.einsum("msi,mti->mst", edges, edges)
-        weights = np.linalg.solve(gram, np.einsum("msi,mi->ms", edges, points - a)[..., None])[..., 0]
-    best = a + np.einsum("ms,msi->mi", weights, corners[:, 1:] - a[:, None])
-    inside = (weights >= 0).all(axis=1) & (weights.sum(axis=1) <= 1)
-    nearest = np.where(inside[:, None], best, np.inf)
-    for skip in range(corners.shape[1]):   # outside: the nearest point lies on one of the facet's own facets
-        on_face = closest_on_facets(points, np.delete(corners, skip, axis=1))
-        closer = ~inside & (np.linalg.norm(points - on_face, axis=1) < np.linalg.norm(points - nearest, axis=1))
-        nearest[closer] = on_face[closer]
+        weights = np.einsum("mst,mt->ms", np.linalg.pinv(gram), np.einsum("msi,mi->ms", edges, points - a))
+    nearest = a + np.einsum("ms,msi->mi", weights, corners[:, 1:] - a[:, None])
+    outside = np.flatnonzero(~((weights >= 0).all(axis=1) & (weights.sum(axis=1) <= 1)))
+    if len(outside):   # the nearest point lies on one of the facet's own facets
+        faces = [closest_on_facets(points[outside], np.delete(corners[outside], skip, axis=1))
+                 for skip in range(corners.shape[1])]
+        gaps = np.stack([np.linalg.norm(points[outside] - face, axis=1) for face in faces])
+        nearest[outside] = np.stack(faces)[np.argmin(gaps, axis=0), np.arange(len(outside))]
     return nearest
 
 
@@ -231,17 +231,14 @@ def surrounded(points: np.ndarray, normals: np.ndarray, samples: np.ndarray, tre
         if points.shape[1] == 2:
             along = offsets @ np.array([-normals[row, 1], normals[row, 0]])
             result[row] = (along > 0).any() and (along < 0).any()
-            continue
-        if points.shape[1] == 3:
+        elif points.shape[1] == 3:
             first = np.cross(normals[row], [1.0, 0.0, 0.0] if abs(normals[row, 0]) < 0.9 else [0.0, 1.0, 0.0])
             angles = np.sort(np.arctan2(offsets @ np.cross(normals[row], first), offsets @ first))
-            if len(angles) >= 3:
-                result[row] = np.diff(np.r_[angles, angles[0] + 2 * np.pi]).max() < np.pi
-            continue
-        # in k-D the directions leave no half-space empty: the point lies inside their convex hull (non-negative
-        # weights, summing to 1, that give it)
-        directions = offsets / np.maximum(np.linalg.norm(offsets, axis=1, keepdims=True), 1e-300)
-        if len(directions) >= points.shape[1]:
+            result[row] = len(angles) >= 3 and np.diff(np.r_[angles, angles[0] + 2 * np.pi]).max() < np.pi
+        elif len(offsets) >= points.shape[1]:
+            # beyond 3D: no half-space through the point holds every direction, i.e. the point lies inside
+            # their convex hull (non-negative weights, summing to 1, that give it)
+            directions = offsets / np.maximum(np.linalg.norm(offsets, axis=1, keepdims=True), 1e-300)
             system = np.vstack([directions.T, np.ones(len(directions))])
             result[row] = nnls(system, np.r_[np.zeros(points.shape[1]), 1.0])[1] < 1e-9
     return result
