@@ -9,9 +9,7 @@ from math import comb
 import numpy as np
 import pytest
 
-from bitemesh.core.compiled import available_threads, using_threads
-from bitemesh.core.optimize.measures import (_lane_sum, incidences, inverse_mean_ratio, mean_ratio_cost,
-                                             mean_ratio_terms, node_cost_descent, node_trial_costs)
+from bitemesh.core.optimize.measures import _lane_sum, inverse_mean_ratio, mean_ratio_cost, mean_ratio_terms
 from bitemesh.core.mesh.quality import signed_radius_ratio
 from bitemesh.core.steps.delaunay import delaunay
 from bitemesh.core.optimize.flips import flip, polygon_triangulations
@@ -131,34 +129,3 @@ def test_mean_ratio_is_one_on_the_regular_simplex_and_its_gradient_is_exact(dim)
             numeric = (inverse_mean_ratio((corners + shifted)[0], cell)
                        - inverse_mean_ratio((corners - shifted)[0], cell)) / (2 * step)
             assert gradient[0, i, d] == pytest.approx(numeric[0], rel=1e-5)
-
-
-@pytest.mark.parametrize("dim", [2, 3])
-def test_node_sums_run_one_node_a_thread_and_add_in_the_cells_order(dim):
-    """The optimizer's node sums over each node's cells (its incidences) are numpy's sums in the cells' order, bit
-    for bit, at 1 thread and at every core; a node's trial cost with no move is the cost its cells sum to (to
-    rounding: it is computed from the terms), the same at any thread count."""
-    points, cells = random_mesh(dim)
-    volume, squares, volume_gradient, centred = mean_ratio_terms(points, cells)
-    cost = mean_ratio_cost(volume, squares, dim)
-    expected = np.bincount(cells.ravel(), np.repeat(cost ** 2, dim + 1), len(points))
-    around = incidences(cells, len(points))
-    results = []
-    for count in sorted({1, available_threads()}):
-        with using_threads(count):
-            current, descent = node_cost_descent(*around, cost, squares, volume, volume_gradient, centred, 2)
-            trial = node_trial_costs(*around, volume, squares, volume_gradient, centred, np.zeros_like(points), 2)
-        np.testing.assert_array_equal(current, expected)
-        np.testing.assert_allclose(trial, expected, rtol=1e-14)
-        results.append((descent, trial))
-    for first, last in zip(results[0], results[-1]):
-        np.testing.assert_array_equal(first, last)
-
-
-def random_mesh(dim):
-    """A Delaunay mesh of 400 random points in the unit square or cube, positively oriented."""
-    points = np.random.default_rng(3).random((400, dim))
-    cells = delaunay(points)
-    negative = signed_measures(points, cells) < 0
-    cells[negative, :2] = cells[negative, 1::-1]
-    return points, cells

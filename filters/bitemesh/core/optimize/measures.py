@@ -4,7 +4,6 @@ and its gradient, the smallest angles, the mean edge length, the boundary nodes 
 from __future__ import annotations
 
 import numpy as np
-from numba import prange
 
 from ..grid.sampled import ImplicitGrid
 from ..compiled import kernel
@@ -13,8 +12,6 @@ from ..mesh.topology import boundary_facets
 
 #: sum of squared edge lengths / V^(2/k) of the regular triangle and tetrahedron.
 MEAN_RATIO_SCALE = {2: 4.0 * np.sqrt(3.0), 3: 12.0 * 3.0 ** (2.0 / 3.0)}
-#: cells a thread takes at a time in the per-cell kernels (their scratch arrays are allocated once a block).
-BLOCK = 4096
 
 
 def mean_ratio_cost(volume: np.ndarray, squares: np.ndarray, k: int) -> np.ndarray:
@@ -68,7 +65,7 @@ def _edge_terms(points: np.ndarray, cell: np.ndarray, edges: np.ndarray, total: 
     return (k + 1) * squared - _lane_sum(scratch, k)
 
 
-@kernel(parallel=True)
+@kernel
 def mean_ratio_terms(points: np.ndarray, cells: np.ndarray):
     """What :func:`mean_ratio_cost` and its derivatives need, for the (m, k + 1) ``cells`` of (n, k) ``points``.
 
@@ -84,60 +81,49 @@ def mean_ratio_terms(points: np.ndarray, cells: np.ndarray):
     m, k = len(cells), points.shape[1]
     volume, squares = np.empty(m), np.empty(m)
     volume_gradient, centred = np.empty((m, k + 1, k)), np.empty((m, k + 1, k))
-    for block in prange((m + BLOCK - 1) // BLOCK):   # each cell's terms are its own: the same at any thread count
-        edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
-        for c in range(block * BLOCK, min(m, (block + 1) * BLOCK)):
-            squares[c] = _edge_terms(points, cells[c], edges, total, scratch)
-            volume[c] = _cell_volume_terms(edges, total, scratch, volume_gradient[c], centred[c])
+    edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
+    for c in range(m):
+        squares[c] = _edge_terms(points, cells[c], edges, total, scratch)
+        # d V / d x_i for i >= 1: the cofactors of the edge matrix, / k!; d V / d x_0 = -(their sum)
+        cofactors = volume_gradient[c, 1:]
+        if k == 2:
+            cofactors[0, 0], cofactors[0, 1] = edges[1, 1] / 2.0, -edges[1, 0] / 2.0
+            cofactors[1, 0], cofactors[1, 1] = -edges[0, 1] / 2.0, edges[0, 0] / 2.0
+        else:
+            for i in range(3):
+                a, b = edges[(i + 1) % 3], edges[(i + 2) % 3]
+                cofactors[i, 0] = (a[1] * b[2] - a[2] * b[1]) / 6.0
+                cofactors[i, 1] = (a[2] * b[0] - a[0] * b[2]) / 6.0
+                cofactors[i, 2] = (a[0] * b[1] - a[1] * b[0]) / 6.0
+        for d in range(k):
+            scratch[d] = edges[0, d] * cofactors[0, d]
+            summed = cofactors[0, d] + cofactors[1, d]
+            if k == 3:
+                summed += cofactors[2, d]
+            volume_gradient[c, 0, d] = -summed
+            share = total[d] / (k + 1)
+            centred[c, 0, d] = 0.0 - share
+            for j in range(k):
+                centred[c, j + 1, d] = edges[j, d] - share
+        volume[c] = _lane_sum(scratch, k)
     return volume, squares, volume_gradient, centred
 
 
 @kernel
-def _cell_volume_terms(edges: np.ndarray, total: np.ndarray, scratch: np.ndarray, volume_gradient: np.ndarray,
-                       centred: np.ndarray) -> float:
-    """Fill one cell's ``volume_gradient`` and ``centred`` (k + 1, k) from its ``edges`` and their ``total``
-    (:func:`_edge_terms`); return its signed measure."""
-    k = len(total)
-    # d V / d x_i for i >= 1: the cofactors of the edge matrix, / k!; d V / d x_0 = -(their sum)
-    cofactors = volume_gradient[1:]
-    if k == 2:
-        cofactors[0, 0], cofactors[0, 1] = edges[1, 1] / 2.0, -edges[1, 0] / 2.0
-        cofactors[1, 0], cofactors[1, 1] = -edges[0, 1] / 2.0, edges[0, 0] / 2.0
-    else:
-        for i in range(3):
-            a, b = edges[(i + 1) % 3], edges[(i + 2) % 3]
-            cofactors[i, 0] = (a[1] * b[2] - a[2] * b[1]) / 6.0
-            cofactors[i, 1] = (a[2] * b[0] - a[0] * b[2]) / 6.0
-            cofactors[i, 2] = (a[0] * b[1] - a[1] * b[0]) / 6.0
-    for d in range(k):
-        scratch[d] = edges[0, d] * cofactors[0, d]
-        summed = cofactors[0, d] + cofactors[1, d]
-        if k == 3:
-            summed += cofactors[2, d]
-        volume_gradient[0, d] = -summed
-        share = total[d] / (k + 1)
-        centred[0, d] = 0.0 - share
-        for j in range(k):
-            centred[j + 1, d] = edges[j, d] - share
-    return _lane_sum(scratch, k)
-
-
-@kernel(parallel=True)
 def _inverse_mean_ratio(points: np.ndarray, cells: np.ndarray, scale: float) -> np.ndarray:
     m, k = len(cells), points.shape[1]
     cost = np.empty(m)
-    for block in prange((m + BLOCK - 1) // BLOCK):
-        edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
-        for c in range(block * BLOCK, min(m, (block + 1) * BLOCK)):
-            squares = _edge_terms(points, cells[c], edges, total, scratch)
-            if k == 2:
-                volume = 0.5 * (edges[0, 0] * edges[1, 1] - edges[0, 1] * edges[1, 0])
-            else:
-                scratch[0] = edges[0, 0] * (edges[1, 1] * edges[2, 2] - edges[1, 2] * edges[2, 1])
-                scratch[1] = edges[0, 1] * (edges[1, 2] * edges[2, 0] - edges[1, 0] * edges[2, 2])
-                scratch[2] = edges[0, 2] * (edges[1, 0] * edges[2, 1] - edges[1, 1] * edges[2, 0])
-                volume = _lane_sum(scratch, 3) / 6.0
-            cost[c] = squares / (scale * volume ** (2.0 / k)) if volume > 0 else np.inf
+    edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
+    for c in range(m):
+        squares = _edge_terms(points, cells[c], edges, total, scratch)
+        if k == 2:
+            volume = 0.5 * (edges[0, 0] * edges[1, 1] - edges[0, 1] * edges[1, 0])
+        else:
+            scratch[0] = edges[0, 0] * (edges[1, 1] * edges[2, 2] - edges[1, 2] * edges[2, 1])
+            scratch[1] = edges[0, 1] * (edges[1, 2] * edges[2, 0] - edges[1, 0] * edges[2, 2])
+            scratch[2] = edges[0, 2] * (edges[1, 0] * edges[2, 1] - edges[1, 1] * edges[2, 0])
+            volume = _lane_sum(scratch, 3) / 6.0
+        cost[c] = squares / (scale * volume ** (2.0 / k)) if volume > 0 else np.inf
     return cost
 
 
@@ -147,31 +133,19 @@ def inverse_mean_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return _inverse_mean_ratio(points, np.asarray(cells, dtype=np.int64), MEAN_RATIO_SCALE[points.shape[-1]])
 
 
-def incidences(cells: np.ndarray, n_points: int) -> tuple:
-    """(start (n_points + 1,), corner (m (k + 1),)): the cells' corners (flat index c (k + 1) + i) grouped by node,
-    each node's in the order of its cells; node v's are corner[start[v]:start[v + 1]].  The node sums of
-    :func:`node_trial_costs` and :func:`node_cost_descent` run over them, one node a thread, adding in the cells'
-    order: the same bits at any thread count as one loop over the cells."""
-    flat = np.asarray(cells, dtype=np.int64).ravel()
-    start = np.zeros(n_points + 1, np.int64)
-    np.cumsum(np.bincount(flat, minlength=n_points), out=start[1:])
-    return start, np.argsort(flat, kind="stable")
-
-
-@kernel(parallel=True)
-def node_trial_costs(start: np.ndarray, corner: np.ndarray, volume: np.ndarray, squares: np.ndarray,
-                     volume_gradient: np.ndarray, centred: np.ndarray, move: np.ndarray, power: int) -> np.ndarray:
-    """(n,) for each node, sum over its cells (:func:`incidences`) of :func:`mean_ratio_cost` ** ``power`` when
-    that node alone moves by ``move`` (n, k), from the cells' :func:`mean_ratio_terms` (exact: see there)."""
+@kernel
+def node_trial_costs(cells: np.ndarray, volume: np.ndarray, squares: np.ndarray, volume_gradient: np.ndarray,
+                     centred: np.ndarray, move: np.ndarray, n_points: int, power: int) -> np.ndarray:
+    """(n_points,) for each node, sum over its cells of :func:`mean_ratio_cost` ** ``power`` when that node alone
+    moves by ``move`` (n_points, k), from the cells' :func:`mean_ratio_terms` (exact: see there)."""
     m, corners, k = volume_gradient.shape
     scale = 4.0 * np.sqrt(3.0) if k == 2 else 12.0 * 3.0 ** (2.0 / 3.0)
     # the sums over the axes in the order of numpy's einsum (0, 2, 1 in 3D), so that the result is the same
     axes = np.array([0, 2, 1]) if k == 3 else np.array([0, 1])
-    n_points = len(start) - 1
     total = np.zeros(n_points)
-    for node in prange(n_points):
-        for j in range(start[node], start[node + 1]):
-            c, i = corner[j] // corners, corner[j] % corners
+    for c in range(m):
+        for i in range(corners):
+            node = cells[c, i]
             trial_volume, trial_squares = 0.0, 0.0
             for d in axes:
                 shift = move[node, d]
@@ -186,20 +160,19 @@ def node_trial_costs(start: np.ndarray, corner: np.ndarray, volume: np.ndarray, 
     return total
 
 
-@kernel(parallel=True)
-def node_cost_descent(start: np.ndarray, corner: np.ndarray, cost: np.ndarray, squares: np.ndarray,
-                      volume: np.ndarray, volume_gradient: np.ndarray, centred: np.ndarray, power: int):
-    """For each node, the sum over its cells (:func:`incidences`) of ``cost`` ** ``power`` (n,) and minus its
-    gradient with respect to the node (n, k), from the cells' :func:`mean_ratio_cost` and
-    :func:`mean_ratio_terms`; not finite at a node with a cell of infinite cost."""
+@kernel
+def node_cost_descent(cells: np.ndarray, cost: np.ndarray, squares: np.ndarray, volume: np.ndarray,
+                      volume_gradient: np.ndarray, centred: np.ndarray, n_points: int, power: int):
+    """For each node, the sum over its cells of ``cost`` ** ``power`` (n_points,) and minus its gradient with
+    respect to the node (n_points, k), from the cells' :func:`mean_ratio_cost` and :func:`mean_ratio_terms`;
+    not finite at a node with a cell of infinite cost."""
     m, corners, k = volume_gradient.shape
-    n_points = len(start) - 1
     current, gradient = np.zeros(n_points), np.zeros((n_points, k))
-    for node in prange(n_points):
-        for j in range(start[node], start[node + 1]):
-            c, i = corner[j] // corners, corner[j] % corners
-            raised = cost[c] ** power
-            weight = power * raised
+    for c in range(m):
+        raised = cost[c] ** power
+        weight = power * raised
+        for i in range(corners):
+            node = cells[c, i]
             current[node] += raised
             for d in range(k):
                 if np.isfinite(weight):

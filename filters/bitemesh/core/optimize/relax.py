@@ -19,7 +19,7 @@ import itertools
 import numpy as np
 
 from .measures import (boundary_nodes, inverse_mean_ratio, mean_edge_length, mean_ratio_cost, mean_ratio_terms,
-                       incidences, node_cost_descent, node_trial_costs, scatter_to_points, tangential)
+                       node_cost_descent, node_trial_costs, scatter_to_points, tangential)
 from ..mesh.quality import cross, dot, signed_radius_ratio
 from .delaunay_flips import FLAT_QUALITY, flip_to_delaunay
 from ..grid.sampled import ImplicitGrid
@@ -156,12 +156,12 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
     """
     n, k = points.shape
     corner_of = cells.ravel()
-    around = incidences(cells, n)   # the cells stay: their corners grouped by node, once
+    degree = np.bincount(corner_of, minlength=n)
     on_boundary = np.flatnonzero(boundary_nodes(cells, n))
     length = mean_edge_length(points, cells)
     for iteration in range(iterations):
         report(progress, iteration / iterations, f"smoothing {iteration + 1}/{iterations}")
-        best_move, limit = _best_moves(grid, points, cells, on_boundary, around, length)
+        best_move, limit = _best_moves(grid, points, cells, on_boundary, degree, length)
         moving = np.any(best_move != 0, axis=1)
         new = points.copy()
         new[moving] += best_move[moving]
@@ -185,10 +185,9 @@ def smooth(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations
 
 
 def _best_moves(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, on_boundary: np.ndarray,
-                around: tuple, length: float):
+                degree: np.ndarray, length: float):
     """One smoothing iteration's choice, every other node fixed: each node's best move among ``STEP_FRACTIONS``
-    of its descent (boundary nodes: tangential, then onto f = 0) and the cost its cells may not exceed;
-    ``around``: the cells' :func:`~bitemesh.core.optimize.measures.incidences`.
+    of its descent (boundary nodes: tangential, then onto f = 0) and the cost its cells may not exceed.
 
     Returns
     -------
@@ -200,11 +199,11 @@ def _best_moves(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, on_bo
     # (m, k + 1, k) terms: freed on return, so that two iterations' never live at once
     volume, squares, volume_gradient, centred = mean_ratio_terms(points, cells)
     # not finite at the nodes of cells with no volume: they do not move
-    current, descent = node_cost_descent(*around, mean_ratio_cost(volume, squares, k), squares, volume,
-                                         volume_gradient, centred, SMOOTH_POWER)
+    current, descent = node_cost_descent(cells, mean_ratio_cost(volume, squares, k), squares, volume,
+                                         volume_gradient, centred, n, SMOOTH_POWER)
     descent[on_boundary] = tangential(grid, points[on_boundary], descent[on_boundary])
     # a Newton-like scale: the cost of a node's cells changes by about its own size over an edge length
-    descent *= (0.5 * length ** 2 * np.diff(around[0]) / np.maximum(current, 1e-300))[:, None]
+    descent *= (0.5 * length ** 2 * degree / np.maximum(current, 1e-300))[:, None]
     descent[~np.isfinite(descent).all(axis=1)] = 0.0
     step = np.linalg.norm(descent, axis=1)
     descent *= np.minimum(1.0, MAX_MOVE * length / np.maximum(step, 1e-300))[:, None]
@@ -219,7 +218,7 @@ def _best_moves(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, on_bo
     for move, end in zip(moves, ends):
         move[on_boundary] = end - start
         # the cost of each node's cells when that node alone moves
-        trial = node_trial_costs(*around, volume, squares, volume_gradient, centred, move, SMOOTH_POWER)
+        trial = node_trial_costs(cells, volume, squares, volume_gradient, centred, move, n, SMOOTH_POWER)
         better = trial < best_cost
         best_cost[better], best_move[better] = trial[better], move[better]
     return best_move, limit
