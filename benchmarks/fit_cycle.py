@@ -37,7 +37,8 @@ from cine import cine_folder, model_surfaces, reference  # noqa: E402
 from heart_measures import measure_heart, tagged  # noqa: E402
 
 HEADER = ("| frame | fit (s) | rounds | wall guide points mean / 95 % (mm) | biv-me's fit: mean / 95 % (mm) | "
-          "mesh -> biv-me / biv-me -> mesh (mm) | the same more than 10 mm below the base (mm) | "
+          "mesh -> biv-me / biv-me -> mesh (mm) | mesh -> biv-me more than 10 mm below the base / there within 1 mm "
+          "of a wall guide point (mm) | "
           "LV ml: fit / the frame meshed (biv-me) | "
           "LV cavity outward of its guide points: mesh / biv-me (mm) | RV ml (biv-me) | myocardium ml | "
           "min dihedral (deg) | min radius ratio | valid |\n" + "|---" * 14 + "|")
@@ -55,7 +56,8 @@ def measured_row(name: str, fitted, path: Path, frame, surfaces: dict | None, me
     row = {**measure_heart(fitted.mesh, points, labels, surfaces, base.below), **frame_fit_row(fitted)}
     line = (f"| {name} | {row['seconds']:.1f} | {row['rounds']} | {row['wall_mean']:.2f} / "
             f"{row['wall_p95']:.2f} | {row['bivme_wall_mean']:.2f} / {row['bivme_wall_p95']:.2f} | "
-            f"{row['to_bivme']:.2f} / {row['from_bivme']:.2f} | {row['to_bivme_deep']:.2f} | "
+            f"{row['to_bivme']:.2f} / {row['from_bivme']:.2f} | "
+            f"{row['to_bivme_deep']:.2f} / {row['to_bivme_near_data']:.2f} | "
             f"{row['LV_ENDO_ml']:.0f} / {meshed:.0f} ({row['bivme_LV_ENDO_ml']:.0f}) | "
             f"{row['lv_offset']:+.2f} / {row['bivme_lv_offset']:+.2f} | "
             f"{row['RV_ENDO_ml']:.0f} ({row['bivme_RV_ENDO_ml']:.0f}) | "

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
-from .template import similarity
+from .alignment import similarity
 
 #: the rounds of generalised Procrustes alignment, and the change of the mean shape (RMS, in its size) that ends them.
 ALIGN_ROUNDS, ALIGN_TOLERANCE = 100, 1e-10

@@ -1,23 +1,23 @@
 """The deformable elastic template of the paper (section 2): a tetrahedral mesh moved onto new data by minimising
 E = E_elastic + E_data, discretised as K U = F, with the same cells.
 
-Scheme.  First a similarity (rotation, uniform scale, translation) takes the template's surfaces onto their data:
-iterated closest points from the data to its surface with Umeyama's closed form (the data may sample a surface in
-part, as contours do), so that a pure rigid motion or scaling is recovered exactly and the elastic part only has to
-bend.  Then stages (load steps) of the elastic fit, each the paper's K U = F: K the template's own P1 linear
-elasticity measured from the stage's start (the first stage's from the template at rest, ``rest``, when a cycle
-starts each frame from the last), F the pulls of the data (:func:`springs`: point to plane on the nodes the data
-claim, harmonic in between, so that a surface sampled by contours 10 mm apart moves as a whole), the correspondences
-recomputed each round.  A cell whose shape degrades from the template's stiffens (Jacobian-based stiffening, as in
-mesh moving: Stein, Tezduyar and Benney 2003); where a step would invert or flatten a cell, or take its smallest
-dihedral angle below ANGLE_FLOOR (10 degrees) or its radius ratio below RATIO_FLOOR (0.2), the step of its nodes is
-halved.  The rounds of a
-stage end when the RMS step is below ``tolerance`` mean edge lengths or a round brings the data closer by less than
-:data:`ROUND_GAIN` mean edge lengths; the stages, when one moves the nodes less than
-:data:`STAGE_END` edge lengths (RMS).  Each cell's Fibre, Sheet and SheetNormal are carried by its deformation
-gradient and made orthonormal again; its quality arrays are those of the moved cell.  A fit that leaves more than
-FAR_SHARE of the data farther than a mean edge from its boundary is refused, not returned; so is a fit to points of
-the whole boundary that leaves FAR_SHARE of its boundary's area far from every point (another shape wrapped).
+Scheme. First a similarity (rotation, uniform scale, translation; :mod:`.alignment`) takes the template's surfaces
+onto their data: iterated closest points from the data to its surface with Umeyama's closed form (the data may
+sample a surface in part, as contours do), so that a pure rigid motion or scaling is recovered exactly and the
+elastic part only has to bend. Then stages (load steps) of the elastic fit, each the paper's K U = F: K the
+template's own P1 linear elasticity measured from the stage's start (the first stage's from the template at rest,
+``rest``, when a cycle starts each frame from the last), F the pulls of the data (:func:`springs`: point to plane on
+the nodes the data claim, harmonic in between, so that a surface sampled by contours 10 mm apart moves as a whole),
+the correspondences recomputed each round. A cell whose shape degrades from the template's stiffens (Jacobian-based
+stiffening, as in mesh moving: Stein, Tezduyar and Benney 2003); where a step would invert or flatten a cell, or
+take its smallest dihedral angle below ANGLE_FLOOR (10 degrees) or its radius ratio below RATIO_FLOOR (0.2), the
+step of its nodes is halved. The rounds of a stage end when the RMS step is below ``tolerance`` mean edge lengths or
+a round brings the data closer by less than :data:`ROUND_GAIN` mean edge lengths; the stages, when one moves the
+nodes less than :data:`STAGE_END` edge lengths (RMS). Each cell's Fibre, Sheet and SheetNormal are carried by its
+deformation gradient and made orthonormal again; its quality arrays are those of the moved cell. A fit that leaves
+more than FAR_SHARE of the data farther than a mean edge from its boundary is refused, not returned; so is a fit to
+points of the whole boundary that leaves FAR_SHARE of its boundary's area far from every point (another shape
+wrapped).
 """
 from __future__ import annotations
 
@@ -37,10 +37,9 @@ from ..parameters import Parameters, parameter
 from ..progress import ProgressCallback, report
 from ..steps.fidelity import distances_to_facets, facet_measures
 from ..optimize.measures import inverse_mean_ratio, mean_edge_length, smallest_angles
+from .alignment import align
 from .assembly import Pattern, basis_gradients, elasticity_elements, solve
 
-#: the rounds of iterated closest points of the similarity pre-alignment.
-ALIGN_ROUNDS = 50
 #: a node is pulled only by data within this many times the median distance between the surfaces and their data
 #: (and two edge lengths): a part of a surface that the data does not sample follows the rest, not a far point.
 REACH = 3.0
@@ -94,75 +93,6 @@ class TemplateFit:
     rounds: int
     distances: np.ndarray
     seconds: float = 0.0
-
-
-def similarity(source: np.ndarray, target: np.ndarray):
-    """(scale, rotation, translation) minimising |scale R source + t - target|^2 over paired (n, 3) points
-    (Umeyama 1991): a proper rotation, scale > 0."""
-    source_mean, target_mean = source.mean(axis=0), target.mean(axis=0)
-    a, b = source - source_mean, target - target_mean
-    u, singular, vt = np.linalg.svd(b.T @ a / len(a))
-    sign = np.ones(3)
-    sign[2] = np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0
-    rotation = u @ np.diag(sign) @ vt
-    scale = float((singular * sign).sum() / np.mean(np.sum(a * a, axis=1)))
-    return scale, rotation, target_mean - scale * rotation @ source_mean
-
-
-def align(points: np.ndarray, groups: list):
-    """The similarity that takes the template's surfaces onto their data (``groups``: see
-    :func:`surface_groups`).  Starts: the template where it is, and the principal
-    axes of both matched (each of the four proper ways to pair their directions), with the RMS sizes and the
-    centroids; each refined by iterated closest points from the data to its surface (the data may sample a surface in
-    part: contours); the start that ends closest wins."""
-    surface = points[np.concatenate([nodes for nodes, _, _, _ in groups])]
-    data = np.vstack([targets for _, _, targets, _ in groups])
-    axes_from = np.linalg.eigh(np.cov(surface.T))[1]
-    axes_to = np.linalg.eigh(np.cov(data.T))[1]
-    size = np.sqrt(np.mean(np.sum((data - data.mean(axis=0)) ** 2, axis=1))
-                   / np.mean(np.sum((surface - surface.mean(axis=0)) ** 2, axis=1)))
-    starts = [(1.0, np.eye(3), np.zeros(3))]
-    for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
-        turn = axes_to @ np.diag(signs) @ axes_from.T
-        if np.linalg.det(turn) < 0:
-            turn = axes_to @ np.diag(signs) @ np.diag([1, 1, -1]) @ axes_from.T
-        starts.append((float(size), turn, data.mean(axis=0) - size * turn @ surface.mean(axis=0)))
-    best, paired = None, nearest_pairs(points, groups)
-    for start in starts:
-        found, residual = iterate_closest_points(paired, start)
-        if best is None or residual < best[1]:
-            best = (found, residual)
-    return best[0]
-
-
-def nearest_pairs(points: np.ndarray, groups: list):
-    """A callable: a similarity (scale, rotation, shift) -> (template points (p, 3), data points (p, 3)), each data
-    point with the nearest node of its surface once the template is moved by it: the data moved back into the
-    template's frame instead (a similarity keeps which node is nearest), so that each surface's k-d tree is built
-    once."""
-    surfaces = [(points[nodes], cKDTree(points[nodes]), data) for nodes, _, data, _ in groups]
-    targets = np.vstack([data for _, _, data in surfaces])
-
-    def paired(current: tuple):
-        scale, rotation, shift = current
-        return np.vstack([surface[tree.query((data - shift) @ rotation / scale)[1]]
-                          for surface, tree, data in surfaces]), targets
-    return paired
-
-
-def iterate_closest_points(paired, current: tuple):
-    """The similarity from ``current`` on, refined by closest points within each surface (``paired``:
-    :func:`nearest_pairs`) until it stops changing, and the mean distance between the pairs it leaves."""
-    for _ in range(ALIGN_ROUNDS):
-        found = similarity(*paired(current))
-        converged = np.allclose(found[1], current[1], rtol=0, atol=1e-13) and \
-            abs(found[0] - current[0]) <= 1e-13 * current[0] and \
-            np.allclose(found[2], current[2], rtol=0, atol=1e-13 * (1 + np.abs(current[2]).max()))
-        current = found
-        if converged:
-            break
-    source, target = paired(current)
-    return current, float(np.linalg.norm(current[0] * source @ current[1].T + current[2] - target, axis=1).mean())
 
 
 def node_normals(points: np.ndarray, facets: np.ndarray) -> np.ndarray:
