@@ -30,6 +30,7 @@ from scipy.sparse import linalg as splinalg
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError, MeshingError, check_number, check_points
+from ..implicit.samples import sample_spacing
 from ..mesh.quality import cell_quality, radius_ratio
 from ..mesh.simplicial import Mesh, signed_measures
 from ..mesh.topology import boundary_facets, distinct_faces
@@ -247,12 +248,11 @@ def fit_template(template: Mesh, data, *, pull: float = 3.0, stages: int = 4, ro
     cell_data.update({name: values for name, values in cell_quality(Mesh(points, cells)).items() if name in cell_data})
     moved = Mesh(points, cells, cell_data, template.facets, template.facet_tags, dict(template.tag_names),
                  dict(template.point_data), template.unit)   # node i stays the same material point: its data stay
-    distances = distances_to_facets(np.vstack([data for _, _, data, _ in measured.values()]),
-                                    points[boundary_facets(cells)])
-    check_follows(distances, mean_edge_length(points, cells), pull,
-                  {name: len(data) for name, (_, _, data, _) in measured.items()})
+    corners, edge = points[boundary_facets(cells)], mean_edge_length(points, cells)
+    distances = distances_to_facets(np.vstack([data for _, _, data, _ in measured.values()]), corners)
+    check_follows(distances, edge, pull, {name: len(data) for name, (_, _, data, _) in measured.items()})
     if "boundary" in measured:
-        check_covered(points[boundary_facets(cells)], measured["boundary"][3], mean_edge_length(points, cells))
+        check_covered(corners, *measured["boundary"][2:], edge)
     report(progress, 1.0, "fitted")
     return TemplateFit(moved, (scale, rotation, shift), done, distances, time.perf_counter() - start)
 
@@ -285,14 +285,15 @@ def check_follows(distances: np.ndarray, edge: float, pull: float, sizes: dict) 
             f"them closer")
 
 
-def check_covered(corners: np.ndarray, data: cKDTree, edge: float) -> None:
-    """Refuse a fit to points that sample the whole boundary (``data``, their cKDTree) that leaves more than
+def check_covered(corners: np.ndarray, data: np.ndarray, tree: cKDTree, edge: float) -> None:
+    """Refuse a fit to points that sample the whole boundary (``data`` (n, 3), their ``tree``) that leaves more than
     :data:`FAR_SHARE` of its boundary's area (facets ``corners`` (f, 3, 3)) farther than ``edge`` plus twice the
-    data's spacing (the median distance between neighbouring points) from every point: it wraps a shape that is not
-    the data's (one ball stretched round two spheres lies near all of their points)."""
-    spacing = float(np.median(data.query(data.data, k=2)[0][:, 1]))
+    data's spacing (:func:`~bitemesh.core.implicit.samples.sample_spacing`, as the mesher's fidelity allows) from
+    every point: it wraps a shape that is not the data's (one ball stretched round two spheres lies near all of
+    their points)."""
+    spacing = sample_spacing(data)
     area = facet_measures(corners)
-    bare = data.query(corners.mean(axis=1))[0] > edge + 2 * spacing
+    bare = tree.query(corners.mean(axis=1))[0] > edge + 2 * spacing
     share = float(area[bare].sum() / area.sum())
     if share > FAR_SHARE:
         raise MeshingError(
