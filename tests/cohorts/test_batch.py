@@ -219,14 +219,16 @@ def test_a_worker_killed_mid_run_leaves_every_case_done_once(client, inputs, tmp
 
 
 def test_a_case_starting_removes_what_its_killed_attempt_half_wrote(inputs, tmp_path):
-    """A worker killed mid-write leaves the case's .partial files (mesh, picture, record); the next attempt of the
-    case removes them and leaves another case's."""
+    """A worker killed mid-write leaves the case's .partial files (mesh, facets, picture, record); the next attempt
+    of the case removes them and leaves another case's."""
     from bitemesh.cohorts.cases import RECORDS, Case
     from bitemesh.cohorts.run import remove_partials
     (tmp_path / RECORDS).mkdir()
-    stale = [tmp_path / ".p1.0a1b2c3d.partial.vtu", tmp_path / RECORDS / ".p1.99887766.partial.png",
+    stale = [tmp_path / ".p1.0a1b2c3d.partial.vtu", tmp_path / ".p1_facets.5e6f7a8b.partial.vtu",
+             tmp_path / RECORDS / ".p1.99887766.partial.png",
              tmp_path / RECORDS / ".p1.deadbeef.partial.json"]
-    kept = [tmp_path / ".p10.0a1b2c3d.partial.vtu", tmp_path / RECORDS / "p1.json"]
+    kept = [tmp_path / ".p10.0a1b2c3d.partial.vtu", tmp_path / ".p10_facets.0a1b2c3d.partial.vtu",
+            tmp_path / RECORDS / "p1.json"]
     for path in stale + kept:
         path.write_text("x")
     remove_partials(tmp_path, Case("p1", inputs["sphere"]))

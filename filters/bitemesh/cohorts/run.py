@@ -21,7 +21,7 @@ from ..core.fem.template import FitParameters
 from ..core.mesh.quality import quality_summary
 from ..core.progress import ProgressCallback
 from ..fitting import fit, template_mesh
-from ..io import remove_stale_partials
+from ..io import mesh_files, remove_stale_partials
 from ..meshing import check_output, mesh, write
 from ..options import RUNNING, Options, as_options
 from .cases import Case, case_hash, find_cases, record_path, recorded_row, write_record
@@ -65,9 +65,11 @@ class _Captured(logging.Handler):
 
 
 def remove_partials(output_dir: Path, case: Case) -> None:
-    """Delete what attempts of ``case`` half wrote (its mesh, picture and record) when their worker was killed
-    mid-write: one attempt of a case runs at a time, so those found when it starts are stale, however recent."""
-    for path in (output_dir / case.output_name, picture_path(output_dir, case.name), record_path(output_dir, case)):
+    """Delete what attempts of ``case`` half wrote (its mesh with its companion files, picture and record) when
+    their worker was killed mid-write: one attempt of a case runs at a time, so those found when it starts are
+    stale, however recent."""
+    for path in (*mesh_files(output_dir / case.output_name), picture_path(output_dir, case.name),
+                 record_path(output_dir, case)):
         remove_stale_partials(path, idle=0.0)
 
 
