@@ -1,19 +1,22 @@
 """Every core and the first run (issue 35): meshes on 1 thread against every core, side by side in one run, and
-``bitemesh demo`` with numba's cache empty against filled.
+the first ``bitemesh demo`` after ``pip install .`` against a later one.
 
     python benchmarks/threads.py [--repeats 3] [--out benchmarks/threads.md]
 
 Threads: each case (the shipped biv-me heart at the default size; a sphere of scattered points at about 136,000
 cells) is meshed ``--repeats`` times on 1 thread and on every core, alternating, in fresh processes; the report
-gives each step's median and checks that both counts give the same mesh bit for bit.  First run: ``bitemesh demo``
-in a fresh process with ``NUMBA_CACHE_DIR`` an empty folder (every kernel compiled), then again with that folder
-filled (loaded), ``--repeats`` times each; the compile events are counted by numba's event API.
+gives each step's median and checks that both counts give the same mesh bit for bit.  First run: the wheel
+``pip install .`` builds (its build compiles the kernels into it, setup.py) is built once, timed, and installed
+into a new folder for each repeat, where ``bitemesh demo`` runs in a fresh process; for comparison, the demo from
+the source tree with ``NUMBA_CACHE_DIR`` an empty folder (every kernel compiled: an editable install, or a numba
+other than the build's), then again with that folder filled; the compile events are counted by numba's event API.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -63,10 +66,21 @@ print("RESULT", time.perf_counter() - start, len(compiled))
 """
 
 
-def fresh(code: str, *args, environment=None) -> str:
+def fresh(code: str, *args, path: Path = FILTERS, cache: Path | None = None) -> str:
+    """The output of ``code`` run with ``args`` in a fresh interpreter that imports bitemesh from ``path``, with
+    numba's cache in ``cache`` (else where numba puts it: the package's ``__pycache__`` folders)."""
+    environment = {name: value for name, value in os.environ.items() if name != "NUMBA_CACHE_DIR"}
+    environment.update({"PYTHONPATH": str(path)}, **({"NUMBA_CACHE_DIR": str(cache)} if cache else {}))
     completed = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True,
-                               env={**os.environ, "PYTHONPATH": str(FILTERS), **(environment or {})}, check=True)
+                               env=environment, check=True)
     return completed.stdout
+
+
+def pip(*args) -> float:
+    """Seconds ``pip`` took with ``args``."""
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "pip", "-q", *args], capture_output=True, check=True)
+    return time.perf_counter() - start
 
 
 def mesh_runs(case: str, counts, repeats: int) -> dict:
@@ -79,13 +93,23 @@ def mesh_runs(case: str, counts, repeats: int) -> dict:
 
 
 def demo_runs(repeats: int) -> dict:
-    """"empty" / "filled" -> list of (seconds, kernels compiled)."""
-    runs = {"empty": [], "filled": []}
+    """"installed" / "empty" / "filled" -> list of (seconds, kernels compiled) of the demo; "build" -> [seconds of
+    ``pip wheel .``]."""
+    runs = {"build": [], "installed": [], "empty": [], "filled": []}
     with tempfile.TemporaryDirectory() as folder:
+        folder = Path(folder)
+        source = folder / "source"   # what pip builds from, without an earlier build's folder
+        shutil.copytree(FILTERS, source / "filters", ignore=shutil.ignore_patterns("__pycache__"))
+        for name in ("pyproject.toml", "setup.py", "README.md"):
+            shutil.copy(HERE.parent / name, source)
+        runs["build"].append(pip("wheel", "--no-deps", str(source), "-w", str(folder)))
+        wheel = next(folder.glob("bitemesh-*.whl"))
         for repeat in range(repeats):
-            cache = Path(folder) / f"cache{repeat}"   # empty, then filled by the first run
-            for state in ("empty", "filled"):
-                line = fresh(DEMO_WORKER, Path(folder) / "die.vtu", environment={"NUMBA_CACHE_DIR": str(cache)})
+            target = folder / f"installed{repeat}"
+            pip("install", "--no-deps", "--target", str(target), str(wheel))
+            cache = folder / f"cache{repeat}"   # empty, then filled by the first run
+            for state, path in (("installed", target), ("empty", FILTERS), ("filled", FILTERS)):
+                line = fresh(DEMO_WORKER, folder / "die.vtu", path=path, cache=None if path == target else cache)
                 seconds, kernels = line.split("RESULT")[-1].split()
                 runs[state].append((float(seconds), int(kernels)))
     return runs
@@ -111,13 +135,19 @@ def report(meshes: dict, demo: dict, counts, repeats: int) -> str:
                  f"{statistics.median(run['seconds'][step] for run in runs[most]):.2f}"
                  if step in runs[1][0]["seconds"] else "-" for step in steps]
         lines.append(f"| {case} | " + " | ".join(cells) + " |")
-    empty = statistics.median(seconds for seconds, _ in demo["empty"])
-    filled = statistics.median(seconds for seconds, _ in demo["filled"])
+    median = {state: statistics.median(seconds for seconds, _ in demo[state])
+              for state in ("installed", "empty", "filled")}
     lines += ["", "## The first run", "",
-              "| numba's cache | `bitemesh demo` from the start of Python (s) | kernels compiled |", "|---|---|---|",
-              f"| empty (a first run after install) | {empty:.1f} | {demo['empty'][0][1]} |",
-              f"| filled (every later run) | {filled:.1f} | {demo['filled'][0][1]} |",
-              "", f"Cold / warm: {empty / filled:.1f}x.", ""]
+              f"`pip wheel --no-deps .` (what `pip install .` builds, the kernels compiled into it): "
+              f"{demo['build'][0]:.1f} s.", "",
+              "| bitemesh | `bitemesh demo` from the start of Python (s) | kernels compiled |", "|---|---|---|",
+              f"| installed from that wheel (the first run after `pip install .`) | {median['installed']:.1f} | "
+              f"{demo['installed'][0][1]} |",
+              f"| numba's cache empty (an editable install, or a numba other than the build's) | "
+              f"{median['empty']:.1f} | {demo['empty'][0][1]} |",
+              f"| numba's cache filled (every later run) | {median['filled']:.1f} | {demo['filled'][0][1]} |",
+              "", f"First run after install - warm: {median['installed'] - median['filled']:+.1f} s "
+              f"(empty cache - warm: {median['empty'] - median['filled']:+.1f} s).", ""]
     return "\n".join(lines)
 
 
