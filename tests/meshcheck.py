@@ -4,6 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+#: the unit k-ball's measure: pi^2 / 2 in 4-D, 8 pi^2 / 15 in 5-D.
+BALL = {4: np.pi**2 / 2, 5: 8 * np.pi**2 / 15}
+
 
 def assert_valid_domain(mesh, *, euler=None, components=1, measure=None, measure_tolerance=0.02,
                         mean_quality=None):
@@ -66,3 +69,11 @@ def assert_tagged(mesh):
     assert {(int(tag), mesh.dim - 1) for tag in np.unique(mesh.facet_tags)} <= named
     assert {(int(tag), mesh.dim) for tag in np.unique(regions)} <= named
     return oriented_rows(interfaces)
+
+
+def largest_facet_circumradius(corners: np.ndarray) -> float:
+    """The largest circumradius of the (f, k, k) facets, each within its own (k-1)-plane."""
+    offsets = corners[:, 1:] - corners[:, :1]
+    gram = np.einsum("fik,fjk->fij", offsets, offsets)
+    centre = np.linalg.solve(2 * gram, np.einsum("fii->fi", gram)[:, :, None])[:, :, 0]
+    return float(np.linalg.norm(np.einsum("fi,fik->fk", centre, offsets), axis=1).max())

@@ -15,6 +15,7 @@ from typing import Optional
 
 import numpy as np
 
+from .core.columns import AXES
 from .core.compiled import using_threads
 from .core.errors import InvalidInputError
 from .core.fem.coordinates import POINT_ARRAY_FORMATS, with_coordinates
@@ -82,14 +83,18 @@ def read_file(path: Path, options: Options) -> Samples | Voxels:
     """A file as Samples or Voxels, by its extension and, for tables and VTK files, whether it has labels."""
     name = str(path)
     if name.lower().endswith(LABEL_MAP_EXTENSIONS):
-        if options.columns:
-            raise InvalidInputError(f"--columns applies to text tables, not to the label map '{path}'")
+        if options.columns or options.dimension:
+            raise InvalidInputError(f"--{'columns' if options.columns else 'dimension'} applies to text tables, not "
+                                    f"to the label map '{path}'")
         label_map = read_label_map(path)
         return Voxels(label_map.labels, label_map.index_to_physical(ras=options.ras))
     if looks_labelled(path) or "label" in options.columns.lower():
+        if options.dimension not in (None, 3):
+            raise InvalidInputError(f"--dimension {options.dimension}: '{path}' holds labelled contours, whose points "
+                                    "have 3 coordinates; leave --dimension out")
         points, labels, slices = read_labelled_points(path, columns=options.columns or None, frame=options.frame)
         return Samples(points, labels=labels, slices=slices)
-    return Samples(*read_points(path, options.columns or None))
+    return Samples(*read_points(path, options.columns or None, options.dimension))
 
 
 def check_applies(data, options: Options, input) -> None:
@@ -209,6 +214,7 @@ def _meshed(input, options: Options, progress: ProgressCallback) -> MeshingResul
 def check_output(path, options=None) -> None:
     """Refuse, before any work, an output path bitemesh cannot write, or one that would lose the fibres or the
     coordinates.  A path without an extension is the folder cardiac-geometries and fenicsx-pulse read."""
+    options = None if options is None else as_options(options)
     suffix = Path(path).suffix.lower()
     if suffix not in MESH_EXTENSIONS + ("",):
         raise InvalidInputError(f"output {path} has an unsupported extension; use one of {', '.join(MESH_EXTENSIONS)}"
@@ -221,10 +227,16 @@ def check_output(path, options=None) -> None:
                                 "one cardiac-geometries and fenicsx-pulse read); give another name, or an "
                                 "extension such as .vtu")
     kind = f"a {suffix} file" if suffix else "a cardiac-geometries folder"
-    if options is not None and as_options(options).fibres and suffix in NO_CELL_ARRAYS + ("",):
+    if options is not None and options.fibres and suffix in NO_CELL_ARRAYS + ("",):
         raise InvalidInputError(f"--fibres: {kind} keeps no cell arrays but the regions, so the fibres would be "
                                 f"lost; write .vtu, .vtk or .xdmf, which keep {', '.join(FIBRE_ARRAYS)}")
-    if options is not None and as_options(options).coordinates and suffix not in POINT_ARRAY_FORMATS:
+    named = 0 if options is None else sum(role.strip() in AXES for role in options.columns.split(","))
+    dimension = options and (options.dimension or named)   # given, or the axes --columns names
+    if dimension and dimension > 3 and suffix != ".npz":
+        raise InvalidInputError(f"output {path}: a {dimension}-D mesh can be written to .npz only (VTK, "
+                                "gmsh, XDMF, Abaqus, MEDIT and openCARP hold 2-D and 3-D cells); give an output "
+                                "ending in .npz")
+    if options is not None and options.coordinates and suffix not in POINT_ARRAY_FORMATS:
         raise InvalidInputError(f"--coordinates: {kind} keeps no point arrays, so the coordinates would be lost; "
                                 f"write {', '.join(POINT_ARRAY_FORMATS)}")
 

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import re
 
+#: the coordinates a point may have, in order (2 to 5 of them): w and v only beyond 3-D, named by --columns or
+#: --dimension (a header's "w" or "v" is more often a weight or a value than a fourth axis).
+AXES = ("x", "y", "z", "w", "v")
 #: what a column may be.
-ROLES = ("x", "y", "z", "nx", "ny", "nz", "label", "slice", "frame", "skip")
+ROLES = (*AXES, *(f"n{axis}" for axis in AXES), "label", "slice", "frame", "skip")
 #: names (see :func:`normalised`) -> role.  A GPFile's label is "contour type", its slice "frameID" (or "sliceID")
 #: and its "time frame" the cardiac phase (role "frame").
 NAMES = {

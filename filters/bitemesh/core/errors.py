@@ -60,7 +60,7 @@ def check_choice(value, name: str, choices) -> str:
     return value
 
 
-def check_points(points, name: str = "points", *, dims=(2, 3)) -> np.ndarray:
+def check_points(points, name: str = "points", *, dims=(2, 3, 4, 5)) -> np.ndarray:
     """Return ``points`` as a C-contiguous (n, k) float64 array with k in ``dims`` and every value finite."""
     try:
         array = np.asarray(points, dtype=np.float64)

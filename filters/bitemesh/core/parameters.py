@@ -206,8 +206,14 @@ class TableParameters(Parameters):
     """Reading a point table: which column is what."""
 
     columns: str = parameter("", "the role of each column of a text table, comma-separated: x, y, z, nx, ny, nz, "
-                             "label, slice, frame or skip (e.g. x,y,z,skip,skip,skip for a table with colours); "
-                             "default: from the header's names, else from the column count", text=True)
+                             "label, slice, frame or skip (e.g. x,y,z,skip,skip,skip for a table with colours; w, v, "
+                             "nw, nv for a fourth and fifth axis); default: from the header's names, else from the "
+                             "column count", text=True)
+    dimension: Optional[int] = parameter(None, "the coordinates of a point in a text table: its first DIMENSION "
+                                         "columns are the point, the next DIMENSION (when there) its outward normal "
+                                         "(4 or 5 meshes in that dimension, the paper's plain method); default: from "
+                                         "the header's names, else from the column count (2 or 3)", low=2, high=5,
+                                         integer=True)
     frame: Optional[float] = parameter(None, "labelled contours: the time frame to read (a value of the 'time "
                                        "frame' column); default every point (a file whose slices are traced at "
                                        "several frames is refused)", low=0)

@@ -21,7 +21,7 @@ VTK_POINT_EXTENSIONS = (".vtp", ".vtk", ".vtu", ".ply", ".obj", ".stl")
 POINT_EXTENSIONS = TEXT_POINT_EXTENSIONS + VTK_POINT_EXTENSIONS
 
 
-def read_points(path, columns: str | None = None):
+def read_points(path, columns: str | None = None, dimension: int | None = None):
     """Read scattered points and, where the file has or implies them, point normals.
 
     Parameters
@@ -32,10 +32,12 @@ def read_points(path, columns: str | None = None):
         the points of a VTK dataset (the boundary surface of a volume mesh).
     columns : comma-separated role of each column of a table (x, y, z, nx, ny, nz, skip), e.g. "x,y,z,skip,skip,skip";
         default: from the header, or from the column count
+    dimension : int 2 to 5, or None: a table's first ``dimension`` columns are the point, the next ``dimension``
+        (when there) its normal (:func:`~bitemesh.io.tables.column_roles`)
 
     Returns
     -------
-    points : (n, k) float64, input units; k = 2 for a 2-column or 4-column text file, else 3
+    points : (n, k) float64, input units; k = ``dimension``, else 2 for a 2-column or 4-column text file, else 3
     normals : (n, k) float64 unit vectors (zero where undefined), or None when the file gives no normals and no
         polygons to compute them from.  Computed normals are consistent across each connected surface; they point
         outward for closed manifold surfaces and follow the polygon ordering of open ones.
@@ -49,11 +51,12 @@ def read_points(path, columns: str | None = None):
     """
     path = existing_file(path, "points", POINT_EXTENSIONS)
     if path.suffix.lower() not in TEXT_POINT_EXTENSIONS:
-        if columns:
-            raise InvalidInputError(f"columns applies to text tables, not to '{path}'")
+        if columns or dimension:
+            raise InvalidInputError(f"{'columns' if columns else 'dimension'} applies to text tables, not to "
+                                    f"'{path}' (a VTK dataset's points have 3 coordinates)")
         return _read_vtk_points(path)
     table = read_table(path)
-    roles = column_roles(table, columns)
+    roles = column_roles(table, columns, dimension=dimension)
     if "label" in roles:
         table.fail("it has a label column: these are labelled contours; read them with read_labelled_points (the "
                    "bitemesh command does so for a file whose header names a label column)")

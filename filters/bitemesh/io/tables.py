@@ -5,7 +5,9 @@ normals ``nx ny nz`` (also ``normal_x``), a label (``label``, ``contour type``, 
 ``sliceID``, ``slice``); colours, intensities, weights and times are read past, with a note.  ``columns`` (the CLI's
 ``--columns x,y,z,skip,nx,ny,nz``) says it instead, and wins.  Without either, the count decides: 2 (x y), 3
 (x y z), 4 (x y nx ny) or 6 (x y z nx ny nz), where the last columns are normals only when they are unit vectors
-(colour columns ``r g b`` are not, and are refused with the hint to say ``--columns``).
+(colour columns ``r g b`` are not, and are refused with the hint to say ``--columns``).  ``dimension`` (the CLI's
+``--dimension``, 2 to 5) reads the first k columns as the point and the next k, when there, as its normal: points
+of 4 or 5 coordinates (axes x y z w v) are read that way or by ``--columns``.
 
 Numbers.  Fields are separated by tabs, semicolons, commas or spaces; a decimal comma (``120,573;-31,473``, as
 European spreadsheets write) is read as a decimal point when the separator is a tab, a semicolon or a space, and
@@ -21,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.columns import KNOWN_OTHERS, ROLES, normalised, role
+from ..core.columns import AXES, KNOWN_OTHERS, ROLES, normalised, role
 from ..core.errors import InvalidInputError
 from .files import logger
 
@@ -177,9 +179,25 @@ def read_table(path: Path) -> Table:
     return Table(path, names, rows, np.array(lines), separator, decimal_comma)
 
 
-def column_roles(table: Table, columns: str | None = None, *, labelled: bool = False) -> list:
+def column_roles(table: Table, columns: str | None = None, *, labelled: bool = False, dimension=None) -> list:
     """The role (:data:`ROLES`) of each column of ``table``: from ``columns`` (comma-separated roles, one per
-    column), else from the header's names, else from the column count; refuse what cannot be told."""
+    column), else from ``dimension`` (k coordinates, then k normal components when there), else from the header's
+    names, else from the column count; refuse what cannot be told."""
+    if columns and dimension:
+        raise InvalidInputError(f"columns ({columns!r}) and dimension ({dimension}) both say what the columns are; "
+                                "give one (--columns x,y,z,w names a 4-D point's columns)")
+    if dimension:
+        if table.width not in (dimension, 2 * dimension):
+            fits = [k for k in range(2, len(AXES) + 1) if table.width in (k, 2 * k)]
+            table.fail(f"line {table.lines[0]} has {table.width} columns; dimension {dimension} reads {dimension} "
+                       f"(the point) or {2 * dimension} (the point and its normal); "
+                       + (f"--dimension {' or '.join(map(str, fits))} reads {table.width}, or " if fits else "")
+                       + f"say which column is which with --columns (e.g. --columns "
+                       f"{','.join([*AXES[:dimension], *['skip'] * max(table.width - dimension, 0)])})")
+        if table.names is not None:
+            logger.info("'%s': dimension %d: the header %s not used", table.path.name, dimension, table.names)
+        axes = list(AXES[:dimension])
+        return axes + [f"n{axis}" for axis in axes] * (table.width // dimension - 1)
     if columns:
         roles = [given.strip().lower() for given in str(columns).split(",")]
         unknown = [given for given in roles if given not in ROLES]
@@ -257,23 +275,26 @@ def _checked(roles: list, table: Table, where: str) -> list:
     for given in ROLES[:-1]:
         if roles.count(given) > 1:
             raise InvalidInputError(f"cannot read points from '{table.path}': {where} gives {given} twice")
-    dim = 3 if "z" in roles else 2
+    axes = [axis for axis in AXES if axis in roles]
+    if axes != list(AXES[:len(axes)]):
+        raise InvalidInputError(f"cannot read points from '{table.path}': {where} gives the axes {', '.join(axes)}; "
+                                f"a point's axes are {', '.join(AXES[:len(axes)])} (in that order, x y z w v)")
     normals = [given for given in roles if given.startswith("n")]
-    if normals and sorted(normals) != sorted(["nx", "ny", "nz"][:dim]):
+    if normals and sorted(normals) != sorted(f"n{axis}" for axis in axes):
         raise InvalidInputError(f"cannot read points from '{table.path}': {where} gives the normal columns "
-                                f"{', '.join(normals)}; give all of {', '.join(['nx', 'ny', 'nz'][:dim])} or none")
+                                f"{', '.join(normals)}; give all of {', '.join(f'n{axis}' for axis in axes)} or none")
     return roles
 
 
 def table_points(table: Table, roles: list):
     """(points (n, k), normals (n, k) or None) from the columns of ``roles``; every value must be finite."""
-    dim = 3 if "z" in roles else 2
+    axes = [axis for axis in AXES if axis in roles]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        points = np.column_stack([table.numbers(roles.index(axis), "coordinate") for axis in "xyz"[:dim]])
+        points = np.column_stack([table.numbers(roles.index(axis), "coordinate") for axis in axes])
         normals = None
         if "nx" in roles:
-            normals = np.column_stack([table.numbers(roles.index(f"n{axis}"), "normal") for axis in "xyz"[:dim]])
+            normals = np.column_stack([table.numbers(roles.index(f"n{axis}"), "normal") for axis in axes])
     for values, what in ((points, "coordinates"), (normals, "normals")):
         if values is not None:
             bad = ~np.isfinite(values).all(axis=1)

@@ -18,8 +18,7 @@ from bitemesh.core.mesh.validity import (boundary_euler_characteristic, check_va
 from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.steps.spine import mesh_from_grid
 
-#: the unit k-ball's measure: pi^2 / 2 in 4-D, 8 pi^2 / 15 in 5-D.
-BALL = {4: np.pi**2 / 2, 5: 8 * np.pi**2 / 15}
+from tests.meshcheck import BALL, largest_facet_circumradius
 
 
 def ball(x):
@@ -63,14 +62,6 @@ def test_the_k_ball_is_a_valid_domain_inscribed_in_it(k, radius):
     assert np.allclose(np.linalg.norm(mesh.points[np.unique(facets)], axis=1), 1.0, atol=1e-4)
     facet_radius = largest_facet_circumradius(mesh.points[facets])
     assert BALL[k] * (1 - facet_radius**2) ** (k / 2) <= volume <= BALL[k]
-
-
-def largest_facet_circumradius(corners: np.ndarray) -> float:
-    """The largest circumradius of the (f, k, k) facets, each within its own (k-1)-plane."""
-    offsets = corners[:, 1:] - corners[:, :1]
-    gram = np.einsum("fik,fjk->fij", offsets, offsets)
-    centre = np.linalg.solve(2 * gram, np.einsum("fii->fi", gram)[:, :, None])[:, :, 0]
-    return float(np.linalg.norm(np.einsum("fi,fik->fk", centre, offsets), axis=1).max())
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -9,11 +9,12 @@ from functools import cached_property
 from typing import Callable
 
 import numpy as np
+from scipy.ndimage import map_coordinates
 
 from .kernels import (BRICK_SHIFT, brick_gradients, evaluate_at, fill_bricks, gradient_at, newton_to_surface,
                       node_values, plane_values)
 from ..errors import InvalidInputError, check_number
-from ..progress import ProgressCallback, report
+from ..progress import ProgressCallback, report, sub_progress
 
 #: bytes per grid node that the steps may hold at once, at most: a dense grid's f and gradient (32) or a banded
 #: grid's coarse f (1), the biting's masks (4) and its sort (48 an Alive node); the sphere at 1M cells took 25.
@@ -199,20 +200,27 @@ class BandedGrid(SampledGrid):
 
 @dataclass(frozen=True, eq=False)
 class FunctionGrid(SampledGrid):
-    """The grid I of a function kept as the function: f evaluated at the nodes and points the steps ask for, nothing
-    stored (in more than three dimensions the grid's nodes are too many to hold f at each: the steps keep the
-    biting's masks, one byte a node).  Any dimension k.
+    """The grid I of a function kept as the function: f evaluated at the points the steps ask for (in more than
+    three dimensions the grid's nodes are too many to hold f at each: the steps keep the biting's masks, one byte a
+    node).  At the nodes, f comes from the function itself, or, banded (:func:`sample_function` with
+    ``exact_within``), from the values kept where the grid twice as coarse, interpolated, gives |f| < exact_within
+    and from that interpolation elsewhere, as :class:`BandedGrid` keeps it in 3-D.  Any dimension k.
 
     Attributes
     ----------
     function : maps (m, k) points to (m,) values, f > 0 inside
     origin, spacing : (k,) float64, as :class:`ImplicitGrid`'s; shape : (n_0, ..., n_{k-1}) the node counts
+    coarse : (c_0, ..., c_{k-1}) float64, f at the nodes of the grid twice as coarse, or None (not banded)
+    band, band_values : (b,) int64 sorted C-order flat indices of the nodes where f is kept, and (b,) f there
     """
 
     function: Callable[[np.ndarray], np.ndarray]
     origin: np.ndarray
     spacing: np.ndarray
     shape: tuple
+    coarse: np.ndarray | None = None
+    band: np.ndarray | None = None
+    band_values: np.ndarray | None = None
 
     def evaluate(self, points: np.ndarray) -> np.ndarray:
         """(m,) f at (m, k) points."""
@@ -240,7 +248,14 @@ class FunctionGrid(SampledGrid):
         return points
 
     def node_values(self, flat_indices: np.ndarray) -> np.ndarray:
-        return self.evaluate(self.node_coordinates(np.asarray(flat_indices, np.int64).ravel()))
+        flat = np.asarray(flat_indices, np.int64).ravel()
+        if self.coarse is None:
+            return self.evaluate(self.node_coordinates(flat))
+        values = refined(self.coarse, self.shape, flat)
+        at = np.minimum(np.searchsorted(self.band, flat), max(len(self.band) - 1, 0))
+        kept = self.band[at] == flat if len(self.band) else np.zeros(len(flat), bool)
+        values[kept] = self.band_values[at[kept]]
+        return values
 
     def planes(self, first: int, last: int) -> np.ndarray:
         plane = int(np.prod(self.shape[1:]))
@@ -322,7 +337,9 @@ def sample_function(function: Callable[[np.ndarray], np.ndarray], lower, upper, 
         check_number(value, "grid_spacing", low=0, low_open=True)
     shape = grid_shape(lower, upper, spacing_array, max_memory_mb=max_memory_mb)
     if len(shape) > 3:
-        return FunctionGrid(function, lower, spacing_array, shape)
+        if exact_within is None:
+            return FunctionGrid(function, lower, spacing_array, shape)
+        return _banded_function(function, lower, spacing_array, shape, exact_within, chunk, progress)
     if exact_within is None:
         values = np.empty(int(np.prod(shape)))
         _evaluate_nodes(function, lower, spacing_array, shape, range(len(values)), values, chunk, progress)
@@ -349,6 +366,31 @@ def _evaluate_nodes(function, lower, spacing, shape, nodes, out, chunk: int, pro
         index = np.unravel_index(flat, shape)
         out[start:start + len(flat)] = function(np.stack([axes[d][index[d]] for d in range(len(shape))], axis=1))
     report(progress, 1.0, "sampling f: done")
+
+
+def refined(coarse: np.ndarray, shape: tuple, flat: np.ndarray) -> np.ndarray:
+    """(m,) f at the nodes ``flat`` (C-order flat indices) of the grid of ``shape``, multilinear from ``coarse``,
+    f on the grid twice as coarse (fine node i lies at coarse index i / 2)."""
+    index = np.stack(np.unravel_index(flat, shape)) / 2.0
+    return map_coordinates(coarse, index, order=1, mode="nearest")
+
+
+def _banded_function(function, lower, spacing, shape, exact_within: float, chunk: int,
+                     progress: ProgressCallback) -> FunctionGrid:
+    """The banded :class:`FunctionGrid` (see :func:`sample_function`): f evaluated on the grid twice as coarse, then
+    at the nodes where its interpolation gives |f| < exact_within; the rest is that interpolation."""
+    coarse_shape = tuple((n + 2) // 2 for n in shape)   # reaches the fine grid's last node
+    coarse = np.empty(int(np.prod(coarse_shape)))
+    _evaluate_nodes(function, lower, 2 * spacing, coarse_shape, range(len(coarse)), coarse, chunk,
+                    sub_progress(progress, 0.0, 0.3))
+    coarse = coarse.reshape(coarse_shape)
+    plane = int(np.prod(shape[1:]))
+    band = np.concatenate([np.flatnonzero(np.abs(refined(coarse, shape, np.arange(first, last))) < exact_within)
+                           + first for first, last in ((start, min(start + chunk, plane * shape[0]))
+                                                       for start in range(0, plane * shape[0], chunk))])
+    values = np.empty(len(band))
+    _evaluate_nodes(function, lower, spacing, shape, band, values, chunk, sub_progress(progress, 0.3, 1.0))
+    return FunctionGrid(function, lower, spacing, shape, coarse, band, values)
 
 
 def _banded(origin, spacing, shape, coarse, exact_within: float):

@@ -28,8 +28,8 @@ def _prepared(points, normals, method: str):
     method = check_choice(method, "method", ("auto", "mpu", "rbf"))
     if method == "mpu" and points.shape[1] != 3:
         raise InvalidInputError(
-            f"method 'mpu' needs 3D points, got {points.shape[1]}D points; use method 'rbf' (--method rbf) for 2D "
-            "contours")
+            f"method 'mpu' needs 3D points, got {points.shape[1]}D points; use method 'rbf' (--method rbf), which "
+            "fits points in 2 to 5 dimensions")
     if normals is not None:
         normals = check_normals(points, normals)
     _, first = np.unique(points, axis=0, return_index=True)

@@ -38,7 +38,7 @@ from ..progress import ProgressCallback, report
 #: (r^3 lies 1.5 to 2 times closer to the annulus, but its far field falls below minus the distance to the box: -43
 #: at 29 from it); in 3D r^3 (2 to 8 times closer than the thin plate on 1,500 to 5,000 points of a sphere, as
 #: close on 300 points or 7 slices, half the time to evaluate).
-SCATTERED_KERNEL = {2: "thin_plate", 3: "cubic"}
+SCATTERED_KERNEL = {2: "thin_plate", 3: "cubic", 4: "cubic", 5: "cubic"}
 #: most points method 'rbf' accepts: its cost grows about linearly (0.6 ms per 3D point for the fit and a grid I
 #: of 67^3 nodes, single-threaded BLAS: 4.5 s at 5,000 points, 12 s at 20,000), but 20 to 40 times the MPU's on the
 #: same points; dense samples are the MPU's.

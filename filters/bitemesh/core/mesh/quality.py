@@ -359,8 +359,8 @@ def quality_summary(mesh: Mesh) -> QualitySummary:
 def format_summary(summary: QualitySummary) -> str:
     """A short aligned human-readable block of ``summary``, one quantity per line, for the CLI."""
     s = summary
-    cells, angle, volume = ("tetrahedra", "dihedral angle", "volume") if s.dim == 3 else \
-        ("triangles", "interior angle", "area")
+    cells, angle, volume = {2: ("triangles", "interior angle", "area"), 3: ("tetrahedra", "dihedral angle", "volume")
+                            }.get(s.dim, (f"{s.dim}-simplices", "dihedral angle", f"{s.dim}-volume"))
     lines = [
         ("mesh", f"{s.n_cells} {cells}, {s.n_points} points"),
         ("radius ratio Q", f"mean {s.q_mean:.4f}  std {s.q_std:.4f}  min {s.q_min:.4f}"),

@@ -45,9 +45,9 @@ logger = logging.getLogger("bitemesh")
 CELLS_PER_VOLUME = {2: 2.3, 3: 5.4, 4: 25.0, 5: 140.0}
 #: grid spacing h = R / GRID_PER_RADIUS when the grid spacing is not given.
 GRID_PER_RADIUS = 4.0
-#: nodes per axis of the coarse grid that measures the volume when R is chosen from a cell count.
+#: nodes per axis of the coarse grid that measures the volume when R is chosen from a cell count (see a_side).
 COARSE_GRID_NODES = 64
-#: the default grid has at least this many nodes along the data's longest side, whatever R.
+#: the default grid has at least this many nodes along the data's longest side, whatever R (see a_side).
 MIN_GRID_NODES = 40
 #: the coarse grid that measures the volume is refined at most this many times (see choose_radius).
 COARSE_REFINEMENTS = 3
@@ -88,6 +88,11 @@ class MeshingResult:
     def to_physical(self) -> np.ndarray:
         """(k + 1, k + 1) homogeneous map from the frame of ``implicit`` to the frame of ``mesh``."""
         return (self.frame or Frame.identity(self.mesh.dim)).matrix
+
+
+def a_side(nodes: int, dim: int) -> float:
+    """Nodes a side for a grid of ``nodes`` a side in 2-D and 3-D: beyond, as many nodes in all as in 3-D."""
+    return nodes ** (3 / max(dim, 3))
 
 
 def radius_for_cells(measure: float, cells: int, dim: int) -> float:
@@ -176,7 +181,7 @@ def choose_radius(source: Source, cells: int, implicit: ImplicitParameters) -> f
         return radius_on_grid(source.grid, cells)
     finest = _local(implicit.grid_spacing, source) or 0.0
     affordable = implicit.max_memory_mb * 2**20 / BYTES_PER_NODE   # nodes
-    coarse = max(source.size / COARSE_GRID_NODES, finest,
+    coarse = max(source.size / a_side(COARSE_GRID_NODES, dim), finest,
                  2 * float(np.prod(np.asarray(source.upper) - np.asarray(source.lower)) / affordable) ** (1 / dim))
     for refinement in range(COARSE_REFINEMENTS + 1):
         volume = sample_function(source.function, source.lower, source.upper, coarse, margin=2 * coarse,
@@ -200,7 +205,8 @@ def grid_layout(source: Source, radius: float, implicit: ImplicitParameters):
     """(spacing, margin) of the grid I for node spacing R, local units: ``grid_spacing`` or R / 4 (at least 1/40
     of the box's longest side); ``margin`` or 3 spacings, and at least :data:`MIN_MARGIN` spacings, so that f < 0
     is seen all around the data."""
-    spacing = _local(implicit.grid_spacing, source) or min(radius / GRID_PER_RADIUS, source.size / MIN_GRID_NODES)
+    spacing = _local(implicit.grid_spacing, source) or min(radius / GRID_PER_RADIUS,
+                                                           source.size / a_side(MIN_GRID_NODES, source.frame.dim))
     margin = _local(implicit.margin, source)
     return spacing, max(3 * spacing if margin is None else margin, MIN_MARGIN * spacing)
 
