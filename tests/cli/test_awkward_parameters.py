@@ -94,7 +94,7 @@ def test_nan_rows_are_named_by_their_line(capsys, tmp_path, unit_sphere_samples)
 
 @pytest.mark.parametrize("points, normals, words", [
     (np.array([["a", "b", "c"]] * 20), None, ["points must be"]),
-    (np.zeros((20, 4)), None, ["points must be an (n, k) array"]),
+    (np.zeros((20, 6)), None, ["points must be an (n, k) array", "(2, 3, 4, 5)"]),
     ("sphere", "wrong shape", ["normals must have the shape of points"]),
     ("sphere", "zeros", ["normals", "zero-length"]),
 ])
