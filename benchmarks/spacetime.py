@@ -20,7 +20,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
-from bitemesh.core.grid.sampled import sample_function  # noqa: E402
+from bitemesh.core.grid.sampled import EXACT_WITHIN, sample_function  # noqa: E402
 from bitemesh.core.mesh.quality import radius_ratio  # noqa: E402
 from bitemesh.core.mesh.simplicial import signed_measures  # noqa: E402
 from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain  # noqa: E402
@@ -58,7 +58,9 @@ def main(argv=None) -> None:
     shape = SpaceTime(tuple(functions), step, beyond=2 * radius)
     lo, hi = shape.slab
     clock = time.perf_counter()
-    grid = sample_function(shape, np.r_[lower, lo], np.r_[upper, hi], radius / 2.5, margin=radius)
+    spacing = radius / 2.5
+    grid = sample_function(shape, np.r_[lower, lo], np.r_[upper, hi], spacing, margin=radius,
+                           exact_within=EXACT_WITHIN * spacing)   # f kept exactly near f = 0 only, as the mesher does
     result = mesh_from_grid(grid, BitingParameters(radius=radius))
     meshed = time.perf_counter() - clock
     space_time = result.mesh
