@@ -1,9 +1,10 @@
 """Polyharmonic radial basis functions (Carr et al., SIGGRAPH 2001) on overlapping patches, blended by a partition
-of unity, in k = 2 or 3 dimensions: one RBF implicit for every source that needs one.
+of unity, in k = 2 to 5 dimensions: one RBF implicit for every source that needs one.
 
 One RBF through m constraints costs O(m^3) to solve and O(m) per evaluated point; here the box of the constraints
-is split like a quadtree (2D) or an octree (3D) until each patch's ball holds at most :data:`PATCH_CENTRES` of them
-(but no patch narrower than ``min_patch``: contours need patches that see several slices).  Each patch fits its own
+is split like a quadtree (2D) or an octree (3D), 2^k children a cell, until each patch's ball holds at most
+:data:`PATCH_CENTRES` of them (but no patch narrower than ``min_patch``: contours need patches that see several
+slices).  Each patch fits its own
 RBF, f_i(y) = sum_j w_j phi(|y - c_j|) + a . y + b (a polynomial of degree 1, k + 1 terms), to the constraints in
 its ball; f is their average weighted by w(d / r) = (1 - t)^4 (4 t + 1) (Wendland's C2 function, t = d / r), so
 that an evaluation costs a few patches, whatever the number of constraints.  Few constraints give one patch: the
@@ -340,7 +341,7 @@ def _patches_taken(centres, radii, points) -> np.ndarray:
 
 def fit_rbf(points, normals, *, offset=None, smoothing: float = 0.0, kernel=None,
             progress: ProgressCallback = None) -> RBFImplicit:
-    """The RBF implicit of sparse oriented points (Carr et al. 2001), k = 2 or 3: method 'rbf'.
+    """The RBF implicit of sparse oriented points (Carr et al. 2001), k = 2 to 5: method 'rbf'.
 
     f is 0 on the points and +delta_i / -delta_i at p_i -/+ delta_i n_i (inside / outside), with
     delta_i = min(offset, half the distance from p_i to its nearest neighbour), so off-surface points never pass
