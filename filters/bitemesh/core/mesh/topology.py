@@ -344,10 +344,12 @@ class CellComplex:
         linked = np.bincount(self._facet_ridges.ravel(), pairs, minlength=len(self.ridges))
         found = [self.ridges[around - linked >= 2]]
         k = self.cells.shape[1] - 1
+        held = {size: self._held(size, keep) for size in range(2, k + 2)}
         for size in range(k - 2, 0, -1):
-            faces, in_cells = self._faces(size), self._holding(k + 1, size, keep)
-            euler = sum((-1) ** (larger - size - 1) * self._holding(larger, size, keep)
-                        for larger in range(size + 1, k + 2))
+            holding = {larger: np.bincount(self._sub_faces(larger, size)[held[larger]].ravel(),
+                                           minlength=len(self._faces(size))) for larger in range(size + 1, k + 2)}
+            faces, in_cells = self._faces(size), holding[k + 1]
+            euler = sum((-1) ** (larger - size - 1) * count for larger, count in holding.items())
             on_boundary = np.bincount(self._sub_faces(k, size)[counts == 1].ravel(), minlength=len(faces)) > 0
             found.append(faces[(in_cells > 0) & (euler != np.where(on_boundary, 1, 1 + (-1) ** (k - size)))])
         found = [faces for faces in found if len(faces)]
@@ -393,8 +395,8 @@ class CellComplex:
             self._subs[size, sub] = sub_ids[cell[:, None], local[face]]
         return self._subs[size, sub]
 
-    def _holding(self, size: int, sub: int, keep: np.ndarray) -> np.ndarray:
-        """(u_sub,) how many of the kept cells' distinct faces with ``size`` vertices hold each face with ``sub``."""
+    def _held(self, size: int, keep: np.ndarray) -> np.ndarray:
+        """(u,) bool: the distinct faces with ``size`` vertices that a kept cell holds."""
         held = np.zeros(len(self._faces(size)), bool)
         held[self._table(size)[1][keep].ravel()] = True
-        return np.bincount(self._sub_faces(size, sub)[held].ravel(), minlength=len(self._faces(sub)))
+        return held
