@@ -28,8 +28,8 @@ from .core.sources.points import points_source, run
 from .core.sources.source import Source
 from .core.steps.spine import MeshingResult
 from .io import (LABEL_MAP_EXTENSIONS, LABELLED_EXTENSIONS, MESH_EXTENSIONS, NO_CELL_ARRAYS, POINT_EXTENSIONS,
-                 LabelMap, looks_labelled, read_label_map, read_labelled_config, read_labelled_points, read_points,
-                 write_mesh)
+                 LabelMap, check_holds, looks_labelled, read_label_map, read_labelled_config, read_labelled_points,
+                 read_points, write_mesh)
 from .io.opencarp import MICROMETRES
 from .labelmap import label_grid_source, mesh_label_grid
 from .options import Options, as_options, flag
@@ -230,12 +230,9 @@ def check_output(path, options=None) -> None:
     if options is not None and options.fibres and suffix in NO_CELL_ARRAYS + ("",):
         raise InvalidInputError(f"--fibres: {kind} keeps no cell arrays but the regions, so the fibres would be "
                                 f"lost; write .vtu, .vtk or .xdmf, which keep {', '.join(FIBRE_ARRAYS)}")
-    named = 0 if options is None else sum(role.strip() in AXES for role in options.columns.split(","))
-    dimension = options and (options.dimension or named)   # given, or the axes --columns names
-    if dimension and dimension > 3 and suffix != ".npz":
-        raise InvalidInputError(f"output {path}: a {dimension}-D mesh can be written to .npz only (VTK, "
-                                "gmsh, XDMF, Abaqus, MEDIT and openCARP hold 2-D and 3-D cells); give an output "
-                                "ending in .npz")
+    if options is not None:   # the dimension given, or that of the axes --columns names
+        check_holds(options.dimension or sum(role.strip() in AXES for role in options.columns.split(",")), suffix,
+                    f"output {path}: ")
     if options is not None and options.coordinates and suffix not in POINT_ARRAY_FORMATS:
         raise InvalidInputError(f"--coordinates: {kind} keeps no point arrays, so the coordinates would be lost; "
                                 f"write {', '.join(POINT_ARRAY_FORMATS)}")

@@ -226,16 +226,23 @@ def _write_npz(mesh: Mesh, path: Path) -> None:
         np.savez_compressed(stream, **arrays)
 
 
+def check_holds(dimension: int, suffix: str, where: str = "") -> None:
+    """Refuse a ``dimension``-D mesh for a file ending in ``suffix`` (``where`` names the file) when that format
+    holds 2-D and 3-D cells only (all but ``.npz``)."""
+    if dimension > 3 and suffix != ".npz":
+        raise InvalidInputError(f"{where}a {dimension}-D mesh can be written to .npz only (VTK, gmsh, XDMF, Abaqus, "
+                                "MEDIT and openCARP hold 2-D and 3-D cells); give a path ending in .npz, or write "
+                                "its 3-D sections (slice_mesh)")
+
+
 def _checked_mesh(mesh, any_dimension: bool = False):
     """The mesh with checked, normalised arrays (facets (0, k) when it has none) and its (m,) int32 regions or
     None; points of 2 or 3 dimensions, or up to :data:`MAX_DIMENSION` with ``any_dimension`` (``.npz``)."""
     if not all(hasattr(mesh, name) for name in ("points", "cells", "cell_data")):
         raise InvalidInputError(f"mesh must be a bitemesh Mesh (points, cells, cell_data), got {type(mesh).__name__}")
     dimension = np.shape(mesh.points)[-1] if np.ndim(mesh.points) == 2 else 3
-    if not any_dimension and 3 < dimension <= MAX_DIMENSION:
-        raise InvalidInputError(f"a {dimension}-D mesh can be written to .npz only (VTK, gmsh, XDMF, Abaqus, MEDIT "
-                                "and openCARP hold 2-D and 3-D cells); give a path ending in .npz, or write its "
-                                "3-D sections (slice_mesh)")
+    if not any_dimension and dimension <= MAX_DIMENSION:
+        check_holds(dimension, "")
     points = check_points(mesh.points, "mesh.points", dims=range(2, MAX_DIMENSION + 1) if any_dimension else (2, 3))
     dim = points.shape[1]
     cells = _checked_indices(mesh.cells, "mesh.cells", "m", dim + 1, f"cells for {dim}D points", len(points))

@@ -197,7 +197,7 @@ def column_roles(table: Table, columns: str | None = None, *, labelled: bool = F
         if table.names is not None:
             logger.info("'%s': dimension %d: the header %s not used", table.path.name, dimension, table.names)
         axes = list(AXES[:dimension])
-        return axes + [f"n{axis}" for axis in axes] * (table.width // dimension - 1)
+        return axes + ([f"n{axis}" for axis in axes] if table.width == 2 * dimension else [])
     if columns:
         roles = [given.strip().lower() for given in str(columns).split(",")]
         unknown = [given for given in roles if given not in ROLES]

@@ -384,10 +384,9 @@ def _banded_function(function, lower, spacing, shape, exact_within: float, chunk
     _evaluate_nodes(function, lower, 2 * spacing, coarse_shape, range(len(coarse)), coarse, chunk,
                     sub_progress(progress, 0.0, 0.3))
     coarse = coarse.reshape(coarse_shape)
-    plane = int(np.prod(shape[1:]))
-    band = np.concatenate([np.flatnonzero(np.abs(refined(coarse, shape, np.arange(first, last))) < exact_within)
-                           + first for first, last in ((start, min(start + chunk, plane * shape[0]))
-                                                       for start in range(0, plane * shape[0], chunk))])
+    nodes = int(np.prod(shape))
+    band = np.concatenate([first + np.flatnonzero(np.abs(refined(coarse, shape, np.arange(
+        first, min(first + chunk, nodes)))) < exact_within) for first in range(0, nodes, chunk)])
     values = np.empty(len(band))
     _evaluate_nodes(function, lower, spacing, shape, band, values, chunk, sub_progress(progress, 0.3, 1.0))
     return FunctionGrid(function, lower, spacing, shape, coarse, band, values)
