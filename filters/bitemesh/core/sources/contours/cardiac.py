@@ -366,11 +366,14 @@ def _length(points: np.ndarray, edges: np.ndarray) -> float:
 def opening_lips(mesh, below, depth: float, cavities=tuple(ENDOCARDIAL_TAGS)) -> np.ndarray:
     """(e, 2) the edges (point ids) where the endocardium of ``cavities`` meets the epicardium more than ``depth``
     below the base (:func:`~bitemesh.core.mesh.tags.lips`: the rim of an opening that is not the base); ``mesh``
-    tagged, ``below`` (m, 3) -> (m,) the depth below its base."""
+    tagged, ``below`` (m, 3) -> (m,) the depth below its base.  An edge is as deep as its shallower end: ``below`` is
+    about a distance, which changes by at most an edge's length along it, but the base's stretch jumps across the
+    edges of its height field's triangles (an edge 4.3 and 5.8 mm below the base at its ends measured 7.9 at its
+    middle)."""
     from ...mesh.tags import lips
 
     rim = lips(mesh, [tag for cavity in cavities for tag in ENDOCARDIAL_TAGS[cavity]], EPICARDIAL_TAGS)
-    return rim[below(mesh.points[rim].mean(axis=1)) > depth] if len(rim) else rim
+    return rim[below(mesh.points[rim.reshape(-1)]).reshape(-1, 2).min(axis=1) > depth] if len(rim) else rim
 
 
 def _volume_below(grid, base) -> float:
