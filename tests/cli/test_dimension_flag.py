@@ -6,10 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from bitemesh import cli
+from bitemesh.cli import build_parser
+from bitemesh.cli.mesh import options_of
 from bitemesh.core.mesh.simplicial import signed_measures
 from bitemesh.core.mesh.topology import boundary_facets, euler_characteristic
 from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain
 from bitemesh.io import read_mesh
+from bitemesh.meshing import read_input
 
 from tests.cli.commands import assert_one_line_error, save_table
 from tests.conftest import DATA
@@ -55,12 +58,14 @@ def test_a_4_d_table_is_meshed_as_the_4_ball(ball_mesh):
     assert BALL[4] * (1 - r**2) ** 2 * (1 - ON_SPHERE) ** 4 <= volume <= BALL[4] * (1 + ON_SPHERE) ** 4
 
 
-def test_naming_the_columns_gives_the_same_mesh(ball_table, ball_mesh, tmp_path):
-    output = tmp_path / "named.npz"
-    assert cli.main(["mesh", str(ball_table), "--columns", "x,y,z,w,nx,ny,nz,nw", "--cells", "4000",
-                     "-o", str(output)]) == 0
-    named = read_mesh(output)
-    assert np.array_equal(named.cells, ball_mesh.cells) and np.array_equal(named.points, ball_mesh.points)
+def test_naming_the_columns_reads_the_samples_the_dimension_reads(ball_table):
+    """--columns x,y,z,w,nx,ny,nz,nw reads the 4-D points and normals --dimension 4 reads, bit for bit (the
+    options differ in nothing else, and the same samples and options give the same mesh: tests/core)."""
+    arguments = (["mesh", str(ball_table), *flags, "-o", "ball.npz"]
+                 for flags in (["--dimension", "4"], ["--columns", "x,y,z,w,nx,ny,nz,nw"]))
+    read = [read_input(ball_table, options_of(build_parser().parse_args(given))) for given in arguments]
+    assert read[0].points.shape == (3000, 4)
+    assert np.array_equal(read[0].points, read[1].points) and np.array_equal(read[0].normals, read[1].normals)
 
 
 @pytest.mark.parametrize("arguments, names", [

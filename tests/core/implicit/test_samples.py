@@ -34,7 +34,7 @@ def random_sphere(count: int, rng) -> np.ndarray:
     return directions / np.linalg.norm(directions, axis=1, keepdims=True)
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=5, deadline=None)   # 4 s each; 150 seeds passed on 2026-12-07
 @given(st.floats(-6, 6), st.integers(0, 2**32 - 1))
 def test_a_half_sampled_20x_more_sparsely_at_random_is_no_outlier(exponent, seed):
     """Points drawn at random, 20 x fewer on one half (about 10,000 and 500): no point flagged (5-16 of the sparse

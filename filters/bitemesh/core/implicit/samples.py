@@ -11,9 +11,9 @@ Stanford bunny scan, the nut, the biv-me guide points), none of whose points any
 - **far**: the distance to the 8th nearest neighbour is more than :data:`FAR_RATIO` times its median over the
   point's :data:`LOCAL_NEIGHBOURS` nearest (at most 2.6 times on those surfaces; 100 times or more for points
   scattered around a scene): a region sampled more sparsely than the rest is measured against itself, not
-  against the dense part, and a point in the plane of its neighbours (of those that are not far themselves: two far
-  points side by side tilt it through both), up to :data:`STEP_RATIO` times farther, is a sparser sample of their
-  surface (the sparse side of a density step: 20 x fewer points on one half of a sphere, at
+  against the dense part, and a point in the plane of its neighbours (and not off that of those that are not far
+  themselves: two far points side by side tilt it through both), up to :data:`STEP_RATIO` times farther, is a
+  sparser sample of their surface (the sparse side of a density step: 20 x fewer points on one half of a sphere, at
   random, put 5-16 of its points 4-5 x farther from their 8th neighbour than the dense side's median);
 - **off the surface**: the distance to the plane of the 12 nearest neighbours is more than :data:`OFF_RATIO`
   times their spread along the plane (at most 0.92 on those surfaces without noise; with Gaussian noise of half
@@ -111,11 +111,12 @@ def _outliers(points: np.ndarray) -> np.ndarray:
         distances, neighbours = _neighbourhoods(kept, LOCAL_NEIGHBOURS)   # FAR < PLANE < LOCAL neighbours
         reach = distances[:, min(FAR_NEIGHBOURS, distances.shape[1] - 1)]
         farther = reach / np.maximum(np.median(reach[neighbours[:, 1:]], axis=1), 1e-300)
-        ratio = _off_plane(kept, np.arange(len(kept)), neighbours[:, 1:PLANE_NEIGHBOURS + 1])[0]
+        ratio, flat = _off_plane(kept, np.arange(len(kept)), neighbours[:, 1:PLANE_NEIGHBOURS + 1])
         off = ratio > max(OFF_RATIO, NOISE_RATIO * float(np.median(ratio)))
         candidate = farther > FAR_RATIO
         far = np.flatnonzero(candidate & ~off)
-        far = far[~_sparser_sample(kept, far, neighbours[far, 1:], candidate, farther[far])]
+        far = far[~_sparser_sample(kept, far, neighbours[far, 1:], candidate, farther[far],
+                                   (ratio[far] < IN_PLANE_RATIO) & flat[far])]
         flagged = index[np.union1d(far, np.flatnonzero(off))]
         if not len(flagged):
             break
@@ -133,14 +134,17 @@ def _off_plane(points: np.ndarray, rows: np.ndarray, around: np.ndarray):
 
 
 def _sparser_sample(points: np.ndarray, rows: np.ndarray, neighbours: np.ndarray, candidate: np.ndarray,
-                    farther: np.ndarray) -> np.ndarray:
+                    farther: np.ndarray, in_plane: np.ndarray) -> np.ndarray:
     """(m,) bool, which far candidates ``rows`` (m,) of ``points`` are a sparser sample of their neighbours' surface:
-    at most :data:`STEP_RATIO` x farther (``farther`` (m,)), in the plane of their :data:`PLANE_NEIGHBOURS` nearest
-    ``neighbours`` (m, j) that are no far candidates (``candidate`` (n,) bool) themselves, those lying near it.  (Two
-    far points side by side: each tilted the plane of the other's neighbours through both.)"""
+    at most :data:`STEP_RATIO` x farther (``farther`` (m,)), ``in_plane`` (m,) of their nearest neighbours (nearer
+    their plane than :data:`IN_PLANE_RATIO` x their spread, they near it too), and not off the surface of the
+    :data:`PLANE_NEIGHBOURS` nearest of ``neighbours`` (m, j) that are no far candidates (``candidate`` (n,) bool)
+    themselves (:data:`OFF_RATIO`).  Two far points side by side each tilted the other's neighbours' plane through
+    both; a sparse point beside a seam has sparse neighbours as far as itself, without which the plane of the seam's
+    strip of dense points leans 0.25 spreads off it."""
     order = np.argsort(candidate[neighbours], axis=1, kind="stable")[:, :PLANE_NEIGHBOURS]
-    ratio, flat = _off_plane(points, rows, np.take_along_axis(neighbours, order, axis=1))
-    return (farther <= STEP_RATIO) & (ratio < IN_PLANE_RATIO) & flat
+    off_surface = _off_plane(points, rows, np.take_along_axis(neighbours, order, axis=1))[0] > OFF_RATIO
+    return (farther <= STEP_RATIO) & in_plane & ~off_surface
 
 
 def stray_groups(points: np.ndarray) -> np.ndarray:
