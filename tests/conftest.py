@@ -12,6 +12,13 @@ from tests import builders
 DATA = Path(os.environ.get("BITEMESH_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 
+def pytest_collection_modifyitems(items):
+    """The files that hold slow cases run first: pytest-xdist hands out whole files in this order
+    (--dist=loadfile), so that the quick files fill both workers' ends, not a slow one running alone."""
+    slow = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow)
+
+
 @pytest.fixture
 def shared_data() -> Path:
     """The folder of real data (../shared/data beside the clone); skip where it is absent."""

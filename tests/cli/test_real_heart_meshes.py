@@ -28,6 +28,8 @@ from tests.meshcheck import assert_valid_domain
 CINE = DATA / "bivme_patient1_cine" / "guidepoints"
 #: the words of the wall guide points' labels (every endocardial, epicardial, free-wall and septal point)
 WALL = ("ENDOCARDIAL", "EPICARDIAL", "FREEWALL", "SEPTUM")
+#: every case meshes a real frame at R = 2 mm: 15-20 s each on CI's 2 cores
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
@@ -240,7 +242,6 @@ def test_walls_thickened_by_a_coarse_mesh_are_said(meshed):
     assert "give radius <= 2 " in note
 
 
-@pytest.mark.slow
 def test_the_optimised_end_systolic_heart_has_no_sliver(recwarn):
     """Cine frame 6 with the defaults (the optimizer on): a valid myocardium whose smallest dihedral angle is above
     5 degrees, the usual bound of a sliver (a cap of 1.4 degrees, three facets on the surface, was left by the last

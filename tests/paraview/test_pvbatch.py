@@ -45,9 +45,10 @@ TIMEOUT_SECONDS = 600
 #: the biv-me guide points shipped in the package
 GPFILE = FILTERS / "bitemesh" / "data" / "bivme_patient1" / "GPFile_000.txt"
 
-pytestmark = pytest.mark.skipif(
+pytestmark = [pytest.mark.skipif(
     PVBATCH is None, reason="pvbatch is absent: apt-get install paraview python3-paraview python3-numpy "
-    "python3-scipy (Debian's ParaView 5.11; .ci/run installs them)")
+    "python3-scipy (Debian's ParaView 5.11; .ci/run installs them)"),
+    pytest.mark.slow]   # the one pvbatch run: 160 s with Debian numba's cache empty (CI)
 
 
 def pvbatch_environment() -> dict:
