@@ -14,6 +14,18 @@ from scipy.spatial import cKDTree
 
 from tests.builders import SHELL_DOMAIN, sample_shell
 
+#: the unit length and mutual orthogonality asked of every frame (they are rotations to round-off, ~1e-15)
+ROUND_OFF = 1e-6
+
+
+def check_frames(fibre, sheet, normal):
+    """(m, 3) each: unit, orthogonal, right-handed frames."""
+    for vectors in (fibre, sheet, normal):
+        assert np.abs(np.linalg.norm(vectors, axis=1) - 1).max() < ROUND_OFF
+    for a, b in ((fibre, sheet), (fibre, normal), (sheet, normal)):
+        assert np.abs(np.einsum("mi,mi->m", a, b)).max() < ROUND_OFF
+    assert np.allclose(np.cross(fibre, sheet), normal, atol=ROUND_OFF)   # right-handed
+
 
 @cache
 def tagged_shell() -> Mesh:

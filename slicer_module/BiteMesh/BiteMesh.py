@@ -177,7 +177,8 @@ class BiteMeshWidget(ScriptedLoadableModuleWidget, VTKObservationMixin):
         missing = self.logic.missingRequirements()
         if not missing:
             return True
-        question = _("BiteMesh needs {packages}, which this Slicer lacks. Install it now with pip?").format(
+        question = _("BiteMesh needs {packages}, which this Slicer lacks. Install it now with pip? (Then its "
+                     "kernels compile once, so that the first mesh does not wait: a few minutes in all.)").format(
             packages=", ".join(missing))
         if slicer.util.confirmOkCancelDisplay(question):
             try:

@@ -25,7 +25,7 @@ from BiteMeshLib import selftest
 
 # --- requirements, the module's files -------------------------------------------------------------------------------
 
-def test_requirements_install_only_scipy(monkeypatch):
+def test_requirements_install_only_what_is_missing_then_compile_the_kernels(monkeypatch):
     import importlib.util
     calls = []
     assert lib_requirements.missingRequirements() == []
@@ -48,9 +48,11 @@ def test_requirements_install_only_scipy(monkeypatch):
     with pytest.raises(lib_requirements.MissingRequirementError, match="not installed"):
         lib_requirements.installRequirements(pipInstall=pip, confirm=lambda missing: False)
     assert calls == []
+    # then bitemesh's kernels compiled into numba's cache (bitemesh.cli.demo.compile_kernels, as pip install . does)
+    monkeypatch.setattr("bitemesh.cli.demo.compile_kernels", lambda: calls.append("kernels compiled"))
     assert lib_requirements.installRequirements(pipInstall=pip) == ["scipy>=1.9", "numba>=0.56"]
     # numpy pinned as bundled, never upgraded
-    assert calls == [["scipy>=1.9", "numba>=0.56", f"numpy=={np.__version__}"]]
+    assert calls == [["scipy>=1.9", "numba>=0.56", f"numpy=={np.__version__}"], "kernels compiled"]
     assert not any(name in " ".join(calls[0]).lower() for name in ("vtk", "simpleitk", "itk"))
 
 

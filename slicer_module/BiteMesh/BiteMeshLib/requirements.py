@@ -45,13 +45,16 @@ def missingRequirements() -> list:
     return [requirement for module, requirement in REQUIREMENTS.items() if importlib.util.find_spec(module) is None]
 
 
-def installRequirements(pipInstall=None, confirm=None) -> list:
-    """Install the missing requirements (scipy, numba, threadpoolctl) with Slicer's pip, on first use.
+def installRequirements(pipInstall=None, confirm=None, compileKernels=None) -> list:
+    """Install the missing requirements (scipy, numba, threadpoolctl) with Slicer's pip, on first use, then compile
+    bitemesh's numba kernels into numba's cache, as ``pip install .`` does, so that the first mesh does not wait
+    for them (about a minute, once, while the install's wait cursor is up).
 
     Parameters
     ----------
     pipInstall : callable taking a list of requirement strings; default ``slicer.util.pip_install``
     confirm : callable(missing) -> bool asking the user, or None to install without asking
+    compileKernels : callable(); default ``bitemesh.cli.demo.compile_kernels``
 
     Returns
     -------
@@ -76,6 +79,9 @@ def installRequirements(pipInstall=None, confirm=None) -> list:
     if still:
         raise MissingRequirementError(f"installing {', '.join(still)} failed; install it from the Python console "
                                       f"with slicer.util.pip_install({still!r})")
+    if compileKernels is None:
+        from bitemesh.cli.demo import compile_kernels as compileKernels
+    compileKernels()
     return missing
 
 

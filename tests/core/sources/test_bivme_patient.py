@@ -14,6 +14,7 @@ from bitemesh.core.sources.contours.fit import labelled_implicit
 from bitemesh.core.sources.contours.function import boundary_surfaces
 from bitemesh.core.sources.contours.run import run_labelled
 from bitemesh.core.errors import InvalidInputError
+from bitemesh.core.fem.fibres import FibreParameters, fibre_field
 from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.core.parameters import BitingParameters, SpuriousParameters, OptimizeParameters
 from bitemesh.core.steps.spine import mesh_from_grid
@@ -21,6 +22,7 @@ from bitemesh.core.mesh.validity import count_boundary_components
 from bitemesh.io import read_labelled_points
 
 from tests.builders import PLAIN, located
+from tests.fibrecheck import check_frames, check_free_wall, tagged_nodes
 from tests.meshcheck import assert_valid_domain
 
 PACKAGED = Path(bitemesh.__file__).resolve().parent / "data" / "bivme_patient1"
@@ -115,6 +117,24 @@ def test_the_patient_at_136000_cells_meets_the_goals(gpfile):
     assert len(result.mesh.cells) > 110000
     if result.mesh.cell_data["MinDihedralAngle"].min() < 20.0:
         assert any("could not meet its bounds" in str(warning.message) for warning in caught)
+
+
+@pytest.mark.slow
+def test_the_patient_at_136000_cells_has_monotonic_helix_angles_across_its_lv_free_wall(gpfile):
+    """The same mesh (about the paper's size, the default optimised mesh) with its fibres: unit orthogonal frames;
+    twelve wall-normal lines across the LV free wall, five to twelve cells each (phi_epi from at most 0.15 to at
+    least 0.85); the apex is the LV's."""
+    mesh = heart(str(gpfile), 136000).mesh
+    field = fibre_field(mesh)
+    check_frames(field.fibre, field.sheet, field.sheet_normal)
+    for values in field.laplace.values():
+        assert -0.01 <= values.min() and values.max() <= 1.01
+    profiles = check_free_wall(mesh, field, FibreParameters(), lines=12, depth=0.15)
+    assert all(len(depths) >= 5 for depths, _ in profiles)
+    apex = mesh.points[field.apex]
+    nearest = {name: np.linalg.norm(mesh.points[tagged_nodes(mesh, name)] - apex, axis=1).min()
+               for name in ("LV_ENDO", "RV_ENDO")}
+    assert nearest["LV_ENDO"] < nearest["RV_ENDO"], nearest
 
 
 # --- bad real input -------------------------------------------------------------------------------------------------
