@@ -13,7 +13,7 @@ from pathlib import Path
 from setuptools import setup
 from setuptools.command.build_py import build_py
 
-COMPILE = "from bitemesh.cli.demo import compile_kernels; compile_kernels()"
+COMPILE = "from bitemesh.meshing import compile_kernels; compile_kernels()"
 
 
 class BuildWithKernels(build_py):

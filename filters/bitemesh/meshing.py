@@ -241,3 +241,15 @@ def check_output(path, options=None) -> None:
 def write(result, path) -> None:
     """Write a mesh (or a MeshingResult's mesh) to ``path`` with its tags, atomically (companions too)."""
     write_mesh(getattr(result, "mesh", result), path)
+
+
+def compile_kernels() -> None:
+    """Compile the numba kernels of a first run into numba's cache: the demo's die (from scattered points) and a
+    small heart with its fibres meshed, nothing written.  The wheel's build runs it (setup.py), and the Slicer module
+    once it has installed numba."""
+    from importlib import resources
+
+    from .core.shapes import die, sample_surface
+    mesh(Samples(*sample_surface(die(), spacing=0.04, noise=0.002, seed=1)), cells=3000)
+    with resources.as_file(resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt") as path:
+        mesh(path, cells=5000, fibres=1)

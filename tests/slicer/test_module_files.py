@@ -48,8 +48,8 @@ def test_requirements_install_only_what_is_missing_then_compile_the_kernels(monk
     with pytest.raises(lib_requirements.MissingRequirementError, match="not installed"):
         lib_requirements.installRequirements(pipInstall=pip, confirm=lambda missing: False)
     assert calls == []
-    # then bitemesh's kernels compiled into numba's cache (bitemesh.cli.demo.compile_kernels, as pip install . does)
-    monkeypatch.setattr("bitemesh.cli.demo.compile_kernels", lambda: calls.append("kernels compiled"))
+    # then bitemesh's kernels compiled into numba's cache (bitemesh.meshing.compile_kernels, as pip install . does)
+    monkeypatch.setattr("bitemesh.meshing.compile_kernels", lambda: calls.append("kernels compiled"))
     assert lib_requirements.installRequirements(pipInstall=pip) == ["scipy>=1.9", "numba>=0.56"]
     # numpy pinned as bundled, never upgraded
     assert calls == [["scipy>=1.9", "numba>=0.56", f"numpy=={np.__version__}"], "kernels compiled"]

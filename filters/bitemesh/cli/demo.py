@@ -66,13 +66,6 @@ def mesh_die(options: Options, progress):
     return result, f", volume {volume_error:+.2%} of the exact die"
 
 
-def compile_kernels() -> None:
-    """Compile the numba kernels of a first run into numba's cache: the die and a small heart with its fibres
-    meshed, nothing written (the wheel's build step, setup.py)."""
-    mesh_die(Options(cells=3000), None)
-    mesh_heart(Options(cells=5000, fibres=True), None)
-
-
 def mesh_heart(options: Options, progress):
     source = resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt"
     print("heart: guide points on short- and long-axis cardiac MR contours (biv-me patient1, Apache-2.0), mm")

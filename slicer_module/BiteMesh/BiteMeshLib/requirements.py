@@ -54,7 +54,7 @@ def installRequirements(pipInstall=None, confirm=None, compileKernels=None) -> l
     ----------
     pipInstall : callable taking a list of requirement strings; default ``slicer.util.pip_install``
     confirm : callable(missing) -> bool asking the user, or None to install without asking
-    compileKernels : callable(); default ``bitemesh.cli.demo.compile_kernels``
+    compileKernels : callable(); default ``bitemesh.meshing.compile_kernels``
 
     Returns
     -------
@@ -80,7 +80,7 @@ def installRequirements(pipInstall=None, confirm=None, compileKernels=None) -> l
         raise MissingRequirementError(f"installing {', '.join(still)} failed; install it from the Python console "
                                       f"with slicer.util.pip_install({still!r})")
     if compileKernels is None:
-        from bitemesh.cli.demo import compile_kernels as compileKernels
+        from bitemesh.meshing import compile_kernels as compileKernels
     compileKernels()
     return missing
 
