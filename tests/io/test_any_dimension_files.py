@@ -1,6 +1,8 @@
-"""Meshes of any dimension to and from ``.npz`` (issue 36): the only format that holds a 4-simplex; the others
-refuse a k-D mesh by name and point to it."""
+"""Meshes of any dimension to and from ``.npz`` and ``.h5`` (issue 36): the only formats that hold a 4-simplex; the
+others refuse a k-D mesh by name and point to them."""
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -20,12 +22,14 @@ def ball_mesh(k: int) -> Mesh:
     return mesh.with_point_data(Radius=np.linalg.norm(mesh.points, axis=1))
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".h5"])
 @pytest.mark.parametrize("k", [3, 4, 5])
-def test_a_k_d_mesh_round_trips_through_npz(tmp_path, k):
+def test_a_k_d_mesh_round_trips(tmp_path, k, suffix):
     """Points, cells, tagged facets, names, every cell and point array and the unit come back bit for bit."""
-    mesh = ball_mesh(k)
-    write_mesh(mesh, tmp_path / "ball.npz")
-    back = read_mesh(tmp_path / "ball.npz")
+    mesh = replace(ball_mesh(k), unit="m")
+    write_mesh(mesh, tmp_path / f"ball{suffix}")
+    assert [path.name for path in tmp_path.iterdir()] == [f"ball{suffix}"]
+    back = read_mesh(tmp_path / f"ball{suffix}")
     assert back.points.shape[1] == k and np.array_equal(back.points, mesh.points)
     assert np.array_equal(back.cells, mesh.cells) and np.array_equal(back.facets, mesh.facets)
     assert np.array_equal(back.facet_tags, mesh.facet_tags) and back.tag_names == mesh.tag_names
@@ -37,12 +41,17 @@ def test_a_k_d_mesh_round_trips_through_npz(tmp_path, k):
 
 @pytest.mark.parametrize("suffix", [".vtu", ".xdmf", ".msh", ".pts", ""])
 def test_a_4_d_mesh_is_refused_where_no_4_simplex_fits(tmp_path, suffix):
-    with pytest.raises(InvalidInputError, match=r"a 4-D mesh can be written to \.npz only"):
+    with pytest.raises(InvalidInputError, match=r"a 4-D mesh can be written to \.npz or \.h5 only"):
         write_mesh(ball_mesh(4), tmp_path / f"ball{suffix}")
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_file_that_is_not_a_bitemesh_npz_is_named(tmp_path):
+def test_a_file_that_is_not_a_bitemesh_mesh_is_named(tmp_path):
+    import h5py
     np.savez(tmp_path / "other.npz", values=np.arange(3))
-    with pytest.raises(InvalidInputError, match="not a bitemesh .npz mesh"):
-        read_mesh(tmp_path / "other.npz")
+    with h5py.File(tmp_path / "other.h5", "w") as h5:   # an XDMF file's HDF5 companion, say
+        h5.create_dataset("Mesh/geometry", data=np.zeros((4, 3)))
+    (tmp_path / "text.h5").write_text("not HDF5")
+    for name in ("other.npz", "other.h5", "text.h5"):
+        with pytest.raises(InvalidInputError, match=rf"'{tmp_path / name}': not a bitemesh \.(npz|h5) mesh"):
+            read_mesh(tmp_path / name)

@@ -30,7 +30,7 @@ def test_mesh_round_trip(tmp_path, capfd, extension, make):
     assert back.points.dtype == np.float64 and back.cells.dtype == np.int64
     for name, array in back.cell_data.items():
         assert array.dtype.isnative and len(array) == len(mesh.cells), name
-    if extension in (".vtu", ".vtk", ".npz"):   # every array as it was
+    if extension in (".vtu", ".vtk", ".npz", ".h5"):   # every array as it was
         assert set(back.cell_data) == set(mesh.cell_data)
         for name, array in mesh.cell_data.items():
             np.testing.assert_array_equal(back.cell_data[name], array)

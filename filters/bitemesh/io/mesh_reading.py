@@ -12,7 +12,7 @@ from ..core.mesh.simplicial import MAX_DIMENSION, Mesh, signed_measures
 from .abaqus import read_abaqus_tags
 from .files import existing_file, meshio_warnings, native
 from .folders import read_folder
-from .meshes import FACET_ARRAY, MESH_EXTENSIONS, TAG_ARRAYS, facet_file
+from .meshes import ANY_DIMENSION, FACET_ARRAY, MESH_EXTENSIONS, TAG_ARRAYS, facet_file
 from .opencarp import read_opencarp
 
 
@@ -24,7 +24,8 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
     path : str or Path
         ``.vtu`` (with ``<stem>_facets.vtu`` if it is there), ``.vtk`` (legacy 4.2 or 5.1), ``.msh`` (gmsh 2.2 or
         4.x, ASCII or binary; not ANSYS), ``.inp`` (Abaqus), ``.mesh`` (MEDIT), ``.xdmf`` (one grid a file, with
-        ``<stem>_facets.xdmf`` if it is there), read with meshio.
+        ``<stem>_facets.xdmf`` if it is there), read with meshio; ``.npz`` and ``.h5`` as bitemesh writes them, a
+        mesh of any dimension.
     orient : bool
         Reorder the vertices of negatively oriented cells so that every cell is positively oriented (the
         :class:`Mesh` convention).  Facets keep the orientation the file gives them.
@@ -51,8 +52,8 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
                           orient, unit=unit)
     path = existing_file(path, "a mesh", MESH_EXTENSIONS)
     suffix = path.suffix.lower()
-    if suffix == ".npz":
-        return _read_npz(path, orient)
+    if suffix in ANY_DIMENSION:
+        return _read_arrays(path, orient)
     if suffix == ".pts":
         points, cells, cell_data, facets, tags, names = read_opencarp(path)
         return _read_mesh(path, check_points(points, f"points of '{path}'"), cells, cell_data, facets, tags, names,
@@ -102,17 +103,17 @@ def read_mesh(path, *, orient: bool = True) -> Mesh:
                       xdmf_unit(path) if suffix == ".xdmf" else "mm")
 
 
-def _read_npz(path: Path, orient: bool) -> Mesh:
-    """The mesh of a ``.npz`` file written by :func:`~.meshes.write_mesh` (any dimension)."""
+def _read_arrays(path: Path, orient: bool) -> Mesh:
+    """The mesh of a ``.npz`` or ``.h5`` file written by :func:`~.meshes.write_mesh` (any dimension)."""
+    suffix = path.suffix.lower()
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {name: data[name] for name in data.files}
+        arrays = _stored_arrays(path, suffix)
         points = check_points(arrays.pop("points"), f"points of '{path}'", dims=range(2, MAX_DIMENSION + 1))
         cells, facets = arrays.pop("cells").astype(np.int64), arrays.pop("facets").astype(np.int64)
         tags, names = arrays.pop("facet_tags").astype(np.int32), json.loads(str(arrays.pop("tag_names")))
         unit = str(arrays.pop("unit"))
     except (OSError, ValueError, KeyError, EOFError) as error:
-        raise InvalidInputError(f"cannot read a mesh from '{path}': not a bitemesh .npz mesh ({error})") from error
+        raise InvalidInputError(f"cannot read a mesh from '{path}': not a bitemesh {suffix} mesh ({error})") from error
     if cells.ndim != 2 or cells.shape[1] != points.shape[1] + 1:
         raise InvalidInputError(f"cannot read a mesh from '{path}': cells of shape {cells.shape} for "
                                 f"{points.shape[1]}-D points")
@@ -120,6 +121,19 @@ def _read_npz(path: Path, orient: bool) -> Mesh:
             for kind in ("cell_data", "point_data")}
     return _read_mesh(path, points, cells, data["cell_data"], facets, tags,
                       {name: tuple(value) for name, value in names.items()}, orient, data["point_data"], unit)
+
+
+def _stored_arrays(path: Path, suffix: str) -> dict:
+    """name -> array of a ``.npz`` file, or of a ``.h5`` file's datasets (``group/name``) and attributes."""
+    if suffix == ".npz":
+        with np.load(path, allow_pickle=False) as data:
+            return {name: data[name] for name in data.files}
+    import h5py
+    arrays = {}
+    with h5py.File(path, "r") as h5:
+        h5.visititems(lambda name, item: arrays.update({name: item[()]}) if isinstance(item, h5py.Dataset) else None)
+        arrays.update({name: str(value) for name, value in h5.attrs.items()})
+    return arrays
 
 
 def xdmf_unit(path: Path) -> str:

@@ -19,9 +19,10 @@ facets; the tag names; in 2D the cells are triangles and the facets edges):
   Mesh, Cell tags, Facet tags), ``m/markers.json``, ``m/info.json`` (:mod:`.folders`); no cell array.
 - ``.pts``, openCARP (``carp_txt``): ``m.pts`` in micrometres (the mesh in mm), ``m.elem`` with the regions,
   ``m.lon`` with Fibre and Sheet, ``m_NAME.surf`` and ``m_NAME.vtx`` a surface, ``m_tags.json`` (:mod:`.opencarp`).
-- ``.npz``, numpy's zip of arrays, for meshes of any dimension k = 2..5 (the only one for k > 3: VTK, gmsh, XDMF
-  and the solvers' formats have no 4-simplex): ``points`` (n, k), ``cells`` (m, k + 1), ``facets``,
-  ``facet_tags``, ``cell_data/NAME`` and ``point_data/NAME`` for each array, ``tag_names`` (JSON) and ``unit``.
+- ``.npz`` (numpy's zip of arrays) and ``.h5`` (HDF5), for meshes of any dimension k = 2..5 (the only ones for
+  k > 3: VTK, gmsh, XDMF and the solvers' formats have no 4-simplex): ``points`` (n, k), ``cells`` (m, k + 1),
+  ``facets``, ``facet_tags``, ``cell_data/NAME`` and ``point_data/NAME`` for each array (in HDF5 the groups
+  ``cell_data`` and ``point_data``), ``tag_names`` (JSON) and ``unit`` (in HDF5 the file's attributes).
 
 Reading (:mod:`.mesh_reading`) joins what writing split (``m.vtu`` with ``m_facets.vtu``) and gives the regions back
 as ``Region``.
@@ -43,7 +44,10 @@ from .opencarp import MICROMETRES, opencarp_files, write_opencarp
 from .files import atomic_outputs, meshio_warnings, native, supported
 from .xdmf import write_grid
 
-MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf", ".pts", ".npz")
+MESH_EXTENSIONS = (".vtu", ".vtk", ".msh", ".inp", ".mesh", ".xdmf", ".pts", ".npz", ".h5")
+
+#: The formats that hold a mesh of any dimension (the others: 2-D and 3-D).
+ANY_DIMENSION = (".npz", ".h5")
 #: the mesh formats that keep no cell arrays but the regions (openCARP: the fibres only): the fibres (or any cell
 #: vector) cannot go there.
 NO_CELL_ARRAYS = (".msh", ".inp", ".mesh")
@@ -125,10 +129,10 @@ def write_mesh(mesh: Mesh, path) -> None:
     if suffix == ".xdmf" and ":" in path.name:
         raise InvalidInputError(f"cannot write a mesh to '{path}': an XDMF file names its HDF5 file as 'file:path', "
                                 "so the file name cannot hold ':'; choose another name")
-    mesh, regions = _checked_mesh(mesh, any_dimension=suffix == ".npz")
-    if suffix == ".npz":
+    mesh, regions = _checked_mesh(mesh, any_dimension=suffix in ANY_DIMENSION)
+    if suffix in ANY_DIMENSION:
         with atomic_outputs([path]) as temporaries:
-            _write_npz(mesh, temporaries[0])
+            _write_arrays(mesh, temporaries[0], suffix)
         return
     if suffix == "":
         if path.exists() and not path.is_dir():
@@ -215,29 +219,36 @@ def _write_xdmf(mesh: Mesh, regions, suffix: str, temporaries: list, files: list
                    {FACET_ARRAY: mesh.facet_tags}, mesh.tag_names, unit=mesh.unit)
 
 
-def _write_npz(mesh: Mesh, path: Path) -> None:
-    """``mesh`` (checked) as the arrays of a ``.npz`` file (see the module docstring)."""
-    arrays = {"points": mesh.points, "cells": mesh.cells, "facets": mesh.facets, "facet_tags": mesh.facet_tags,
-              "tag_names": np.array(json.dumps({name: list(value) for name, value in mesh.tag_names.items()})),
-              "unit": np.array(mesh.unit)}
+def _write_arrays(mesh: Mesh, path: Path, suffix: str) -> None:
+    """``mesh`` (checked) as the arrays of a ``.npz`` or ``.h5`` file (see the module docstring)."""
+    arrays = {"points": mesh.points, "cells": mesh.cells, "facets": mesh.facets, "facet_tags": mesh.facet_tags}
     arrays.update({f"cell_data/{name}": array for name, array in mesh.cell_data.items()})
     arrays.update({f"point_data/{name}": array for name, array in mesh.point_data.items()})
-    with open(path, "wb") as stream:
-        np.savez_compressed(stream, **arrays)
+    texts = {"tag_names": json.dumps({name: list(value) for name, value in mesh.tag_names.items()}),
+             "unit": mesh.unit}
+    if suffix == ".npz":
+        with open(path, "wb") as stream:
+            np.savez_compressed(stream, **arrays, **{name: np.array(text) for name, text in texts.items()})
+        return
+    import h5py
+    with h5py.File(path, "w") as h5:
+        for name, array in arrays.items():
+            h5.create_dataset(name, data=np.ascontiguousarray(array), compression="gzip")
+        h5.attrs.update(texts)
 
 
 def check_holds(dimension: int, suffix: str, where: str = "") -> None:
     """Refuse a ``dimension``-D mesh for a file ending in ``suffix`` (``where`` names the file) when that format
-    holds 2-D and 3-D cells only (all but ``.npz``)."""
-    if dimension > 3 and suffix != ".npz":
-        raise InvalidInputError(f"{where}a {dimension}-D mesh can be written to .npz only (VTK, gmsh, XDMF, Abaqus, "
-                                "MEDIT and openCARP hold 2-D and 3-D cells); give a path ending in .npz, or write "
-                                "its 3-D sections (slice_mesh)")
+    holds 2-D and 3-D cells only (all but :data:`ANY_DIMENSION`)."""
+    if dimension > 3 and suffix not in ANY_DIMENSION:
+        raise InvalidInputError(f"{where}a {dimension}-D mesh can be written to .npz or .h5 only (VTK, gmsh, XDMF, "
+                                "Abaqus, MEDIT and openCARP hold 2-D and 3-D cells); give a path ending in .npz or "
+                                ".h5, or write its 3-D sections (slice_mesh)")
 
 
 def _checked_mesh(mesh, any_dimension: bool = False):
     """The mesh with checked, normalised arrays (facets (0, k) when it has none) and its (m,) int32 regions or
-    None; points of 2 or 3 dimensions, or up to :data:`MAX_DIMENSION` with ``any_dimension`` (``.npz``)."""
+    None; points of 2 or 3 dimensions, or up to :data:`MAX_DIMENSION` with ``any_dimension`` (``.npz``, ``.h5``)."""
     if not all(hasattr(mesh, name) for name in ("points", "cells", "cell_data")):
         raise InvalidInputError(f"mesh must be a bitemesh Mesh (points, cells, cell_data), got {type(mesh).__name__}")
     dimension = np.shape(mesh.points)[-1] if np.ndim(mesh.points) == 2 else 3

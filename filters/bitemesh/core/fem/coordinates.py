@@ -51,7 +51,7 @@ COORDINATE_ARRAYS = ("ApicoBasal", "Transmural", "Rotational", "Transventricular
 #: the neighbours whose values :func:`carry` blends (inverse-distance weights).
 NEIGHBOURS = 4
 #: the formats that keep point arrays.
-POINT_ARRAY_FORMATS = (".vtu", ".vtk", ".xdmf", ".npz")
+POINT_ARRAY_FORMATS = (".vtu", ".vtk", ".xdmf", ".npz", ".h5")
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class CoordinateParameters(Parameters):
 
     coordinates: int = parameter(0, "1 adds the ventricular coordinates (after Bayer et al. 2018) as point arrays "
                                  "ApicoBasal, Transmural, Rotational, Transventricular and the Laplace solutions "
-                                 "Psi, PhiEpi, PhiLV, PhiRV (.vtu, .vtk, .xdmf and .npz keep them), and the cell "
+                                 "Psi, PhiEpi, PhiLV, PhiRV (.vtu, .vtk, .xdmf, .npz and .h5 keep them), and the cell "
                                  "arrays AHA (the 17 segments, 0 in the RV free wall) and Ventricle (1 LV free "
                                  "wall, 2 RV free wall, 3 septum); needs a heart mesh tagged EPI, LV_ENDO, RV_ENDO "
                                  "and BASE; 0 adds none", low=0, high=1, integer=True)
