@@ -19,21 +19,18 @@ def pip(*args) -> None:
 
 
 def installed_package(folder: Path) -> bool:
-    """Copy into ``folder`` the bitemesh package as pip installed it from its wheel, the files its RECORD lists (no
-    cache entry written since), when the tests run that install (the README's test command, CI); False for an
-    editable install or a source tree on the path."""
-    import bitemesh
-    try:
-        distribution = importlib.metadata.distribution("bitemesh")
-    except importlib.metadata.PackageNotFoundError:
-        return False
-    files = [file for file in distribution.files or () if file.parts[0] == "bitemesh"]
-    if Path(distribution.locate_file("bitemesh")).resolve() != Path(bitemesh.__file__).resolve().parent:
-        return False
-    for file in files:
-        (folder / file).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(distribution.locate_file(file), folder / file)
-    return True
+    """Copy into ``folder`` the bitemesh package as pip installed it from its wheel (the files its RECORD lists, no
+    cache entry written since), when the tests run beside that install (the README's test command, CI); False when
+    no installed bitemesh carries numba's caches (an editable install).  Found by its RECORD, not by the package
+    imported: a source tree on sys.path (the Slicer tests put filters/ there) holds bitemesh.egg-info too."""
+    for distribution in importlib.metadata.distributions(name="bitemesh"):
+        files = [file for file in distribution.files or () if file.parts[0] == "bitemesh"]
+        if any(file.suffix == ".nbi" for file in files):
+            for file in files:
+                (folder / file).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(distribution.locate_file(file), folder / file)
+            return True
+    return False
 
 
 @pytest.mark.slow
