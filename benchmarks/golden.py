@@ -36,8 +36,8 @@ def die_demo(cells: int = 10000, optimize: int = 1):
     """``bitemesh demo`` (die): its points, its parameters (optimize 1, the default; 0: the plain method)."""
     from bitemesh.core.parameters import BitingParameters, ImplicitParameters, OptimizeParameters
     from bitemesh.core.sources.points import run
-    from bitemesh.core.shapes import die, sample_surface
-    points, normals = sample_surface(die(), spacing=0.04, noise=0.002, seed=1)
+    from bitemesh.core.shapes import die_samples
+    points, normals = die_samples()
     return run(points, normals, ImplicitParameters(), BitingParameters(cells=cells),
                optimize=OptimizeParameters(optimize=optimize)).mesh
 

@@ -249,7 +249,7 @@ def compile_kernels() -> None:
     once it has installed numba."""
     from importlib import resources
 
-    from .core.shapes import die, sample_surface
-    mesh(Samples(*sample_surface(die(), spacing=0.04, noise=0.002, seed=1)), cells=3000)
+    from .core.shapes import die_samples
+    mesh(Samples(*die_samples()), cells=3000)
     with resources.as_file(resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt") as path:
         mesh(path, cells=5000, fibres=1)

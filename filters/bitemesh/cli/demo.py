@@ -13,7 +13,7 @@ from importlib import resources
 from ..core.errors import InvalidInputError
 from ..core.fem.fibres import FibreParameters
 from ..core.parameters import DEFAULT_CELLS, BitingParameters, OptimizeParameters
-from ..core.shapes import die, sample_surface
+from ..core.shapes import die, die_samples
 from ..meshing import Samples, check_output, mesh
 from ..options import Options
 from .options import (ProgressBar, add_fibre_options, add_parameter_options, add_threads_option, describe,
@@ -59,7 +59,7 @@ def run(args) -> None:
 
 def mesh_die(options: Options, progress):
     shape = die()
-    points, normals = sample_surface(shape, spacing=0.04, noise=0.002, seed=1)
+    points, normals = die_samples()
     print(f"die: {len(points)} scattered points with normals, noise sd 0.002 (die size 2)")
     result = mesh(Samples(points, normals), options, progress=progress)
     volume_error = result.mesh.cell_data["Volume"].sum() / shape.measure - 1
