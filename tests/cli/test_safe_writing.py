@@ -17,13 +17,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import bitemesh
 from bitemesh import cli
 from bitemesh.core.mesh.simplicial import Mesh
 from bitemesh.io import read_mesh, write_mesh
 
 from tests.builders import leftovers, sphere_samples
 
-FILTERS = Path(__file__).resolve().parents[2] / "filters"
+#: the folder of the bitemesh package the tests import: its kernels' cache is the warm one
+PACKAGE_FOLDER = Path(bitemesh.__file__).resolve().parents[1]
 POSIX = pytest.mark.skipif(os.name != "posix", reason="RLIMIT_FSIZE and SIGINT to a child are POSIX")
 
 
@@ -44,28 +46,24 @@ def previous(tmp_path):
     return path, path.read_bytes()
 
 
-def bitemesh_process(*arguments, limit=None, numba_cache=None):
-    """Start ``python -m bitemesh.cli arguments`` (optionally under a file size limit, in bytes; with
-    ``numba_cache``, numba's kernels cached in that folder)."""
+def bitemesh_process(*arguments, limit=None):
+    """Start ``python -m bitemesh.cli arguments`` (optionally under a file size limit, in bytes)."""
     def restrict():
         import resource
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)   # a write past the limit then fails with EFBIG
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-    env = {**os.environ, "PYTHONPATH": str(FILTERS), **({"NUMBA_CACHE_DIR": str(numba_cache)} if numba_cache else {})}
+    env = {**os.environ, "PYTHONPATH": str(PACKAGE_FOLDER)}
     return subprocess.Popen([sys.executable, "-m", "bitemesh.cli", *map(str, arguments)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=restrict if limit else None)
 
 
 @POSIX
-@pytest.mark.slow
 def test_a_full_disk_leaves_the_previous_file(points_file, previous, tmp_path):
-    """The disk is full for the mesh and for numba's cache of the compiled kernels (an empty cache folder: every
-    kernel compiles and fails to save, as on the first run of an editable install): the kernels run, the write
-    fails.  (The plain method: the optimizer's kernels would double the compiling.)"""
+    """The disk is full for the mesh (numba's cache that cannot be written on a full disk:
+    tests/core/test_kernel_cache.py)."""
     path, before = previous
-    process = bitemesh_process("mesh", points_file, "-o", path, "--cells", "3000", "--no-optimize", limit=64 * 1024,
-                               numba_cache=tmp_path.parent / f"{tmp_path.name}_numba")
+    process = bitemesh_process("mesh", points_file, "-o", path, "--cells", "3000", "--no-optimize", limit=64 * 1024)
     _, err = process.communicate(timeout=120)
     assert process.returncode == 1, err
     assert "cannot write a mesh" in err and "previous file" in err and "Traceback" not in err
@@ -132,7 +130,7 @@ def assert_cancelled_once(script, points_file, previous):
     exit code 130, the one line "bitemesh: cancelled" on stderr, the previous file kept."""
     path, before = previous
     start = ("import os, signal, sys; sys.argv = ['bitemesh', *sys.argv[1:]]; import bitemesh.cli as cli; ")
-    env = {**os.environ, "PYTHONPATH": str(FILTERS)}
+    env = {**os.environ, "PYTHONPATH": str(PACKAGE_FOLDER)}
     done = subprocess.run([sys.executable, "-c", start + script, "mesh", str(points_file), "-o", str(path)],
                           env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 130, done.stderr
