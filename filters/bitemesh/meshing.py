@@ -245,11 +245,14 @@ def write(result, path) -> None:
 
 def compile_kernels() -> None:
     """Compile the numba kernels of a first run into numba's cache: the demo's die (from scattered points) and a
-    small heart with its fibres meshed, nothing written.  The wheel's build runs it (setup.py), and the Slicer module
-    once it has installed numba."""
+    small heart with its fibres meshed, nothing written, nothing said (the small heart's thin walls).  The wheel's
+    build runs it (setup.py), the Slicer module once it has installed numba, a ParaView user once with pvpython."""
+    import warnings
     from importlib import resources
 
     from .core.shapes import die_samples
-    mesh(Samples(*die_samples()), cells=3000)
-    with resources.as_file(resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt") as path:
-        mesh(path, cells=5000, fibres=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mesh(Samples(*die_samples()), cells=3000)
+        with resources.as_file(resources.files("bitemesh") / "data" / "bivme_patient1" / "GPFile_000.txt") as path:
+            mesh(path, cells=5000, fibres=1)

@@ -1,8 +1,8 @@
 """The ParaView plugin, headless in pvbatch: the same mesh from the same points as the VTK filters and bitemesh.run
 (and, for labelled contours, as run_labelled).
 
-pvbatch runs ``pvbatch_script.py`` beside this file once per session (about 55 s with its numba cache empty, as on
-CI; 10 s with it filled): ParaView 5.11's own Python and VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH``
+pvbatch runs ``pvbatch_script.py`` beside this file once per session (160 s with its numba cache empty; 40 s after
+``compile_kernels`` ran in pvpython, as ParaView's users run it once and .ci/run does): ParaView 5.11's own Python and VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH``
 holding only the clone's ``filters/`` (the pip ``vtk`` wheel of this virtual environment would crash it).  The
 script records every check by name in ``results.json``; the tests here report them and check again, in this
 Python, the meshes it wrote.  Skipped where pvbatch is absent (on CI, ``.ci/run`` installs Debian's ``paraview
@@ -48,7 +48,7 @@ GPFILE = FILTERS / "bitemesh" / "data" / "bivme_patient1" / "GPFile_000.txt"
 pytestmark = [pytest.mark.skipif(
     PVBATCH is None, reason="pvbatch is absent: apt-get install paraview python3-paraview python3-numpy "
     "python3-scipy (Debian's ParaView 5.11; .ci/run installs them)"),
-    pytest.mark.slow]   # the one pvbatch run: 160 s with Debian numba's cache empty (CI)
+    pytest.mark.slow]   # the one pvbatch run: 160 s with Debian numba's cache empty
 
 
 def pvbatch_environment() -> dict:
