@@ -17,6 +17,8 @@ from bitemesh.core.parameters import BitingParameters, FidelityParameters
 from bitemesh.core.errors import BitemeshWarning, InvalidInputError, MeshingError
 from bitemesh.core.fem.fibres import with_fibres
 from bitemesh.core.mesh.validity import count_boundary_components
+from bitemesh.core.mesh.topology import boundary_facets
+from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.io import read_labelled_points
 from tests.builders import PLAIN
 from tests.cardiac_variants import VARIANTS, read_gpfile, variant_file, write_gpfile
@@ -117,6 +119,11 @@ def test_each_variant_meshes_as_a_heart(name, shared_data, tmp_path, full_heart)
         assert not inside_mesh(mesh, point), f"{cavity} is filled"
     # guide points: traced on 1.4 mm pixels (noise 0.7 mm) and a linear boundary of 2 mm edges
     assert result.fidelity.to_boundary_mean <= 0.5 and result.fidelity.to_boundary_p95 <= 2.0
+    # the base follows the annuli (tests/cli/test_real_heart_meshes.py: the cine's frames and classes)
+    for valve in ("MITRAL_VALVE", "TRICUSPID_VALVE"):
+        if (labels == valve).any():
+            distance = distances_to_facets(points[labels == valve], mesh.points[boundary_facets(mesh.cells)])
+            assert distance.max() <= 3.0, (valve, distance)
     volume = mesh.cell_data["Volume"].sum()
     full = full_heart.mesh.cell_data["Volume"].sum()
     if name in ("no RV epicardium", "like GPFile of issue 10"):

@@ -2,11 +2,11 @@
 (and, for labelled contours, as run_labelled).
 
 pvbatch runs ``pvbatch_script.py`` beside this file once per session (160 s with its numba cache empty; 40 s after
-``compile_kernels`` ran in pvpython, as ParaView's users run it once and .ci/run does): ParaView 5.11's own Python and VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH``
-holding only the clone's ``filters/`` (the pip ``vtk`` wheel of this virtual environment would crash it).  The
-script records every check by name in ``results.json``; the tests here report them and check again, in this
-Python, the meshes it wrote.  Skipped where pvbatch is absent (on CI, ``.ci/run`` installs Debian's ``paraview
-python3-paraview python3-numpy python3-scipy``).
+``compile_kernels`` ran in pvpython, as ParaView's users run it once and .ci/run does): ParaView 5.11's own Python
+and VTK 9.2, with Debian's numpy and scipy, and ``PYTHONPATH`` holding only the clone's ``filters/`` (the pip
+``vtk`` wheel of this virtual environment would crash it).  The script records every check by name in
+``results.json``; the tests here report them and check again, in this Python, the meshes it wrote.  Skipped where
+pvbatch is absent (on CI, ``.ci/run`` installs Debian's ``paraview python3-paraview python3-numpy python3-scipy``).
 """
 from __future__ import annotations
 
