@@ -6,7 +6,6 @@ import os
 from pathlib import Path
 
 import pytest
-from threadpoolctl import threadpool_limits
 
 from bitemesh.core.compiled import THREADS_VARIABLE
 from tests import builders
@@ -15,13 +14,14 @@ DATA = Path(os.environ.get("BITEMESH_DATA", Path(__file__).resolve().parents[2] 
 
 
 def pytest_configure(config):
-    """Each pytest-xdist worker (one per core) takes one thread, as Dask workers do: two workers of two threads each
-    on 2 cores took 15 % longer (the heart files: 251 s against 213 s), the threads waiting on each other.  The
-    tests of the thread count set theirs (tests/core/test_threads.py); the programs the tests start inherit it."""
+    """Each pytest-xdist worker (one per core) takes one thread for bitemesh's kernels, as Dask workers do: two
+    workers of two threads each on 2 cores took 15 % longer (the heart files: 251 s against 213 s), the threads
+    waiting on each other.  The tests of the thread count set theirs (tests/core/test_threads.py); the programs the
+    tests start inherit it, and one BLAS thread (the workers' own BLAS keeps its count: the RBF patches hold it to
+    one, and tests/core/test_threads.py checks that the count is given back)."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
         for name in (THREADS_VARIABLE, "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(name, "1")
-        threadpool_limits(limits=1)
 
 
 def pytest_collection_modifyitems(items):

@@ -73,6 +73,12 @@ def test_the_coordinates_take_their_values_on_the_surfaces(shell):
     assert (data["Transventricular"][septal] == -1).all() and (data["Transmural"][septal] == 1).all()
     assert (data["ApicoBasal"][base] == 1).all() and data["ApicoBasal"].min() == 0
     assert data["Rotational"].min() >= -np.pi and data["Rotational"].max() <= np.pi
+    # the RV free wall's own: -pi/2 at the posterior (+y) septal junction, +pi/2 at the anterior (-y) one
+    rv = np.flatnonzero(data["Transventricular"] == 1)
+    rotational, y = data["Rotational"][rv], shell.points[rv, 1]
+    assert np.abs(rotational).max() <= np.pi / 2 + 1e-12
+    assert (rotational[y < -5] > 0).all() and (rotational[y > 5] < 0).all()
+    assert rotational.max() > 1.4 and rotational.min() < -1.4
 
 
 def test_a_node_carried_to_another_heart_and_back_lands_within_one_cell(shell):
@@ -101,25 +107,33 @@ def test_a_left_ventricle_alone_is_refused_naming_the_septum():
         ventricular_coordinates(mesh.with_tags(mesh.facets[keep], mesh.facet_tags[keep], names))
 
 
+def assert_round_trip(first, second):
+    """The paper's check between two hearts: a node carried to the other and back lands within one cell.  Held to:
+    on average within one mean edge in the basal fifth, where the valve openings and the RV outflow change shape
+    most between two hearts; 98 % of the nodes below it and 90 % of all within one mean edge.  (Measured: 99.4-99.5
+    % below, 94-95 % of all, 0.43-0.58 edges on average in the basal fifth; 97 %, 88-90 % and about 0.8 with the
+    rotational coordinate about the LV's axis in the RV too and the four nearest nodes' inverse-distance blend.)"""
+    there = carry(first, second, ["Position"])["Position"]
+    back = carry(second.with_point_data(Original=there), first, ["Original"])["Original"]
+    error = np.linalg.norm(back - first.points, axis=1) / mean_edge_length(first.points, first.cells)
+    below = first.point_data["ApicoBasal"] < 0.8
+    figures = (np.mean(error[below] <= 1), np.mean(error <= 1), error[~below].mean())
+    assert figures[0] >= 0.98 and figures[1] >= 0.9 and figures[2] <= 1.0, figures
+
+
 def test_the_real_heart_carried_to_its_end_systole_and_back(cine, tmp_path):
     """biv-me patient1's frame 0 (the 20,000-cell template) and the same heart fitted to frame 8 (end-systole: the
-    largest change of the cycle) as two hearts: below the basal fifth (where the valve openings and the RV outflow
-    change shape most) 95 % of the nodes come back within one mean edge."""
+    largest change of the cycle) as two hearts."""
     from bitemesh import fit
     folder, template_path = cine
     ed = with_coordinates(read_mesh(template_path))
     es = with_coordinates(fit(template_path, folder / "guidepoints" / "GPFile_008.txt").mesh)
-    there = carry(ed, es, ["Position"])["Position"]
-    back = carry(es.with_point_data(Original=there), ed, ["Original"])["Original"]
-    error = np.linalg.norm(back - ed.points, axis=1) / mean_edge_length(ed.points, ed.cells)
-    below = ed.point_data["ApicoBasal"] < 0.8
-    assert np.mean(error[below] <= 1) >= 0.95, np.mean(error[below] <= 1)
+    assert_round_trip(ed, es)
 
 
 def test_a_heart_meshed_from_other_contours_carried_there_and_back(cine, tmp_path):
     """Two meshes of one heart with no node in common: the template (frame 0) and frame 0 without its RV epicardial
-    contours (the RV epicardium derived), as another export of the same heart would give: below the basal fifth 95 %
-    of the nodes come back within one mean edge (measured 97 %; 98 % with the data moved to scanner coordinates)."""
+    contours (the RV epicardium derived), as another export of the same heart would give."""
     from bitemesh import mesh
 
     from tests.cardiac_variants import variant_file
@@ -127,8 +141,4 @@ def test_a_heart_meshed_from_other_contours_carried_there_and_back(cine, tmp_pat
     variant = variant_file(folder / "guidepoints" / "GPFile_000.txt", "no RV epicardium", tmp_path)
     first = with_coordinates(read_mesh(template_path))
     second = with_coordinates(mesh(variant, cells=20000).mesh)
-    there = carry(first, second, ["Position"])["Position"]
-    back = carry(second.with_point_data(Original=there), first, ["Original"])["Original"]
-    error = np.linalg.norm(back - first.points, axis=1) / mean_edge_length(first.points, first.cells)
-    below = first.point_data["ApicoBasal"] < 0.8
-    assert np.mean(error[below] <= 1) >= 0.95, np.mean(error[below] <= 1)
+    assert_round_trip(first, second)
