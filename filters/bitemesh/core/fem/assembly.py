@@ -180,6 +180,16 @@ def eliminate(matrix: sparse.csr_matrix, rhs: np.ndarray, fixed: np.ndarray, val
     return reduced, (rhs - matrix @ full)[free], full
 
 
+def harmonic(matrix: sparse.csr_matrix, fixed: np.ndarray, values, rtol: float = 1e-10):
+    """(N,) u with ``matrix`` u = 0 at the free dofs and u = ``values`` at the ``fixed`` (N,) ones (a Laplace
+    problem's stiffness: the harmonic function with those Dirichlet values), by Jacobi-CG to ``rtol``; and its
+    :class:`Solve`."""
+    reduced, rhs, full = eliminate(matrix, np.zeros(matrix.shape[0]), fixed, values)
+    found = solve(reduced, rhs, method="cg", rtol=rtol)
+    full[~fixed] = found.solution
+    return full, found
+
+
 @dataclass(frozen=True)
 class Solve:
     """A linear solve: the solution, how it went and what it cost.

@@ -150,13 +150,11 @@ def rv_rotation(points: np.ndarray, cells: np.ndarray, ventricle: np.ndarray, gr
     junction[np.intersect1d(np.intersect1d(facets["EPI"], nodes), cells[~free])] = True
     junction[facets["BASE"]] = False
     anterior, posterior = junction & (rotational > 0), junction & (rotational <= 0)
-    if not anterior.any() or not posterior.any():
+    if not anterior.any() or not posterior.any() or junction[nodes].all():
         return rotation
     matrix = fem.assemble(fem.laplace_elements(gradients[free], volumes[free]), local.reshape(-1, 4), len(nodes))
-    fixed = junction[nodes]
-    reduced, rhs, full = fem.eliminate(matrix, np.zeros(len(nodes)), fixed, anterior[nodes].astype(np.float64))
-    full[~fixed] = fem.solve(reduced, rhs, method="cg", rtol=1e-10).solution
-    rotation[nodes] = (full - 0.5) * np.pi
+    between, _ = fem.harmonic(matrix, junction[nodes], anterior[nodes].astype(np.float64))
+    rotation[nodes] = (between - 0.5) * np.pi
     return rotation
 
 

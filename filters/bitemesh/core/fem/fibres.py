@@ -216,10 +216,7 @@ def laplace_solutions(points: np.ndarray, cells: np.ndarray, facets: dict, gradi
                                                                                        else 2)]
     solutions, solves = np.zeros((4, n)), []   # phi_rv = 0 in a left ventricle
     for number, (fixed, values) in enumerate(problems):
-        reduced, rhs, full = fem.eliminate(matrix, np.zeros(n), fixed, values)
-        solve = fem.solve(reduced, rhs, method="cg", rtol=1e-10)
-        full[~fixed] = solve.solution
-        solutions[number] = full
+        solutions[number], solve = fem.harmonic(matrix, fixed, values)
         solves.append(solve)
         report(progress, 0.2 * (number + 1), f"fibres: Laplace problem {number + 1} of {len(problems)}")
     return solutions, apex, tuple(solves)
