@@ -100,28 +100,31 @@ def test_a_bad_environment_variable_is_refused_by_name_before_any_work(monkeypat
 
 
 
-def test_rbf_patches_run_blas_on_one_thread(monkeypatch):
+def test_rbf_patches_solve_on_one_blas_thread_and_evaluate_without_blas(monkeypatch):
     """OpenBLAS splits its sums by its thread count (every core by default): the RBF patches, solved and evaluated
     on bitemesh's threads, made the heart's mesh depend on the machine's cores (cine frame 8, 2 BLAS threads
-    against 1: another mesh).  There BLAS takes one thread, and its count outside is given back."""
+    against 1: another mesh).  The solves take one BLAS thread, its count outside given back; the evaluation is
+    bitemesh's own kernel: the same values, bit for bit, whatever threads BLAS or the kernels are given."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
+    from bitemesh.core.compiled import using_threads
     from bitemesh.core.implicit import rbf
 
     def blas_threads():
         return {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
 
-    seen, solve, slope = [], rbf._solve, rbf.LocalRBF.value_and_slope
+    seen, solve = [], rbf._solve
     monkeypatch.setattr(rbf, "_solve", lambda *args: (seen.append(blas_threads()), solve(*args))[1])
-    monkeypatch.setattr(rbf.LocalRBF, "value_and_slope",
-                        lambda self, *args: (seen.append(blas_threads()), slope(self, *args))[1])
     points = SAMPLES[0][:1500]
     with threadpool_limits(limits=2, user_api="blas"):
         outside = blas_threads()
         function = rbf.fit_rbf(points, SAMPLES[1][:1500])
-        function(points)
         assert blas_threads() == outside
+        with using_threads(2):
+            values, slopes = function(points), function.gradient(points)
     assert len(function.patches) > 1 and seen and all(counts == {1} for counts in seen)
+    with threadpool_limits(limits=1, user_api="blas"), using_threads(1):
+        assert (function(points) == values).all() and (function.gradient(points) == slopes).all()
 
 
 def test_threaded_map_keeps_the_order_and_drops_what_a_cancel_leaves():

@@ -30,6 +30,7 @@ from ..compiled import one_blas_thread, threaded_map
 from ..errors import InvalidInputError, check_choice, check_number, check_points
 from ..grid.sampled import bounding_box, box_depth, box_depth_gradient
 from .normals import unit_normals
+from .rbf_sums import KERNEL_NUMBERS, patch_sums
 from ..parameters import KERNELS
 from ..progress import ProgressCallback, report
 
@@ -50,8 +51,6 @@ PATCH_CENTRES = 1200
 MIN_PATCH_CENTRES = 600
 #: a patch's radius is this x the half-diagonal of its cell (neighbouring balls overlap).
 OVERLAP = 1.0
-#: kernel entries per chunk when an RBF is evaluated: cache-sized (64 k entries are 8 times faster than 4 M).
-_CHUNK_ENTRIES = 1 << 16
 #: points evaluated together (one k-d tree of them per chunk finds each patch's points).
 _CHUNK_POINTS = 1 << 17
 
@@ -68,15 +67,6 @@ def _kernel(r: np.ndarray, kernel: str) -> np.ndarray:
     return np.multiply(r * r, np.log(safe), out=r)
 
 
-def _kernel_slope(r: np.ndarray, kernel: str) -> np.ndarray:
-    """phi'(r) / r (finite at r = 0 where the kernel is smooth)."""
-    if kernel == "cubic":
-        return 3.0 * r
-    if kernel == "linear":
-        return 1.0 / np.where(r > 0, r, np.inf)
-    return 2.0 * np.log(np.where(r > 0, r, 1.0)) + 1.0
-
-
 @dataclass(frozen=True, eq=False)
 class LocalRBF:
     """f(x) = sum_j w_j phi(|y - c_j|) + a . y + b, y = (x - shift) / scale: one patch's polyharmonic RBF.
@@ -91,32 +81,14 @@ class LocalRBF:
     shift: np.ndarray
     scale: float
 
-    @cached_property
-    def _centre_norms(self) -> np.ndarray:
-        return np.einsum("md,md->m", self.centres, self.centres)
-
-    @cached_property
-    def _centre_rows(self) -> np.ndarray:
-        return np.ascontiguousarray(-2.0 * self.centres.T)
-
     def value_and_slope(self, x: np.ndarray, slope: bool):
         """(q,) f and, with ``slope``, (q, k) its gradient per input unit, at (q, k) points."""
-        y = (x - self.shift) / self.scale
-        value, gradient = np.empty(len(y)), np.empty(y.shape) if slope else None
-        step = max(1, _CHUNK_ENTRIES // len(self.centres))
-        for start in range(0, len(y), step):
-            part = y[start:start + step]
-            r = part @ self._centre_rows   # |y - c|^2 = |y|^2 + |c|^2 - 2 y . c, by BLAS
-            r += self._centre_norms
-            r += np.einsum("md,md->m", part, part)[:, None]
-            r = np.sqrt(np.maximum(r, 0.0, out=r), out=r)
-            if slope:
-                factor = _kernel_slope(r, self.kernel) * self.weights
-                gradient[start:start + len(part)] = (part * factor.sum(axis=1)[:, None] - factor @ self.centres
-                                                     + self.polynomial[1:]) / self.scale
-            value[start:start + len(part)] = (_kernel(r, self.kernel) @ self.weights + self.polynomial[0]
-                                              + part @ self.polynomial[1:])
-        return value, gradient
+        y = np.ascontiguousarray((x - self.shift) / self.scale)
+        value, factors, moments = patch_sums(y, self.centres, self.weights, self.polynomial,
+                                             KERNEL_NUMBERS[self.kernel], slope)
+        if not slope:
+            return value, None
+        return value, (y * factors[:, None] - moments + self.polynomial[1:]) / self.scale
 
 
 def _wendland(t: np.ndarray):
@@ -175,16 +147,15 @@ class RBFImplicit:
             total, weights = np.zeros(len(part)), np.zeros(len(part))
             total_slope, weight_slope = (np.zeros(part.shape), np.zeros(part.shape)) if slope else (0, 0)
             members = cKDTree(part).query_ball_point(self.centres, self.radii, return_sorted=False)
-            jobs = [(part, slope, centre, radius, patch, np.asarray(index))
-                    for centre, radius, patch, index in zip(self.centres, self.radii, self.patches, members) if index]
-            # the patches on threads (numpy and BLAS release the GIL), their terms summed in the patches' order
-            with one_blas_thread():
-                for index, w, f, df, direction in threaded_map(lambda job: _patch_terms(*job), jobs):
-                    total[index] += w * f
-                    weights[index] += w
-                    if slope:
-                        total_slope[index] += direction * f[:, None] + w[:, None] * df
-                        weight_slope[index] += direction
+            for centre, radius, patch, index in zip(self.centres, self.radii, self.patches, members):
+                if not index:   # summed in the patches' order; each patch's sums on every thread (rbf_sums)
+                    continue
+                index, w, f, df, direction = _patch_terms(part, slope, centre, radius, patch, np.asarray(index))
+                total[index] += w * f
+                weights[index] += w
+                if slope:
+                    total_slope[index] += direction * f[:, None] + w[:, None] * df
+                    weight_slope[index] += direction
             lonely = np.flatnonzero(weights <= 0)   # beyond every ball: the nearest patch alone
             if len(lonely):
                 nearest = self._patch_tree.query(part[lonely])[1]
