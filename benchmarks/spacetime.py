@@ -73,7 +73,7 @@ def main(argv=None) -> None:
              f"{boundary_euler_characteristic(space_time)}, mean radius ratio {quality.mean():.3f}", "",
              "| frame | section cells | section valid (flat pieces left aside) | section (ml) | 3-D mesh at R (ml) | "
              "ratio |", "|---|---|---|---|---|---|"]
-    for frame, section in enumerate(frame_instants(space_time, shape)):
+    for frame, section in enumerate(frame_instants(space_time, shape.step, len(shape.frames))):
         alone = mesh(CINE / f"GPFile_{frame:03d}.txt", radius=radius, optimize=0).mesh
         problems = [p for p in check_valid_domain(section) if "flat cells" not in p]
         ratio = volume(section) / volume(alone)

@@ -26,7 +26,9 @@ from .core.sources.contours.cardiac import canonical_labels, is_bivme
 from .core.sources.contours.run import labelled_keywords, labelled_source, run_labelled, two_cells_across
 from .core.sources.points import points_source, run
 from .core.sources.source import Source
-from .core.steps.spine import MeshingResult
+from .core.sources.spacetime import (SPACE_TIME_CELLS, frame_instants, space_time_radius,
+                                          space_time_source)
+from .core.steps.spine import MeshingResult, mesh_source
 from .io import (LABEL_MAP_EXTENSIONS, LABELLED_EXTENSIONS, MESH_EXTENSIONS, NO_CELL_ARRAYS, POINT_EXTENSIONS,
                  LabelMap, check_holds, looks_labelled, read_label_map, read_labelled_config, read_labelled_points,
                  read_points, write_mesh)
@@ -176,6 +178,8 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
 
 
 def _meshed(input, options: Options, progress: ProgressCallback) -> MeshingResult:
+    if options.space_time:
+        return _space_time(input, options, progress)
     fibres = options.of(FibreParameters) if options.fibres else None
     meshed = sub_progress(progress, 0.0, 0.9 if fibres or options.coordinates else 1.0)
     data = read_input(input, options)
@@ -211,6 +215,35 @@ def _meshed(input, options: Options, progress: ProgressCallback) -> MeshingResul
     return result
 
 
+def _space_time(inputs, options: Options, progress: ProgressCallback) -> MeshingResult:
+    """The frames of a cycle (a sequence of inputs) meshed as one space-time mesh (user coordinates, tau last)."""
+    if isinstance(inputs, (str, os.PathLike, np.ndarray)) or not isinstance(inputs, (list, tuple)):
+        raise InvalidInputError("space_time (--space-time): give the frames of the cycle as a list of inputs (e.g. "
+                                "the files GPFile_000.txt ... GPFile_024.txt in the cycle's order), got one input")
+    for name in ("fibres", "coordinates"):
+        if getattr(options, name):
+            raise InvalidInputError(f"{flag(name)} applies to a 3-D heart mesh, not to a space-time mesh; leave it "
+                                    "out (each frame's instant is a 3-D mesh without tags)")
+    one = options.replace(space_time=0)
+    frames = []
+    for number, item in enumerate(inputs):
+        report(progress, 0.3 * number / len(inputs), f"fitting frame {number + 1} of {len(inputs)}")
+        frames.append(source(item, one))
+    cells = options.cells or SPACE_TIME_CELLS
+    radius = options.radius or space_time_radius(frames, cells, options.frame_step)
+    shape = space_time_source(frames, radius, options.frame_step)
+    steps = {**options.steps, "biting": replace(options.steps["biting"], radius=radius, cells=None)}
+    result = mesh_source(shape, progress=sub_progress(progress, 0.3, 1.0), **steps)
+    note = () if options.radius else (f"R = {radius:.3g} for about {cells:,} space-time cells",)
+    return replace(result, notes=note + result.notes)
+
+
+def instants(result: MeshingResult) -> list:
+    """Each frame's instant of a space-time mesh (``space_time=1``): the k-D meshes cut at its frames' times."""
+    shape = result.function
+    return frame_instants(result.mesh, shape.step * result.frame.scale, len(shape.frames))
+
+
 def check_output(path, options=None) -> None:
     """Refuse, before any work, an output path bitemesh cannot write, or one that would lose the fibres or the
     coordinates.  A path without an extension is the folder cardiac-geometries and fenicsx-pulse read."""
@@ -230,9 +263,10 @@ def check_output(path, options=None) -> None:
     if options is not None and options.fibres and suffix in NO_CELL_ARRAYS + ("",):
         raise InvalidInputError(f"--fibres: {kind} keeps no cell arrays but the regions, so the fibres would be "
                                 f"lost; write .vtu, .vtk or .xdmf, which keep {', '.join(FIBRE_ARRAYS)}")
-    if options is not None:   # the dimension given, or that of the axes --columns names
-        check_holds(options.dimension or sum(role.strip() in AXES for role in options.columns.split(",")), suffix,
-                    f"output {path}: ")
+    if options is not None:   # the dimension given, or that of the axes --columns names; time one more
+        dimension = options.dimension or sum(role.strip() in AXES for role in options.columns.split(",")) or 3
+        check_holds(dimension + bool(options.space_time), suffix,
+                    f"output {path}: " + ("the space-time mesh of 3-D frames is 4-D: " if options.space_time else ""))
     if options is not None and options.coordinates and suffix not in POINT_ARRAY_FORMATS:
         raise InvalidInputError(f"--coordinates: {kind} keeps no point arrays, so the coordinates would be lost; "
                                 f"write {', '.join(POINT_ARRAY_FORMATS)}")

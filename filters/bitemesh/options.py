@@ -16,11 +16,13 @@ from .core.compiled import check_threads
 from .core.errors import InvalidInputError
 from .core.fem.coordinates import CoordinateParameters
 from .core.fem.fibres import FibreParameters
+from .core.sources.spacetime import SpaceTimeParameters
 from .core.parameters import (AUTOMATIC, STEP_PARAMETERS, LabelledParameters, LabelMapParameters, TableParameters,
                               is_optional)
 
 #: the parameter dataclasses whose fields an Options holds, in the order ``bitemesh mesh --help`` lists them.
-OPTION_CLASSES = (TableParameters, *STEP_PARAMETERS, LabelledParameters, FibreParameters, CoordinateParameters)
+OPTION_CLASSES = (TableParameters, *STEP_PARAMETERS, LabelledParameters, FibreParameters, CoordinateParameters,
+                  SpaceTimeParameters)
 #: the step each of STEP_PARAMETERS is the parameters of, as the spine's functions name their arguments.
 STEP_NAMES = ("implicit", "biting", "spurious", "optimize", "fidelity")
 #: the fields that are no dataclass's: how a label map or a labelled-contour file is read.

@@ -3,12 +3,11 @@ several DATA are the frames of a cycle, written as a ParaView time series with t
 from __future__ import annotations
 
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 from ..core.errors import InvalidInputError
 from ..core.fem.template import FitParameters
 from ..fitting import fit, fit_cycle, frame_fit_row
-from ..io import atomic_output
+from ..io import write_time_series
 from ..meshing import check_output, write
 from .options import ProgressBar, add_parameter_options, add_threads_option, parameters_from_args
 
@@ -57,17 +56,13 @@ def run(args) -> None:
         cycle = fit_cycle(args.template, args.data, pull=pull, progress=bar)
     finally:
         bar.close()
-    names = []
+    write_time_series(output, [fitted.mesh for fitted in cycle.fits])
     for number, (fitted, volumes) in enumerate(zip(cycle.fits, cycle.volumes)):
-        name = f"{output.stem}_{number:03d}.vtu"
-        write(fitted, output.with_name(name))
-        names.append(name)
         print(f"frame {number}: LV {volumes[0]:.1f} ml, RV {volumes[1]:.1f} ml; {fit_summary(frame_fit_row(fitted))}")
-    write_collection(output, names)
     print(f"end-diastole: frame {cycle.end_diastole} (LV {cycle.volumes[cycle.end_diastole, 0]:.1f} ml), "
           f"end-systole: frame {cycle.end_systole} (LV {cycle.volumes[cycle.end_systole, 0]:.1f} ml), "
           f"ejection fraction {cycle.ejection_fraction:.1f} %")
-    print(f"wrote {output} ({len(names)} frames)")
+    print(f"wrote {output} ({len(cycle.fits)} frames)")
 
 
 def fit_summary(row: dict) -> str:
@@ -75,11 +70,3 @@ def fit_summary(row: dict) -> str:
             f"angle {row['min_dihedral']:.1f} deg, radius ratio {row['min_radius_ratio']:.3f}; {row['rounds']} "
             f"rounds, {row['seconds']:.1f} s")
 
-
-def write_collection(path: Path, names: list) -> None:
-    """A ParaView .pvd time series of the frames ``names`` (files beside it), frame number as the time."""
-    entries = "\n".join(f'    <DataSet timestep="{number}" part="0" file={quoteattr(name)}/>'
-                        for number, name in enumerate(names))
-    with atomic_output(path, "a time series") as temporary:
-        Path(temporary).write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
-                                   f"  <Collection>\n{entries}\n  </Collection>\n</VTKFile>\n")

@@ -2,12 +2,15 @@
 from __future__ import annotations
 
 from dataclasses import fields
+from pathlib import Path
 
 from ..core.errors import InvalidInputError
 from ..core.fem.coordinates import CoordinateParameters
+from ..core.mesh.simplicial import signed_measures
 from ..core.parameters import LabelledParameters, LabelMapParameters, TableParameters
-from ..io import mesh_files, remove_stale_partials
-from ..meshing import check_output, mesh
+from ..core.sources.spacetime import SpaceTimeParameters
+from ..io import mesh_files, remove_stale_partials, write_time_series
+from ..meshing import check_output, instants, mesh
 from ..options import OPTION_NAMES, Options
 from .options import (ProgressBar, add_fibre_options, add_parameter_options, add_threads_option, describe,
                       write_and_report)
@@ -25,9 +28,11 @@ def add_parser(subcommands) -> None:
                     "with .elem, .lon and a .surf and .vtx a surface). --fibres adds the myocardial fibres of a "
                     "biventricular heart (labelled contours) as cell vectors (.vtu/.vtk/.xdmf; .pts: Fibre and "
                     "Sheet).")
-    parser.add_argument("input", help="the scattered points, labelled contours or a label map")
+    parser.add_argument("input", nargs="+", help="the scattered points, labelled contours or a label map; with "
+                                                 "--space-time, the frames of one cycle in its order")
     parser.add_argument("-o", "--output", required=True, help="the mesh to write")
     add_mesh_options(parser)
+    add_parameter_options(parser, (SpaceTimeParameters,))
     parser.set_defaults(run=run)
 
 
@@ -57,17 +62,32 @@ def options_of(args) -> Options:
     if args.radius is not None and args.cells is not None:
         raise InvalidInputError(f"--radius {args.radius:g} and --cells {args.cells} both set the size of the cells "
                                 "(radius would win); give one of them")
-    return Options(**{name: getattr(args, name) for name in OPTION_NAMES})
+    return Options(**{name: getattr(args, name) for name in OPTION_NAMES if hasattr(args, name)})
 
 
 def run(args) -> None:
     options = options_of(args)
+    if len(args.input) > 1 and not options.space_time:
+        raise InvalidInputError(f"{len(args.input)} inputs given ({args.input[0]}, {args.input[1]}, ...): bitemesh "
+                                "mesh meshes one; add --space-time to mesh them as the frames of one cycle, or use "
+                                "bitemesh batch to mesh each")
     check_output(args.output, options)
     for path in mesh_files(args.output):   # what a killed run left, whether this run writes or is refused
         remove_stale_partials(path)
     bar = ProgressBar()
     try:
-        result = mesh(args.input, options, progress=bar)
+        result = mesh(args.input if options.space_time else args.input[0], options, progress=bar)
     finally:
         bar.close()
     write_and_report(result, args.output)
+    if options.space_time:
+        series = Path(args.output).with_suffix(".pvd")
+        sections = instants(result)
+        write_time_series(series, sections)
+        volumes = ", ".join(f"{measure(section):.4g}" for section in sections)
+        print(f"wrote {series}: each frame's instant ({series.stem}_000.vtu ...), volumes {volumes}")
+
+
+def measure(mesh) -> float:
+    """The volume (area) of a mesh's cells."""
+    return float(signed_measures(mesh.points, mesh.cells).sum())

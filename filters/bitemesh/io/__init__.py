@@ -16,6 +16,6 @@ from .files import atomic_output, remove_stale_partials, stale_partials  # noqa:
 from .labelmaps import LABEL_MAP_EXTENSIONS, LabelMap, read_label_map  # noqa: F401
 from .mesh_reading import read_mesh  # noqa: F401
 from .meshes import (FACET_ARRAY, MESH_EXTENSIONS, MESHIO_FORMATS, NO_CELL_ARRAYS, REGION_ARRAYS,  # noqa: F401
-                     check_holds, mesh_files, write_mesh)
+                     check_holds, mesh_files, write_mesh, write_time_series)
 from .pointsets import POINT_EXTENSIONS, TEXT_POINT_EXTENSIONS, VTK_POINT_EXTENSIONS, read_points  # noqa: F401
 

@@ -18,15 +18,20 @@ RADII = 0.8 + 0.15 * np.cos(2 * np.pi * np.arange(8) / 8)
 FRAMES = tuple((lambda x, r=r: r - np.linalg.norm(x, axis=1)) for r in RADII)
 
 
-def test_f_is_each_frame_at_its_instant_linear_between_and_the_cycle_closes():
+def test_f_is_each_frame_at_its_instant_catmull_rom_between_and_the_cycle_closes():
+    """Halfway between frames j and j + 1, Catmull-Rom's cubic is (9 (f_j + f_j+1) - f_j-1 - f_j+2) / 16; a
+    quantity linear in time stays linear (the weights sum to 1 and reproduce a line)."""
     shape = SpaceTime(FRAMES, 0.6, beyond=10.0)   # the slab's ends far away
     x = np.random.default_rng(0).uniform(-1, 1, (20, 3))
     at = lambda tau: shape(np.hstack([x, np.full((20, 1), tau)]))   # noqa: E731
+    halfway = lambda a, b, c, d: (9 * (FRAMES[b](x) + FRAMES[c](x)) - FRAMES[a](x) - FRAMES[d](x)) / 16  # noqa: E731
     for j in (0, 3, 7):
         assert np.allclose(at(j * 0.6), FRAMES[j](x))
-    assert np.allclose(at(0.3), 0.5 * (FRAMES[0](x) + FRAMES[1](x)))
-    assert np.allclose(at(7 * 0.6 + 0.3), 0.5 * (FRAMES[7](x) + FRAMES[0](x)))   # after the last, the first
-    assert np.allclose(at(-0.3), 0.5 * (FRAMES[7](x) + FRAMES[0](x)))
+    assert np.allclose(at(0.3), halfway(7, 0, 1, 2))
+    assert np.allclose(at(7 * 0.6 + 0.3), halfway(6, 7, 0, 1))   # after the last, the first
+    assert np.allclose(at(-0.3), halfway(6, 7, 0, 1))
+    line = SpaceTime(tuple((lambda x, j=j: np.full(len(x), float(j))) for j in range(1, 5)), 1.0, beyond=10.0)
+    assert np.allclose(line(np.array([[0.0, 0.0, 0.0, 1.25], [0.0, 0.0, 0.0, 1.5]])), [2.25, 2.5])
     assert SpaceTime(FRAMES, 0.6).slab == (-0.3, 7 * 0.6 + 0.3)
     with pytest.raises(InvalidInputError, match="at least 2 frames"):
         SpaceTime(FRAMES[:1], 0.6)
@@ -44,7 +49,7 @@ def test_each_instant_of_the_space_time_mesh_is_its_frame():
     grid = sample_function(shape, [-1, -1, -1, lo], [1, 1, 1, hi], 0.0625, margin=0.125)
     mesh = mesh_from_grid(grid, BitingParameters(radius=0.25)).mesh
     assert check_valid_domain(mesh) == []
-    for frame, section in zip(FRAMES, frame_instants(mesh, shape)):
+    for frame, section in zip(FRAMES, frame_instants(mesh, shape.step, len(shape.frames))):
         assert [p for p in check_valid_domain(section) if "flat cells" not in p] == []
         assert count_boundary_components(section) == 1
         alone = mesh_from_grid(sample_function(frame, -np.ones(3), np.ones(3), 0.0625, margin=0.125),

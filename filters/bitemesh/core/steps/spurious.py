@@ -12,7 +12,7 @@ SHALLOW = 0.1
 
 
 def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4,
-                  spheres: tuple | None = None) -> np.ndarray:
+                  spheres: tuple | None = None, centroid_values: np.ndarray | None = None) -> np.ndarray:
     """(m,) bool, True for a cell whose circumcentre c is outside (f(c) < 0) and far from the surface.
 
     The distance from c to the surface is approximated by d(c) = |f(c)| / |grad f(c)|; a cell is outside when
@@ -26,12 +26,14 @@ def outside_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, thr
       surface (the flat cells lying on it).  A cell with a deeper vertex is an ordinary boundary cell whose
       circumcentre pokes out; removing it bared an interior node (a notch 0.6 R deep on the sphere and torus).
 
-    ``spheres``: the cells' (centres, radii) from :func:`~bitemesh.core.mesh.simplicial.circumspheres`, when already
-    known.
+    ``spheres``: the cells' (centres, radii) from :func:`~bitemesh.core.mesh.simplicial.circumspheres`, and
+    ``centroid_values``: (m,) f at the cells' centroids, when already known.
     """
     far, radii = circumcentre_outside(grid, points, cells, threshold, spheres)
     shallow = grid.evaluate(points)[cells].max(axis=1) < SHALLOW * radii
-    return (far & (shallow | ~np.isfinite(radii))) | (grid.evaluate(points[cells].mean(axis=1)) < 0)
+    if centroid_values is None:
+        centroid_values = grid.evaluate(points[cells].mean(axis=1))
+    return (far & (shallow | ~np.isfinite(radii))) | (centroid_values < 0)
 
 
 def circumcentre_outside(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, threshold: float = 0.4,
