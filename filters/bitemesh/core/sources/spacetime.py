@@ -108,8 +108,8 @@ def frame_instants(mesh: Mesh, step: float, frames: int) -> list:
 
 def space_time_radius(frames: Sequence[Source], cells: int, step: Optional[float] = None) -> float:
     """R (user units) for about ``cells`` cells in the space-time mesh of ``frames`` a ``step`` apart (None:
-    :data:`FRAME_STEP` R),
-    from each frame's volume counted on a coarse grid and the slab :func:`space_time_source` makes."""
+    :data:`FRAME_STEP` R), from each frame's volume counted on a coarse grid and the slab
+    :func:`space_time_source` makes."""
     volumes = []
     for source in frames:
         spacing = source.size / _VOLUME_GRID_NODES
@@ -128,8 +128,7 @@ def space_time_source(frames: Sequence[Source], radius: float, step: Optional[fl
     """The sources of a cycle's frames (in its order; each in its own local frame, their user coordinates shared) as
     one source of one more dimension, tau its last coordinate: f the :class:`SpaceTime` of the frames' functions at
     ``radius`` R (user units), a frame ``step`` apart (user units; None: :data:`FRAME_STEP` R), the slab two R past
-    the ends; the
-    frames' samples at their instants; R the mesh's (``radius``)."""
+    the ends; the frames' samples at their instants."""
     if len(frames) < 2:
         raise InvalidInputError(f"space_time: a cycle needs at least 2 frames, got {len(frames)}")
     dims = {len(source.lower) for source in frames}
