@@ -5,7 +5,7 @@
 
 Each instant chosen (a 3-D mesh cut out of the 4-D one at its frame's time, written beside the .pvd) is drawn side
 by side, the cells on one side of a plane through the long axis (the cut faces show the walls and the cavities),
-the same plane and the same scale for all, with its frame number and volume.
+the same plane, camera and scale for all, with its frame number and volume (ml: coordinates in mm).
 
 Plain VTK: every VTK import comes from ``vtkmodules``.  Run it with bitemesh installed, or from a clone with
 ``PYTHONPATH=filters``.
@@ -67,24 +67,23 @@ def polydata(points: np.ndarray, triangles: np.ndarray) -> vtkPolyData:
     return data
 
 
-def render(paths: list, frames: list, output: str, size=(1600, 520)) -> None:
+def render(paths: list, frames: list, output: str, size=(1600, 560)) -> None:
     import bitemesh
     from bitemesh.core.mesh.simplicial import signed_measures
 
     meshes = [bitemesh.read(paths[frame]) for frame in frames]
     centre, long_axis, across = axes(meshes[0].points)
     view = np.cross(long_axis, across)
-    spacing = 1.3 * float(np.ptp(meshes[0].points @ across))
     window = vtkRenderWindow()
     window.SetOffScreenRendering(1)
     window.SetSize(*size)
-    renderer = vtkRenderer()
-    renderer.SetBackground(1.0, 1.0, 1.0)
+    camera = None
     for number, (frame, mesh) in enumerate(zip(frames, meshes)):
-        points, triangles = cut_open(mesh, centre, view)
-        moved = points + number * spacing * across
+        renderer = vtkRenderer()   # one viewport an instant, one camera for all: the same place and scale
+        renderer.SetViewport(number / len(frames), 0.0, (number + 1) / len(frames), 1.0)
+        renderer.SetBackground(1.0, 1.0, 1.0)
         mapper = vtkPolyDataMapper()
-        mapper.SetInputData(polydata(moved, triangles))
+        mapper.SetInputData(polydata(*cut_open(mesh, centre, view)))
         actor = vtkActor()
         actor.SetMapper(mapper)
         actor.GetProperty().SetColor(0.80, 0.35, 0.35)
@@ -94,17 +93,19 @@ def render(paths: list, frames: list, output: str, size=(1600, 520)) -> None:
         label.SetInput(f"frame {frame}: {volume:.0f} ml")
         label.GetTextProperty().SetColor(0.1, 0.1, 0.1)
         label.GetTextProperty().SetFontSize(22)
-        label.SetPosition(size[0] * (number + 0.25) / len(frames), 15)
-        renderer.AddActor2D(label)
+        label.SetPosition(15, 15)
+        renderer.AddViewProp(label)
+        if camera is None:
+            camera = renderer.GetActiveCamera()
+            camera.SetFocalPoint(*centre)
+            camera.SetPosition(*(centre - 1000.0 * view))   # facing the cut faces
+            camera.SetViewUp(*long_axis)
+            renderer.ResetCamera()
+            camera.Zoom(0.95)
+        else:
+            renderer.SetActiveCamera(camera)
+        window.AddRenderer(renderer)
         print(f"frame {frame}: {len(mesh.cells):,} cells, {volume:.1f} ml")
-    camera = renderer.GetActiveCamera()
-    middle = centre + 0.5 * (len(frames) - 1) * spacing * across
-    camera.SetFocalPoint(*middle)
-    camera.SetPosition(*(middle - 1000.0 * view))   # facing the cut faces
-    camera.SetViewUp(*long_axis)
-    renderer.ResetCamera()
-    camera.Zoom(1.15)
-    window.AddRenderer(renderer)
     window.Render()
     image = vtkWindowToImageFilter()
     image.SetInput(window)

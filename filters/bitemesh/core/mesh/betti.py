@@ -119,10 +119,13 @@ def _either(flags: np.ndarray, axis: int) -> np.ndarray:
     return flags[tuple(first)] | flags[tuple(second)]
 
 
-def torn(mesh: Topology, grid: Topology) -> str:
-    """What the mesh has that f's region has not (more parts, handles or voids), as words; "" when nothing."""
+def torn(mesh: Topology, grid: Topology, handles: bool = True) -> str:
+    """What the mesh has that f's region has not (more parts, handles or voids), as words; "" when nothing.
+    ``handles`` False leaves the handles out: beyond 3-D they count b1 - b2, which a tunnel raises and so does a
+    small cavity of f (a 2-cycle, a void of some frames of a space-time shape) that the mesh at R does not keep."""
     extra = [f"{count} {what}" for count, what in ((mesh.parts - grid.parts, "part(s) more"),
-                                                  (mesh.handles - grid.handles, "hole(s) or tunnel(s)"),
+                                                  (mesh.handles - grid.handles if handles else 0,
+                                                   "hole(s) or tunnel(s)"),
                                                   (mesh.voids - grid.voids, "void(s)")) if count > 0]
     return ", ".join(extra)
 
@@ -175,7 +178,7 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     mine, data = mesh_topology(mesh), grid_topology(inside)
     joined, gap, where = joined_parts(mesh, grid, inside) if grid is not None else (0, 0.0, None)
     gap *= float(np.min(grid.spacing)) * scale if grid is not None else 0.0
-    tear = torn(mine, data)
+    tear = torn(mine, data, handles=inside.ndim <= 3)
     # a fold of f (scattered points) is asked first: it explains a tear of the mesh too (overlapping objects).  Not
     # beyond 3-D, where "handles" is b1 - b2 (a void of a 3-D frame that lasts a while is a 2-cycle of space-time):
     # that count cannot tell a fold at the zero level from cavities that come and go (4 frames of a space-time heart:
