@@ -67,7 +67,7 @@ def polydata(points: np.ndarray, triangles: np.ndarray) -> vtkPolyData:
     return data
 
 
-def render(paths: list, frames: list, output: str, size=(1600, 560)) -> None:
+def render(paths: list, frames: list, output: str, size=(1250, 440)) -> None:
     import bitemesh
     from bitemesh.core.mesh.simplicial import signed_measures
 
@@ -92,7 +92,7 @@ def render(paths: list, frames: list, output: str, size=(1600, 560)) -> None:
         label = vtkTextActor()
         label.SetInput(f"frame {frame}: {volume:.0f} ml")
         label.GetTextProperty().SetColor(0.1, 0.1, 0.1)
-        label.GetTextProperty().SetFontSize(22)
+        label.GetTextProperty().SetFontSize(18)
         label.SetPosition(15, 15)
         renderer.AddViewProp(label)
         if camera is None:
