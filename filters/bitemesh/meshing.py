@@ -164,7 +164,8 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
     Parameters
     ----------
     input : a file (points, labelled contours, a label map), an (n, k) array of points, Samples, Voxels, a
-        LabelMap, or a VTK point set or image
+        LabelMap, or a VTK point set or image; with ``space_time=1``, a list of them: the frames of one cycle (the
+        result's mesh is then the space-time mesh, one dimension more; :func:`instants` cuts out the frames)
     progress : callable(fraction, message), optional; it may raise bitemesh.Cancelled
 
     Returns
@@ -228,7 +229,10 @@ def _space_time(inputs, options: Options, progress: ProgressCallback) -> Meshing
     frames = []
     for number, item in enumerate(inputs):
         report(progress, 0.3 * number / len(inputs), f"fitting frame {number + 1} of {len(inputs)}")
-        frames.append(source(item, one))
+        try:
+            frames.append(source(item, one))
+        except InvalidInputError as error:
+            raise InvalidInputError(f"space_time: frame {number} ({item}): {error}") from None
     cells = options.cells or SPACE_TIME_CELLS
     radius = options.radius or space_time_radius(frames, cells, options.frame_step)
     shape = space_time_source(frames, radius, options.frame_step)

@@ -84,3 +84,9 @@ def test_what_a_space_time_mesh_cannot_be_is_refused_before_any_work(frames, tmp
 def test_one_frame_is_no_cycle(frames, tmp_path, capsys):
     assert cli.main(["mesh", frames[0], "--space-time", "-o", str(tmp_path / "cycle.npz")]) != 0
     assert "a cycle needs at least 2 frames, got 1" in capsys.readouterr().err
+
+
+def test_a_frame_that_cannot_be_read_is_named_by_its_number(frames, tmp_path, capsys):
+    missing = str(tmp_path / "frame_9.xyz")
+    assert cli.main(["mesh", frames[0], missing, "--space-time", "-o", str(tmp_path / "cycle.npz")]) != 0
+    assert f"space_time: frame 1 ({missing}): cannot read points" in capsys.readouterr().err
