@@ -26,13 +26,11 @@ import vtkmodules.vtkRenderingOpenGL2  # noqa: F401
 from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
 from vtkmodules.vtkCommonCore import vtkLookupTable, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
-from vtkmodules.vtkIOImage import vtkPNGWriter
 from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
-from vtkmodules.vtkRenderingCore import (vtkActor, vtkPolyDataMapper, vtkRenderer, vtkRenderWindow,
-                                         vtkWindowToImageFilter)
+from vtkmodules.vtkRenderingCore import (vtkActor, vtkPolyDataMapper, vtkRenderer, vtkRenderWindow)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from vtk_pipeline import prefer_headless_egl  # noqa: E402
+from vtk_pipeline import prefer_headless_egl, write_png  # noqa: E402
 
 #: the slab: cells whose centroid lies this far (a fraction of the apex-base length) from its middle plane
 SLAB = 0.025
@@ -150,13 +148,7 @@ def render(mesh, path: str, size=(1000, 700)) -> None:
     window.SetSize(*size)
     window.AddRenderer(renderer)
     window.AddRenderer(legend)
-    window.Render()
-    image = vtkWindowToImageFilter()
-    image.SetInput(window)
-    writer = vtkPNGWriter()
-    writer.SetFileName(path)
-    writer.SetInputConnection(image.GetOutputPort())
-    writer.Write()
+    write_png(window, path)
     print(f"wrote {path}: {len(helix)} cells of the slab, helix angle {helix.min():.0f} .. {helix.max():.0f} deg")
 
 

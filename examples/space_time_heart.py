@@ -21,15 +21,11 @@ import numpy as np
 import vtkmodules.vtkInteractionStyle
 import vtkmodules.vtkRenderingFreeType
 import vtkmodules.vtkRenderingOpenGL2  # noqa: F401
-from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
-from vtkmodules.vtkCommonCore import vtkPoints
-from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
-from vtkmodules.vtkIOImage import vtkPNGWriter
-from vtkmodules.vtkRenderingCore import (vtkActor, vtkPolyDataMapper, vtkRenderer, vtkRenderWindow, vtkTextActor,
-                                         vtkWindowToImageFilter)
+from vtkmodules.vtkCommonDataModel import vtkPolyData
+from vtkmodules.vtkRenderingCore import (vtkActor, vtkPolyDataMapper, vtkRenderer, vtkRenderWindow, vtkTextActor)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from vtk_pipeline import prefer_headless_egl  # noqa: E402
+from vtk_pipeline import prefer_headless_egl, write_png  # noqa: E402
 
 
 def instants(series: Path) -> list:
@@ -54,21 +50,9 @@ def cut_open(mesh, centre, normal) -> tuple:
     return mesh.points, unique[counts == 1]
 
 
-def polydata(points: np.ndarray, triangles: np.ndarray) -> vtkPolyData:
-    vtk_points = vtkPoints()
-    vtk_points.SetData(numpy_to_vtk(np.ascontiguousarray(points, dtype=np.float64), deep=True))
-    offsets = numpy_to_vtkIdTypeArray(np.arange(0, 3 * len(triangles) + 1, 3, dtype=np.int64), deep=True)
-    connectivity = numpy_to_vtkIdTypeArray(np.ascontiguousarray(triangles.ravel(), dtype=np.int64), deep=True)
-    polygons = vtkCellArray()
-    polygons.SetData(offsets, connectivity)
-    data = vtkPolyData()
-    data.SetPoints(vtk_points)
-    data.SetPolys(polygons)
-    return data
-
-
 def render(paths: list, frames: list, output: str, size=(1250, 440)) -> None:
     import bitemesh
+    from bitemesh.convert import cell_array, vtk_points
     from bitemesh.core.mesh.simplicial import signed_measures
 
     meshes = [bitemesh.read(paths[frame]) for frame in frames]
@@ -83,7 +67,11 @@ def render(paths: list, frames: list, output: str, size=(1250, 440)) -> None:
         renderer.SetViewport(number / len(frames), 0.0, (number + 1) / len(frames), 1.0)
         renderer.SetBackground(1.0, 1.0, 1.0)
         mapper = vtkPolyDataMapper()
-        mapper.SetInputData(polydata(*cut_open(mesh, centre, view)))
+        points, triangles = cut_open(mesh, centre, view)
+        surface = vtkPolyData()
+        surface.SetPoints(vtk_points(points))
+        surface.SetPolys(cell_array(triangles))
+        mapper.SetInputData(surface)
         actor = vtkActor()
         actor.SetMapper(mapper)
         actor.GetProperty().SetColor(0.80, 0.35, 0.35)
@@ -106,13 +94,7 @@ def render(paths: list, frames: list, output: str, size=(1250, 440)) -> None:
             renderer.SetActiveCamera(camera)
         window.AddRenderer(renderer)
         print(f"frame {frame}: {len(mesh.cells):,} cells, {volume:.1f} ml")
-    window.Render()
-    image = vtkWindowToImageFilter()
-    image.SetInput(window)
-    writer = vtkPNGWriter()
-    writer.SetFileName(output)
-    writer.SetInputConnection(image.GetOutputPort())
-    writer.Write()
+    write_png(window, output)
     print(f"wrote {output}")
 
 

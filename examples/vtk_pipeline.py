@@ -168,6 +168,11 @@ def render_cut(mesh, path: str, size=(800, 600)) -> None:
     window.SetOffScreenRendering(1)
     window.SetSize(*size)
     window.AddRenderer(renderer)
+    write_png(window, path)
+
+
+def write_png(window, path: str) -> None:
+    """Render the offscreen ``window`` and write what it shows to the PNG ``path``."""
     window.Render()
     grab = vtkWindowToImageFilter()
     grab.SetInput(window)
@@ -177,7 +182,6 @@ def render_cut(mesh, path: str, size=(800, 600)) -> None:
     writer.SetInputConnection(grab.GetOutputPort())
     writer.Write()
     window.Finalize()
-
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -2,9 +2,13 @@
 to .npz or .h5 with each frame's instant cut out of it as a ParaView time series beside it."""
 from __future__ import annotations
 
+import os
 import re
+import subprocess
+import sys
 from xml.etree import ElementTree
 
+import numpy as np
 import pytest
 
 from bitemesh import cli, mesh
@@ -90,3 +94,21 @@ def test_a_frame_that_cannot_be_read_is_named_by_its_number(frames, tmp_path, ca
     missing = str(tmp_path / "frame_9.xyz")
     assert cli.main(["mesh", frames[0], missing, "--space-time", "-o", str(tmp_path / "cycle.npz")]) != 0
     assert f"space_time: frame 1 ({missing}): cannot read points" in capsys.readouterr().err
+
+
+def test_the_example_draws_each_instant_asked_in_its_own_panel(meshed, tmp_path):
+    """examples/space_time_heart.py on the command's .pvd: one panel an instant, each with the instant drawn (pixels
+    of the wall's colour in every panel), the frames listed; a frame the series lacks is named."""
+    from tests.vtk.test_examples import ROOT, read_png, run_example
+    output, _ = meshed
+    picture = tmp_path / "instants.png"
+    script = ROOT / "examples" / "space_time_heart.py"
+    done = run_example(str(output.with_suffix(".pvd")), "-o", str(picture), "--frames", "0", "1", "3", script=script)
+    assert [line.split(":")[0] for line in done.stdout.splitlines()[:3]] == ["frame 0", "frame 1", "frame 3"]
+    pixels = read_png(picture)[..., :3].astype(int)
+    wall = (pixels[..., 0] - pixels[..., 2] > 60)   # the wall's red against the white background
+    panels = np.array_split(wall, 3, axis=1)
+    assert all(panel.mean() > 0.05 for panel in panels), [panel.mean() for panel in panels]
+    refused = subprocess.run([sys.executable, str(script), str(output.with_suffix(".pvd")), "--frames", "7"],
+                             capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "filters")})
+    assert refused.returncode != 0 and "--frames 7: the series has frames 0 to 3" in refused.stderr

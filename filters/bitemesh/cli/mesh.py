@@ -84,10 +84,5 @@ def run(args) -> None:
         series = Path(args.output).with_suffix(".pvd")
         sections = instants(result)
         write_time_series(series, sections)
-        volumes = ", ".join(f"{measure(section):.4g}" for section in sections)
+        volumes = ", ".join(f"{signed_measures(section.points, section.cells).sum():.4g}" for section in sections)
         print(f"wrote {series}: each frame's instant ({series.stem}_000.vtu ...), volumes {volumes}")
-
-
-def measure(mesh) -> float:
-    """The volume (area) of a mesh's cells."""
-    return float(signed_measures(mesh.points, mesh.cells).sum())

@@ -8,7 +8,7 @@ threads: the count :func:`using_threads` set in this context, else the environme
 else every core numba sees (``NUMBA_NUM_THREADS``).  Launches are taken one at a time: numba's threading layer of
 the PyPI wheels (workqueue) stops the whole process when two Python threads launch at once.
 
-Where bitemesh runs BLAS on its own threads (the RBF patches' solves and evaluations), BLAS takes one thread
+Where bitemesh runs BLAS on its own threads (the RBF patches' solves), BLAS takes one thread
 (:func:`one_blas_thread`): OpenBLAS's sums, split by its own thread count (every core by default), gave a mesh that
 depended on the machine's cores, and one thread a solve is faster (patches of 1,100 constraints: 34 ms each on 1
 BLAS thread, 49 ms on 2, 20 ms two at a time).

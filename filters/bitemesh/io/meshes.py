@@ -155,10 +155,9 @@ def write_mesh(mesh: Mesh, path) -> None:
         writer(mesh, regions, suffix, temporaries, files)
 
 
-def write_time_series(path, meshes) -> list:
+def write_time_series(path, meshes) -> None:
     """A ParaView time series: each of ``meshes`` as STEM_NNN.vtu beside the .pvd ``path`` (NNN its number, also its
-    time), then ``path`` listing them, last, so that a series on disk is whole; each file written atomically.
-    Returns the paths of the frames."""
+    time), then ``path`` listing them, last, so that a series on disk is whole; each file written atomically."""
     path = Path(path)
     names = [f"{path.stem}_{number:03d}.vtu" for number in range(len(meshes))]
     for mesh, name in zip(meshes, names):
@@ -168,7 +167,6 @@ def write_time_series(path, meshes) -> list:
     with atomic_outputs([path], "a time series") as (temporary,):
         temporary.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
                              f"  <Collection>\n{entries}\n  </Collection>\n</VTKFile>\n")
-    return [path.with_name(name) for name in names]
 
 
 def _write_with_meshio(mesh: Mesh, regions, suffix: str, temporaries: list, files: list) -> None:

@@ -7,7 +7,7 @@ product hands on only meshes that pass :func:`bitemesh.core.mesh.topology.non_ma
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
@@ -46,7 +46,9 @@ DEGENERATE = 1e-6
 class DelaunayCells:
     """All the Delaunay cells, with what the repair asks of them round after round, computed once: their facet
     and ridge tables (``complex``), volume, and which are flat or degenerate (radius ratio below
-    :data:`FLAT_QUALITY`, :data:`DEGENERATE`); each (m,).  f at their centroids: :meth:`centroid_values`."""
+    :data:`FLAT_QUALITY`, :data:`DEGENERATE`), and f at their centroids (``centroid_values``, None without a
+    grid: in more than 3-D f is the function itself, which the voids' test asked of every dropped cell every round:
+    545 s of a space-time heart's 644); each (m,)."""
 
     points: np.ndarray
     cells: np.ndarray
@@ -54,26 +56,19 @@ class DelaunayCells:
     volume: np.ndarray
     flat: np.ndarray
     degenerate: np.ndarray
-    _values: dict = field(default_factory=dict, compare=False, repr=False)
-
-    def centroid_values(self, grid: SampledGrid) -> np.ndarray:
-        """(m,) f of ``grid`` at every cell's centroid, evaluated once for the repair (in more than 3-D f is the
-        function itself, which the voids' test asked of every dropped cell every round: 545 s of a space-time
-        heart's 644)."""
-        if id(grid) not in self._values:
-            self._values[id(grid)] = (grid, grid.evaluate(self.points[self.cells].mean(axis=1)))
-        return self._values[id(grid)][1]
+    centroid_values: np.ndarray | None = None
 
     @classmethod
-    def of(cls, points: np.ndarray, cells: np.ndarray) -> DelaunayCells:
+    def of(cls, points: np.ndarray, cells: np.ndarray, grid: SampledGrid | None = None) -> DelaunayCells:
         quality = radius_ratio(points, cells)
+        values = None if grid is None else grid.evaluate(points[cells].mean(axis=1))
         return cls(points, cells, CellComplex(cells, len(points)), signed_measures(points, cells),
-                   quality < FLAT_QUALITY, quality < DEGENERATE)
+                   quality < FLAT_QUALITY, quality < DEGENERATE, values)
 
 
-def enclosed_inside_voids(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray,
-                          every: bool = False) -> np.ndarray:
-    """(m,) bool, the dropped cells that form voids closed off from the hull and lie inside (mean f > 0 there), or
+def enclosed_inside_voids(delaunay: DelaunayCells, keep: np.ndarray, every: bool = False) -> np.ndarray:
+    """(m,) bool, the dropped cells that form voids closed off from the hull and lie inside (mean f > 0 there, from
+    ``delaunay.centroid_values``), or
     are smaller than :data:`SMALL_VOID` cells (a pocket of a cavity thinner than a cell, cut off from it); with
     ``every``, every void closed off from the hull (a domain known to have none: a myocardium).
 
@@ -87,7 +82,7 @@ def enclosed_inside_voids(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.
     labels = complex_.components(~keep)
     touches_hull = np.bincount(labels, weights=on_hull) > 0
     volume = delaunay.volume[dropped]
-    centroid_value = delaunay.centroid_values(grid)[dropped]
+    centroid_value = delaunay.centroid_values[dropped]
     void_volume = np.bincount(labels, weights=volume)
     mean_value = np.bincount(labels, weights=volume * centroid_value) / void_volume
     small = void_volume < SMALL_VOID * np.median(delaunay.volume[keep]) if keep.any() else False
@@ -175,7 +170,7 @@ def unpinch(delaunay: DelaunayCells, keep: np.ndarray, faces: list, *, fill: boo
     return result
 
 
-def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
+def repaired(delaunay: DelaunayCells, keep: np.ndarray, parameters: SpuriousParameters,
              progress: ProgressCallback = None) -> np.ndarray:
     """``keep`` made a valid domain: flat boundary cells peeled, small parts dropped, pinches mended, round after
     round until the boundary is a manifold; enclosed voids filled."""
@@ -188,7 +183,7 @@ def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, para
         keep = drop_small_components(delaunay, keep, parameters.min_component)
         pinched = delaunay.complex.non_manifold_faces(keep)
         if not pinched:
-            voids = enclosed_inside_voids(grid, delaunay, keep)
+            voids = enclosed_inside_voids(delaunay, keep)
             if not voids.any():
                 break
             # filled, and checked again: two voids meeting at a vertex (the 25-frame space-time heart's), one of
@@ -207,7 +202,7 @@ def repaired(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarray, para
         fill = filled[mended[0].shape[1]] <= FILL_ROUNDS
         keep = unpinch(delaunay, keep, mended, fill=fill)
         if fill:   # a fill next to a removal can close off a void
-            keep |= enclosed_inside_voids(grid, delaunay, keep)
+            keep |= enclosed_inside_voids(delaunay, keep)
     else:
         raise MeshingError(f"the boundary is still not a manifold after {MAX_REPAIR_ROUNDS} rounds of repair; "
                            "try a smaller radius or a finer grid_spacing")
@@ -221,12 +216,12 @@ def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarra
     enclosed void filled (a domain without handles has none: a spurious bubble of a fitted surface inside a wall);
     what was done is logged.  ``surface_of``: see :func:`~bitemesh.core.steps.handles.break_handles`."""
     points, cells = delaunay.points, delaunay.cells
-    voids = enclosed_inside_voids(grid, delaunay, keep, every=True)
+    voids = enclosed_inside_voids(delaunay, keep, every=True)
     if voids.any():
         logger.info("%d enclosed void(s) filled, %.3g in all (a bubble of a fitted surface inside the wall; "
                     "handles = 'remove')", int(delaunay.complex.components(voids).max() + 1),
                     float(delaunay.volume[voids].sum()))
-        keep = repaired(grid, delaunay, keep | voids, parameters)
+        keep = repaired(delaunay, keep | voids, parameters)
     for depth, words in ((MAX_DEPTH, "thinner than two cells"), (THICK_DEPTH, "two to four cells thick")):
         before, handles = keep, handle_count(cells[keep])
         for round_ in range(HANDLE_ROUNDS):
@@ -234,7 +229,7 @@ def without_handles(grid: ImplicitGrid, delaunay: DelaunayCells, keep: np.ndarra
             keep, removed = break_handles(grid, points, delaunay.complex, keep, depth, surface_of)
             if not removed:
                 break
-            keep = repaired(grid, delaunay, keep, parameters)
+            keep = repaired(delaunay, keep, parameters)
         left = handle_count(cells[keep])
         if left < handles:
             logger.info("%d handle(s) %s removed: %d cells cut, %d filled (handles = 'remove')", handles - left,
@@ -276,10 +271,10 @@ def _domain_cells(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, par
                   progress: ProgressCallback, surface_of) -> np.ndarray:
     """(m,) bool, the Delaunay cells of the valid domain: inside f > 0 (and the voids they enclose), repaired,
     without handles when asked."""
-    delaunay = DelaunayCells.of(points, cells)
-    keep = ~outside_cells(grid, points, cells, parameters.threshold, centroid_values=delaunay.centroid_values(grid))
-    keep |= enclosed_inside_voids(grid, delaunay, keep)
-    keep = repaired(grid, delaunay, keep, parameters, sub_progress(progress, 0.0, 0.8))
+    delaunay = DelaunayCells.of(points, cells, grid)
+    keep = ~outside_cells(grid, points, cells, parameters.threshold, centroid_values=delaunay.centroid_values)
+    keep |= enclosed_inside_voids(delaunay, keep)
+    keep = repaired(delaunay, keep, parameters, sub_progress(progress, 0.0, 0.8))
     if parameters.handles == "remove" and cells.shape[1] == 4:
         keep = without_handles(grid, delaunay, keep, parameters, sub_progress(progress, 0.8, 1.0), surface_of)
     return keep
