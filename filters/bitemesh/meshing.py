@@ -181,6 +181,9 @@ def mesh(input, options=None, *, progress: ProgressCallback = None, **changes) -
 def _meshed(input, options: Options, progress: ProgressCallback) -> MeshingResult:
     if options.space_time:
         return _space_time(input, options, progress)
+    if options.frame_step is not None:
+        raise InvalidInputError(f"--frame-step {options.frame_step:g} applies to a space-time mesh of several frames; "
+                                "add --space-time (space_time=1) with the frames, or leave it out")
     fibres = options.of(FibreParameters) if options.fibres else None
     meshed = sub_progress(progress, 0.0, 0.9 if fibres or options.coordinates else 1.0)
     data = read_input(input, options)

@@ -78,11 +78,18 @@ def test_several_inputs_without_space_time_are_refused_naming_it(frames, tmp_pat
 @pytest.mark.parametrize("argv, message", [
     (["-o", "cycle.vtu"], r"space-time mesh of 3-D frames is 4-D: .*\.npz or \.h5"),
     (["-o", "cycle.npz", "--fibres"], r"--fibres applies to a 3-D heart mesh, not to a space-time mesh"),
+    (["-o", "cycle.npz", "--frame-step", "0"], r"frame_step must be in \(0, inf\], got 0"),
 ])
 def test_what_a_space_time_mesh_cannot_be_is_refused_before_any_work(frames, tmp_path, capsys, argv, message):
     argv = [str(tmp_path / arg) if arg.startswith("cycle") else arg for arg in argv]
     assert cli.main(["mesh", *frames, "--space-time", *argv]) != 0
     assert re.search(message, capsys.readouterr().err)
+
+
+def test_a_frame_step_without_space_time_is_refused_not_ignored(frames, tmp_path, capsys):
+    assert cli.main(["mesh", frames[0], "--frame-step", "0.5", "-o", str(tmp_path / "ball.vtu")]) != 0
+    assert "--frame-step 0.5 applies to a space-time mesh of several frames; add --space-time" in \
+        capsys.readouterr().err
 
 
 def test_one_frame_is_no_cycle(frames, tmp_path, capsys):
