@@ -189,7 +189,8 @@ class OptimizeParameters(Parameters):
     """
 
     optimize: int = parameter(1, "1 runs the MeshOptimizer (relaxation, sliver removal) on the valid domain, for "
-                              "FEM-grade cells; 0 skips it: the paper's plain method, faster, with slivers",
+                              "FEM-grade cells (beyond 3-D the relaxation alone, by new triangulations); 0 skips it: "
+                              "the paper's plain method, faster, with slivers",
                               low=0, high=1, integer=True)
     iterations: int = parameter(30, "the most relaxation (ODT smoothing and Delaunay) iterations; the relaxation stops "
                                 "earlier once the mean radius ratio stops rising; 0 skips it", low=0, high=1000,
@@ -211,7 +212,7 @@ class TableParameters(Parameters):
                              "column count", text=True)
     dimension: Optional[int] = parameter(None, "the coordinates of a point in a text table: its first DIMENSION "
                                          "columns are the point, the next DIMENSION (when there) its outward normal "
-                                         "(4 or 5 meshes in that dimension, the paper's plain method); default: from "
+                                         "(4 or 5 meshes in that dimension); default: from "
                                          "the header's names, else from the column count (2 or 3)", low=2, high=5,
                                          integer=True)
     frame: Optional[float] = parameter(None, "labelled contours: the time frame to read (a value of the 'time "

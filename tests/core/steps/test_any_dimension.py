@@ -10,6 +10,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from bitemesh.core.grid.sampled import FunctionGrid, sample_function
+from bitemesh.core.mesh.quality import radius_ratio
 from bitemesh.core.mesh.simplicial import circumspheres, signed_measures
 from bitemesh.core.mesh.slicing import slice_mesh
 from bitemesh.core.mesh.topology import boundary_facets, euler_characteristic
@@ -32,13 +33,15 @@ def solid_torus(x):
 
 
 @lru_cache(maxsize=None)
-def meshed(shape: str, k: int, radius: float, seed: int = 0):
+def meshed(shape: str, k: int, radius: float, seed: int = 0, optimize: int = 1):
+    """The default relaxes beyond 3-D; 5-D for at most three iterations (4 to 8 s each here)."""
     function, reach = (ball, 1.0) if shape == "ball" else (solid_torus, 1.4)
     lower = -np.full(k, reach)
     if shape == "torus":
         lower[2:] = -0.4
     grid = sample_function(function, lower, -lower, radius / 4, margin=radius / 2)
-    return grid, mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed), optimize=OptimizeParameters())
+    parameters = OptimizeParameters(optimize=optimize, iterations=3 if k == 5 else 30)
+    return grid, mesh_from_grid(grid, BitingParameters(radius=radius, seed=seed), optimize=parameters)
 
 
 @pytest.mark.parametrize("k, radius", [(4, 0.3), (5, 0.45)])
@@ -95,11 +98,30 @@ def test_a_solid_torus_in_4d_has_the_topology_of_a_circle():
     assert exact * (1 - (0.2 / 0.4) ** 2) ** 1.5 <= signed_measures(mesh.points, mesh.cells).sum() <= exact
 
 
+@pytest.mark.parametrize("k", [4, 5])
+def test_the_relaxation_beyond_3d_raises_the_radius_ratio_to_the_3d_method_s(k):
+    """The relaxation by new triangulations (ODT moves, qhull, the carve) on the k-ball: valid, no cell without
+    volume, the mean radius ratio above the plain method's; in 4-D at least that of the plain method in 3-D (the
+    3-ball at the same R) less 0.1 (the issue's target; the regular k-simplex is 1 in every k; in 5-D, three
+    iterations here, 0.67 against 0.61 plain)."""
+    radius = {4: 0.3, 5: 0.45}[k]
+    _, relaxed = meshed("ball", k, radius)
+    _, plain = meshed("ball", k, radius, optimize=0)
+    _, three = meshed("ball", 3, radius, optimize=0)
+    quality = {name: radius_ratio(m.mesh.points, m.mesh.cells) for name, m in
+               (("relaxed", relaxed), ("plain", plain), ("3-D", three))}
+    assert check_valid_domain(relaxed.mesh) == []
+    assert quality["relaxed"].mean() > quality["plain"].mean()
+    assert k == 5 or quality["relaxed"].mean() >= quality["3-D"].mean() - 0.1
+    assert (signed_measures(relaxed.mesh.points, relaxed.mesh.cells) > 0).all()
+
+
 def test_the_same_seed_gives_the_same_k_d_mesh_and_another_seed_another():
-    """Deterministic: the 4-ball meshed twice with seed 0 is the same bit for bit; seed 1 moves the nodes."""
+    """Deterministic: the 4-ball meshed (and relaxed) twice with seed 0 is the same bit for bit; seed 1 moves the
+    nodes."""
     _, first = meshed("ball", 4, 0.3)
     grid = sample_function(ball, -np.ones(4), np.ones(4), 0.075, margin=0.15)
-    again = mesh_from_grid(grid, BitingParameters(radius=0.3), optimize=OptimizeParameters(optimize=0)).mesh
+    again = mesh_from_grid(grid, BitingParameters(radius=0.3), optimize=OptimizeParameters()).mesh
     assert np.array_equal(again.points, first.mesh.points) and np.array_equal(again.cells, first.mesh.cells)
     _, other = meshed("ball", 4, 0.3, seed=1)
     assert not np.array_equal(other.mesh.points[:10], first.mesh.points[:10])

@@ -26,9 +26,9 @@ from ..steps.spine import CELLS_PER_VOLUME
 from .source import Frame, Source
 
 #: the space-time cells aimed for when neither radius nor cells is given: R = 8.3 mm for the 25 frames of biv-me
-#: patient1 (a heart's thin walls give about 1.5 times the cells of a ball of its volume, so about 600,000; at 7 mm
-#: the 4-D grid passes 4 GB), about ten minutes on 2 cores (benchmarks/spacetime.md)
-SPACE_TIME_CELLS = 400_000
+#: patient1 (a heart's thin walls give about 1.7 times the cells of a relaxed ball of its volume, so about 600,000;
+#: at 7 mm the 4-D grid passes 4 GB; benchmarks/spacetime.md)
+SPACE_TIME_CELLS = 350_000
 #: the default distance along time between frames, in node spacings R: Catmull-Rom's cubic in time, sampled by
 #: nodes R apart, cuts the corners of the motion by about f'' R^2 / 8 at the frames, a quarter as much two R a frame
 #: as one (a ball breathing by 5-10 % a frame: each instant's volume within 1.2-2.4 % of its frame's 3-D mesh, 4-6

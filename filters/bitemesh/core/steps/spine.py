@@ -23,6 +23,7 @@ import numpy as np
 from .biting import bite
 from .delaunay import delaunay
 from .repair import carve_domain
+from .retriangulate import relax_by_triangulation
 from ..errors import BitemeshWarning, InvalidInputError, check_number
 from ..mesh.betti import check_topology
 from .fidelity import Fidelity
@@ -41,8 +42,8 @@ from ..mesh.tags import component_tags
 logger = logging.getLogger("bitemesh")
 
 #: cells per unit measure x R^k of a biting mesh (measured on a sphere, a torus and a die: 5.1 to 5.7 in 3D; on the
-#: 4-ball at R = 0.15 and the 5-ball at R = 0.3: 24.6 and 142).
-CELLS_PER_VOLUME = {2: 2.3, 3: 5.4, 4: 25.0, 5: 140.0}
+#: 4-ball at R = 0.18 and the 5-ball at R = 0.45, relaxed: 21.7 and 125; the plain method's, 24.6 and 142).
+CELLS_PER_VOLUME = {2: 2.3, 3: 5.4, 4: 22.0, 5: 125.0}
 #: grid spacing h = R / GRID_PER_RADIUS when the grid spacing is not given.
 GRID_PER_RADIUS = 4.0
 #: nodes per axis of the coarse grid that measures the volume when R is chosen from a cell count (see a_side).
@@ -117,9 +118,10 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
 
     Any dimension k = 2..5 (a k-D grid: :class:`~bitemesh.core.grid.sampled.FunctionGrid`).  With
     ``optimize.optimize`` 1 (the default), the MeshOptimizer step (relaxation, sliver removal) runs on the valid
-    domain in 2-D and 3-D; 0 gives the paper's plain method, which is what k > 3 gets.  ``tagging`` tags the valid
-    mesh before its quality is measured (it may move interface nodes, :mod:`bitemesh.core.mesh.interfaces`); by
-    default one tag per boundary component.
+    domain in 2-D and 3-D, and beyond 3-D the relaxation by new triangulations
+    (:func:`~bitemesh.core.steps.retriangulate.relax_by_triangulation`); 0 gives the paper's plain method.
+    ``tagging`` tags the valid mesh before its quality is measured (it may move interface nodes,
+    :mod:`bitemesh.core.mesh.interfaces`); by default one tag per boundary component.
     ``interfaces`` (a :class:`~bitemesh.core.mesh.interfaces.LabelRegions`, or None): regions whose interfaces the
     biting samples like the boundary.  ``surface_of`` (or None): which of the data's surfaces gives f where; a cut
     that removes a handle touches one of them at most (:func:`~bitemesh.core.steps.handles.break_handles`).
@@ -127,9 +129,6 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
     seconds = {} if seconds is None else seconds
     radius = biting.radius or radius_on_grid(grid, biting.aimed_cells)
     optimize = switched_optimizer(optimize)
-    if optimize is not None and grid.dim > 3:
-        logger.info("the MeshOptimizer works in 2-D and 3-D: a %d-D mesh is the paper's plain method", grid.dim)
-        optimize = None
     carved = 0.9 if optimize is None else 0.6
     with timed(seconds, "biting"):
         nodes = bite(grid, radius, order=biting.order, seed=biting.seed, progress=sub_progress(progress, 0, 0.3),
@@ -143,7 +142,9 @@ def mesh_from_grid(grid: SampledGrid, biting: BitingParameters, spurious: Spurio
     del cells   # all of Delaunay's cells (32 bytes each): not held through the optimizer
     if optimize is not None:
         with timed(seconds, "optimize"):
-            mesh = optimize_mesh(grid, mesh, optimize, progress=sub_progress(progress, carved, 0.97))
+            mesh = (optimize_mesh(grid, mesh, optimize, progress=sub_progress(progress, carved, 0.97))
+                    if grid.dim <= 3 else
+                    relax_by_triangulation(grid, mesh, optimize, spurious, sub_progress(progress, carved, 0.97)))
     with timed(seconds, "tags"):
         mesh = tagging(mesh)
     with timed(seconds, "quality"):
