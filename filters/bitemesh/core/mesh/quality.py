@@ -13,6 +13,7 @@ indices, and ``np.unique`` groups equal keys.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from itertools import combinations
 from math import factorial
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from ..compiled import kernel
 from ..errors import InvalidInputError, check_number
-from .simplicial import Mesh, circumspheres, facet_corners, facets_of, signed_measures
+from .simplicial import Mesh, by_blocks, circumspheres, facet_corners, facets_of, signed_measures
 from .topology import (distinct_faces)
 from .validity import _check_cells, _check_mesh
 
@@ -97,6 +98,10 @@ def radius_ratios_any(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """:func:`signed_radius_ratio` of (m, k + 1) cells in any dimension k (the closed forms of 2D and 3D are
     specialisations of it): r_in = k |V| / (sum of the facets' measures), R_circ from :func:`circumspheres`,
     V = det(edges) / k!, a facet's measure sqrt(det(Gram matrix of its edges)) / (k - 1)!."""
+    return by_blocks(partial(_radius_ratios_any, points), cells)
+
+
+def _radius_ratios_any(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     k = points.shape[1]
     corners = points[cells]                                                   # (m, k + 1, k)
     volume = np.linalg.det(corners[:, 1:] - corners[:, :1]) / factorial(k)
@@ -198,6 +203,10 @@ def dihedral_angles_any(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     outward normal is -grad lambda_i (lambda the barycentric coordinates: grad lambda_1..k the columns of the
     inverse of the edges from vertex 0, grad lambda_0 minus their sum), the angle at a ridge 180 minus that between
     its two facets' normals (arccos(1 / k) for the regular simplex); NaN for a flat cell."""
+    return by_blocks(partial(_dihedral_angles_any, points), cells)
+
+
+def _dihedral_angles_any(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     corners = points[cells]
     edges = corners[:, 1:] - corners[:, :1]
     flat = np.abs(np.linalg.det(edges)) <= 1e-300
