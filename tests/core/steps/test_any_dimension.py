@@ -141,23 +141,6 @@ def test_the_grid_of_a_function_evaluates_and_projects_as_a_sampled_one():
     assert np.isfinite(grid.evaluate(centres)).all()
 
 
-def test_the_banded_grid_of_a_function_is_its_multilinear_interpolation():
-    """Banded (as the front door samples it), f at a point is the multilinear interpolation of the nodes' values,
-    as the 3-D grid's is trilinear: at a node of the band the function's value, between nodes within the
-    interpolation's bound sum_d h^2 max |d2f/dx_d^2| / 8 (the ball's distance: 1 / |x| on each axis at most), and
-    beyond the grid the function itself."""
-    h = 0.1
-    grid = sample_function(ball, -np.ones(4), np.ones(4), h, margin=0.2, exact_within=3 * h)
-    assert grid.band is not None and len(grid.band)
-    nodes = grid.node_coordinates(grid.band[::97])
-    assert np.allclose(grid.evaluate(nodes), ball(nodes), rtol=0, atol=1e-12)
-    points = np.random.default_rng(1).normal(size=(20000, 4))
-    points *= np.random.default_rng(2).uniform(0.9, 1.1, (20000, 1)) / np.linalg.norm(points, axis=1, keepdims=True)
-    assert np.abs(grid.evaluate(points) - ball(points)).max() <= 4 * h**2 / 8 / 0.9
-    far = np.full((3, 4), 2.0)
-    assert np.array_equal(grid.evaluate(far), ball(far))
-
-
 def test_a_section_of_the_4_ball_is_a_valid_3_ball_and_the_sections_add_up_to_it():
     """slice_mesh: the 4-ball's mesh cut at x3 = 0.05 is a valid conforming 3-D mesh (one boundary, Euler
     characteristic 2), inside the section's ball; cut through a node and 1e-12 beside it, still valid; and the

@@ -4,7 +4,6 @@ Convention: f > 0 inside the domain, f < 0 outside, close to signed distance (in
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Callable
@@ -15,7 +14,6 @@ from scipy.ndimage import map_coordinates
 from .kernels import (BRICK_SHIFT, brick_gradients, evaluate_at, fill_bricks, gradient_at, newton_to_surface,
                       node_values, plane_values)
 from ..errors import InvalidInputError, check_number
-from ..mesh.simplicial import by_blocks
 from ..progress import ProgressCallback, report, sub_progress
 
 #: bytes per grid node that the steps may hold at once, at most: a dense grid's f and gradient (32) or a banded
@@ -225,29 +223,8 @@ class FunctionGrid(SampledGrid):
     band_values: np.ndarray | None = None
 
     def evaluate(self, points: np.ndarray) -> np.ndarray:
-        """(m,) f at (m, k) points: banded, the multilinear interpolation of the nodes' values (what the grid I is,
-        as :class:`BandedGrid` in 3-D), the function itself beyond the grid; else the function itself."""
-        points = self._points(points)
-        if self.coarse is None:
-            return np.asarray(self.function(points), dtype=np.float64)
-        return by_blocks(self._interpolate, points)
-
-    def _interpolate(self, points: np.ndarray) -> np.ndarray:
-        position = (points - self.origin) / self.spacing
-        last = np.array(self.shape) - 1
-        within = np.all((position >= 0) & (position <= last), axis=1)
-        values = np.empty(len(points))
-        if not within.all():
-            values[~within] = self.function(points[~within])
-        position = position[within]
-        base = np.minimum(np.floor(position).astype(np.int64), last - 1)
-        fraction = position - base
-        inside = np.zeros(len(position))
-        for corner in itertools.product((0, 1), repeat=self.dim):
-            weight = np.prod(np.where(corner, fraction, 1.0 - fraction), axis=1)
-            inside += weight * self.node_values(np.ravel_multi_index(tuple((base + corner).T), self.shape))
-        values[within] = inside
-        return values
+        """(m,) f at (m, k) points."""
+        return np.asarray(self.function(self._points(points)), dtype=np.float64)
 
     def gradient(self, points: np.ndarray) -> np.ndarray:
         """(m, k) central differences of f, a thousandth of a grid spacing apart."""
