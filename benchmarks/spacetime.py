@@ -1,7 +1,8 @@
 #!/usr/bin/env python
 """The beating heart as one 4-D space-time mesh (issue 36): biv-me patient1's cine through the front door,
 ``bitemesh.mesh(frames, space_time=1)`` as ``bitemesh mesh GPFile_*.txt --space-time`` runs it, each frame's instant
-cut out of it and measured against the 3-D mesh of that frame at the same R (plain method both).
+cut out of it and measured against the 3-D mesh of that frame at the same R (the 4-D mesh relaxed, the default;
+each frame's 3-D mesh the plain method: the MeshOptimizer changes a volume by under 0.1 %).
 
 Usage (from the repository root)::
 

@@ -21,7 +21,7 @@ from ..mesh.validity import count_boundary_components
 from ..optimize.measures import mean_edge_length
 from ..optimize.relax import INTERIOR_MARGIN, MEAN_GAIN, odt_targets
 from ..parameters import OptimizeParameters, SpuriousParameters
-from ..progress import ProgressCallback, report
+from ..progress import ProgressCallback, report, sub_progress
 from .delaunay import delaunay
 from .repair import carve_domain
 
@@ -45,7 +45,9 @@ def relax_by_triangulation(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeP
         targets = odt_targets(grid, mesh.points, mesh.cells, INTERIOR_MARGIN * mean_edge_length(mesh.points,
                                                                                                mesh.cells))
         try:
-            mesh = carve_domain(grid, targets, delaunay(targets), spurious)
+            mesh = carve_domain(grid, targets, delaunay(targets), spurious,
+                                progress=sub_progress(progress, iteration / parameters.iterations,
+                                                      (iteration + 1) / parameters.iterations))
         except MeshingError as error:
             logger.info("relaxation stopped: the moved nodes gave no valid domain (%s)", error)
             break
@@ -55,7 +57,7 @@ def relax_by_triangulation(grid: ImplicitGrid, mesh: Mesh, parameters: OptimizeP
         history.append(float(radius_ratio(mesh.points, mesh.cells).mean()))
         if history[-1] > max(history[:-1]):
             best = mesh
-        report(progress, (iteration + 1) / max(parameters.iterations, 1),
+        report(progress, (iteration + 1) / parameters.iterations,
                f"relaxation {iteration + 1}: mean radius ratio {history[-1]:.4f}")
         if history[-1] < max(history[:-1]) + MEAN_GAIN:
             break
