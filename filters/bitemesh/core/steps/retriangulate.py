@@ -4,9 +4,9 @@ The MeshOptimizer (:mod:`bitemesh.core.optimize.optimizer`) updates the cells by
 tetrahedra.  In 4-D and 5-D the nodes move the same way (:func:`~bitemesh.core.optimize.relax.odt_targets`: interior
 nodes to the volume-weighted mean of their cells' circumcentres, boundary nodes along f = 0) and the cells come
 from qhull and the spine's own carve (:func:`~bitemesh.core.steps.repair.carve_domain`), which is the ODT of Alliez
-et al. 2005 as first written: move, triangulate, repeat.  Measured on the 4-ball at 100,000 cells: mean radius
-ratio 0.69 -> 0.78 in 8 iterations, 4 to 6 s each; on 4 frames of a cine's space-time heart (R = 8 mm) 0.624 ->
-0.642, cells below 0.1 0.94 -> 0.67 %, for twice the time.
+et al. 2005 as first written: move, triangulate, repeat.  Measured (benchmarks/dimensions.md): the 4-ball at
+100,000 cells, mean radius ratio 0.690 -> 0.781, cells below 0.1 0.48 -> 0.13 %, 8 -> 41 s; the 5-ball 0.589 ->
+0.680; the cine's space-time heart (benchmarks/spacetime.md) 0.632 -> 0.648 for 1.5 times the time.
 """
 from __future__ import annotations
 
