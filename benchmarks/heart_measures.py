@@ -27,7 +27,8 @@ from scipy.spatial import cKDTree
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "filters"))
 
-from bitemesh.core.steps.fidelity import distances_to_facets, facet_measures
+from bitemesh.core.mesh.simplicial import facet_measures
+from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.core.mesh.validity import boundary_euler_characteristic, check_valid_domain, count_boundary_components
 from bitemesh.core.mesh.topology import connected_components
 from bitemesh.core.mesh.topology import boundary_facets

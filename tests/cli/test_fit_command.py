@@ -15,7 +15,8 @@ from bitemesh.core.mesh.topology import boundary_facets
 from bitemesh.core.optimize.measures import mean_edge_length
 from bitemesh.core.sources.contours.cardiac import BIVME_SURFACES, canonical_labels
 from bitemesh.core.sources.contours.registration import registered
-from bitemesh.core.steps.fidelity import distances_to_facets, facet_measures
+from bitemesh.core.mesh.simplicial import facet_measures
+from bitemesh.core.steps.fidelity import distances_to_facets
 from bitemesh.fitting import frame_base
 from bitemesh.io import read_labelled_points, read_mesh
 

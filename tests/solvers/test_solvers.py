@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from bitemesh import cli, meshing
 from bitemesh.core.fem.landmarks import landmarks
-from bitemesh.core.mesh.tags import facet_measures
+from bitemesh.core.mesh.simplicial import facet_measures
 from bitemesh.io import read_mesh, write_mesh
 
 from tests.cli.commands import assert_one_line_error
@@ -97,7 +97,7 @@ def test_cardiac_geometries_loads_the_folder_and_ldrb_takes_its_markers(solved, 
     assert found["edge_counts"] == {str(tag): int(np.sum(edge_tags == tag)) for tag in set(edge_tags.tolist())}
     assert found["vertex_counts"] == {str(tag): 1 for tag in vertex_tags.tolist()}
     assert found["cells"] == len(mesh.cells) and found["cell_tags"] == sorted(set(mesh.cell_data["Region"]))
-    areas = facet_measures(mesh.points, mesh.facets)
+    areas = facet_measures(mesh.points[mesh.facets])
     for name, (tag, dimension) in mesh.tag_names.items():
         if dimension == 2:
             assert found["facet_counts"][str(tag)] == np.sum(mesh.facet_tags == tag)

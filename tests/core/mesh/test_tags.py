@@ -20,7 +20,8 @@ from bitemesh.core.parameters import BitingParameters, OptimizeParameters
 from bitemesh.core.steps.spine import mesh_from_grid
 from bitemesh.core.sources.points import run
 from bitemesh.core.mesh.quality import radius_ratio
-from bitemesh.core.mesh.tags import component_tags, enclosed_volume, facet_measures, region_tags
+from bitemesh.core.mesh.simplicial import facet_measures
+from bitemesh.core.mesh.tags import component_tags, enclosed_volume, region_tags
 from bitemesh.io import read_labelled_points
 from scipy.spatial import cKDTree
 
@@ -99,7 +100,7 @@ def test_two_spheres_give_two_boundary_tags_by_decreasing_area():
     for tag, centre, radius in ((1, [0, 0, 0], 1.0), (2, [3, 0, 0], 0.5)):
         distance = np.linalg.norm(centres[mesh.facet_tags == tag] - centre, axis=1)
         assert np.abs(distance - radius).max() < 0.1 * radius
-    area = np.bincount(mesh.facet_tags, facet_measures(mesh.points, mesh.facets))
+    area = np.bincount(mesh.facet_tags, facet_measures(mesh.points[mesh.facets]))
     assert area[1] > area[2]
 
 

@@ -189,7 +189,8 @@ def test_the_fidelity_measures_facets_of_any_dimension():
     no vertex beyond the plane through it across the offset), its
     3-volume (the regular tetrahedron's sqrt(2)/12 a^3) and its normal (across its edges); and samples all round a
     point of a 3-sphere surround it in its tangent space, samples on one side of it do not."""
-    from bitemesh.core.steps.fidelity import closest_on_facets, facet_measures, facet_normals, surrounded
+    from bitemesh.core.mesh.simplicial import facet_measures
+    from bitemesh.core.steps.fidelity import closest_on_facets, facet_normals, surrounded
     rng = np.random.default_rng(0)
     corners = rng.normal(size=(40, 4, 4))
     points = 2 * rng.normal(size=(40, 4))

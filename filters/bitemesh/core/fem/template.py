@@ -36,7 +36,8 @@ from ..mesh.simplicial import Mesh, signed_measures
 from ..mesh.topology import boundary_facets, distinct_faces
 from ..parameters import Parameters, parameter
 from ..progress import ProgressCallback, report
-from ..steps.fidelity import distances_to_facets, facet_measures
+from ..mesh.simplicial import facet_measures
+from ..steps.fidelity import distances_to_facets
 from ..optimize.measures import inverse_mean_ratio, mean_edge_length, smallest_angles
 from .alignment import align
 from .assembly import Pattern, basis_gradients, elasticity_elements, solve

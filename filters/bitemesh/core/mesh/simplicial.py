@@ -84,6 +84,18 @@ def by_blocks(measure, rows: np.ndarray):
     return np.concatenate(parts)
 
 
+def facet_measures(corners: np.ndarray) -> np.ndarray:
+    """(f,) the (k-1)-measure of each facet (corners (f, k, k)): the length of a segment in 2-D, the area of a
+    triangle, the volume of a tetrahedron in 4-D (sqrt of its edges' Gram determinant / (k - 1)!)."""
+    if corners.shape[1] == 2:
+        return np.linalg.norm(corners[:, 1] - corners[:, 0], axis=1)
+    if corners.shape[1] == 3:
+        return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    edges = corners[:, 1:] - corners[:, :1]
+    gram = np.einsum("msi,mti->mst", edges, edges)
+    return np.sqrt(np.maximum(np.linalg.det(gram), 0.0)) / factorial(edges.shape[1])
+
+
 def signed_measures(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """(m,) signed area (2D) or volume (3D) of each cell; > 0 when positively oriented."""
     return by_blocks(partial(_signed_measures, points), cells)

@@ -21,28 +21,19 @@ Facets are oriented out of the domain (boundary) or out of the region with the l
 """
 from __future__ import annotations
 
-from math import factorial
 
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
 
 from ..errors import InvalidInputError
-from .simplicial import Mesh
+from .simplicial import Mesh, facet_measures
 from .topology import facet_table, faces_of, unique_rows
 
 #: the one region of a mesh of one domain (scattered points, labelled contours other than a myocardium).
 DOMAIN = "DOMAIN"
 #: the region of a heart's myocardium meshed from labelled contours.
 MYOCARDIUM = "MYOCARDIUM"
-
-
-def facet_measures(points: np.ndarray, facets: np.ndarray) -> np.ndarray:
-    """(b,) area (3D triangles) or length (2D edges) of each facet (input units^(k - 1))."""
-    corners = points[facets]
-    edges = corners[:, 1:] - corners[:, :1]
-    gram = np.einsum("bik,bjk->bij", edges, edges)
-    return np.sqrt(np.maximum(np.linalg.det(gram), 0.0)) / factorial(facets.shape[1] - 1)
 
 
 def boundary_pieces(facets: np.ndarray) -> np.ndarray:
@@ -86,7 +77,7 @@ def component_tags(mesh: Mesh, region: str = DOMAIN) -> Mesh:
     facets = facets[0][facets[2][facets[1]] == 1]
     piece = boundary_pieces(facets)
     count = int(piece.max()) + 1 if len(piece) else 0
-    area = np.bincount(piece, facet_measures(mesh.points, facets), minlength=count)
+    area = np.bincount(piece, facet_measures(mesh.points[facets]), minlength=count)
     first = np.full(count, len(piece))
     np.minimum.at(first, piece, np.arange(len(piece)))
     order = np.lexsort((first, -area))            # decreasing area, ties by the first facet

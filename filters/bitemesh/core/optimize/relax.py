@@ -20,10 +20,10 @@ import numpy as np
 
 from .measures import (boundary_nodes, inverse_mean_ratio, mean_edge_length, mean_ratio_cost, mean_ratio_terms,
                        node_cost_descent, node_trial_costs, scatter_to_points, tangential)
-from ..mesh.quality import cross, dot, signed_radius_ratio
+from ..mesh.quality import dot, signed_radius_ratio
 from .delaunay_flips import FLAT_QUALITY, flip_to_delaunay
 from ..grid.sampled import ImplicitGrid
-from ..mesh.simplicial import circumspheres, signed_measures
+from ..mesh.simplicial import circumspheres, facet_measures, signed_measures
 from ..progress import ProgressCallback, report
 from ..mesh.topology import boundary_facets
 
@@ -68,8 +68,7 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
 
     facets = boundary_facets(cells) if facets is None else facets
     corners = points[facets]
-    spans = corners[:, 1:] - corners[:, :1]
-    area = facet_sizes(spans)
+    area = facet_measures(corners)
     along = scatter_to_points(n, facets, np.repeat((area[:, None] * corners.mean(axis=1))[:, None], k, axis=1))
     along_weight = np.bincount(facets.ravel(), np.repeat(area, k), n)
 
@@ -86,16 +85,6 @@ def odt_targets(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, margi
     goal = along[outer] / along_weight[outer, None]
     targets[outer] = grid.project(points[outer] + tangential(grid, points[outer], goal - points[outer]))
     return targets
-
-
-def facet_sizes(spans: np.ndarray) -> np.ndarray:
-    """(f,) the size of each facet from its (f, k - 1, k) edges from its first corner: length (2-D), twice the area
-    (3-D), sqrt of the Gram determinant beyond (the measure times (k - 1)!: a weight, the factor does not matter)."""
-    if spans.shape[2] == 2:
-        return np.linalg.norm(spans[:, 0], axis=1)
-    if spans.shape[2] == 3:
-        return np.linalg.norm(cross(spans[:, 0], spans[:, 1]), axis=1)
-    return np.sqrt(np.abs(np.linalg.det(spans @ spans.transpose(0, 2, 1))))
 
 
 def relax(grid: ImplicitGrid, points: np.ndarray, cells: np.ndarray, iterations: int,

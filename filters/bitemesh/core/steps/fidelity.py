@@ -18,14 +18,13 @@ fraction of either measure exceeds its bound.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import nnls
 from scipy.spatial import cKDTree
 
-from ..mesh.simplicial import Mesh
+from ..mesh.simplicial import Mesh, facet_measures
 from ..mesh.topology import boundary_facets
 
 #: a sample may be this many noise levels, plus R, from the boundary.
@@ -157,18 +156,6 @@ def _nearer(points, corners, best, rows, facets) -> None:
     if len(rows):
         distance = np.linalg.norm(points[rows] - closest_on_facets(points[rows], corners[facets]), axis=1)
         np.minimum.at(best, rows, distance)
-
-
-def facet_measures(corners: np.ndarray) -> np.ndarray:
-    """(f,) the (k-1)-measure of each facet (corners (f, k, k)): the area of a triangle, the length of a segment in
-    2D, the volume of a tetrahedron in 4-D."""
-    if corners.shape[1] == 2:
-        return np.linalg.norm(corners[:, 1] - corners[:, 0], axis=1)
-    if corners.shape[1] == 3:
-        return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
-    edges = corners[:, 1:] - corners[:, :1]
-    gram = np.einsum("msi,mti->mst", edges, edges)
-    return np.sqrt(np.maximum(np.linalg.det(gram), 0.0)) / math.factorial(edges.shape[1])
 
 
 def measure_fidelity(mesh: Mesh, samples: np.ndarray, radius: float, noise: float, gap: float,

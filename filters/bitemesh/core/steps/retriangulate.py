@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import logging
 
-
 from ..errors import MeshingError
 from ..grid.sampled import ImplicitGrid
 from ..mesh.quality import radius_ratio

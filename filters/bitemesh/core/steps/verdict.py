@@ -21,7 +21,8 @@ from ..mesh.betti import on_dropped_parts
 from ..mesh.simplicial import Mesh
 from ..mesh.topology import boundary_facets, connected_components
 from ..parameters import FidelityParameters
-from .fidelity import Fidelity, facet_measures, far_from, measure_fidelity
+from ..mesh.simplicial import facet_measures
+from .fidelity import Fidelity, far_from, measure_fidelity
 
 logger = logging.getLogger("bitemesh")
 

@@ -271,7 +271,7 @@ def check_heart(mesh, function, radius: float, fidelity, *, scale: float = 1.0,
     -------
     list of the problems (empty when plausible)
     """
-    from ...steps.fidelity import facet_measures
+    from ...mesh.simplicial import facet_measures
     from ...mesh.validity import count_boundary_components
     from ...mesh.topology import boundary_facets, euler_characteristic
 
