@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bitemesh.core.mesh.betti import Topology, check_topology, cubical_euler, grid_topology, mesh_topology
+from bitemesh.core.mesh.betti import (Topology, at_mesh_resolution, check_topology, cubical_euler, grid_topology,
+                                     mesh_topology)
 from bitemesh.core.errors import BitemeshWarning, MeshingError
 from bitemesh.core.parameters import BitingParameters
 from bitemesh.core.sources.points import run
@@ -129,3 +130,34 @@ def test_parts_that_the_mesh_joins_are_named_as_touching():
     with pytest.raises(MeshingError, match=r"cells join parts of f that come closer than R = 0.1 \(objects that "
                                            r"touch\); lower radius"):
         check_topology(mesh, two, 0.1, allow=False)
+
+
+@pytest.mark.parametrize("pocket, radius, voids", [(2, 4, 0), (6, 4, 1), (6, 16, 0)])
+def test_at_the_mesh_resolution_a_void_less_than_about_a_cell_across_is_filled(pocket, radius, voids):
+    """A ball of 20 grid spacings with a round pocket of ``pocket`` spacings: a mesh at R = ``radius`` spacings
+    fills a void narrower than THIN_VOID x R (0.6 R: a ball's radius, about 0.67 of it on voxels), as the repair
+    fills the mesh's, so f at the mesh's resolution has it only when it is wider."""
+    axis = np.arange(-24, 25)
+    x, y, z = np.meshgrid(axis, axis, axis, indexing="ij")
+    distance = np.sqrt(x**2 + y**2 + z**2)
+    region = (distance <= 20) & (np.sqrt((x - 8) ** 2 + y**2 + z**2) > pocket)
+    assert grid_topology(region).voids == 1
+    assert grid_topology(at_mesh_resolution(region, radius)).voids == voids
+
+
+def test_the_voids_of_a_hollow_ball_are_its_cavity_with_its_volume_and_centre():
+    """The shell 0.5 <= |x - c| <= 1: one void, the inner ball's (0.524, less the caps that its inscribed facets
+    cut off, within 10 % at R = 0.15), centred on c; a solid ball has none."""
+    from bitemesh.core.grid.sampled import sample_function
+    from bitemesh.core.mesh.betti import enclosed_voids
+    from bitemesh.core.steps.spine import mesh_from_grid
+    from tests.builders import PLAIN
+    centre = np.array([0.3, -0.2, 0.1])
+    grid = sample_function(lambda p: 0.25 - np.abs(np.linalg.norm(p - centre, axis=1) - 0.75), centre - 1.1,
+                           centre + 1.1, 0.0375)
+    voids = enclosed_voids(mesh_from_grid(grid, BitingParameters(radius=0.15), optimize=PLAIN).mesh)
+    assert len(voids) == 1
+    assert voids[0][0] == pytest.approx(4 / 3 * np.pi * 0.5 ** 3, rel=0.1)
+    assert np.linalg.norm(voids[0][1] - centre) < 0.05
+    solid = sample_function(lambda p: 1 - np.linalg.norm(p, axis=1), -np.ones(3) * 1.1, np.ones(3) * 1.1, 0.0375)
+    assert enclosed_voids(mesh_from_grid(solid, BitingParameters(radius=0.15), optimize=PLAIN).mesh) == []

@@ -1,12 +1,14 @@
 """The tail of the pipeline on analytic shapes: biting, Delaunay and the valid-domain carving."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from bitemesh.core.steps.delaunay import delaunay
-from bitemesh.core.steps.repair import carve_domain
+from bitemesh.core.steps.repair import DelaunayCells, carve_domain, enclosed_inside_voids
 from bitemesh.core.grid.sampled import sample_function
 from bitemesh.core.mesh.simplicial import signed_measures
 from bitemesh.core.parameters import BitingParameters
@@ -111,3 +113,27 @@ def test_a_pinch_is_mended_by_the_smaller_change_and_filling_can_be_turned_off()
     change_with_fill = volume[filled != keep].sum()
     assert 0 < change_with_fill <= volume[removed != keep].sum() + 1e-12
 
+
+
+@pytest.mark.parametrize("gap, filled", [(0.02, True), (0.3, False)])
+def test_an_enclosed_pocket_thinner_than_half_a_cell_is_filled_and_a_cavity_is_kept(gap, filled):
+    """Cells dropped between two discs of nodes ``gap`` apart inside a ball of nodes 0.1 apart, f < 0 there: a
+    pocket 0.02 thick (0.3 of the edge of a regular cell of the median volume wide, yet 60 such cells in volume)
+    is below the mesh's resolution and is filled; one 0.3 thick is a cavity and stays a void (see THIN_VOID)."""
+    axis = np.arange(-1.0, 1.0001, 0.1)
+    lattice = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    disc = lattice[(np.abs(lattice[:, 2]) < 1e-9) & (np.linalg.norm(lattice[:, :2], axis=1) < 0.45)]
+    away = (np.abs(lattice[:, 2]) > gap / 2 + 0.05) | (np.linalg.norm(lattice[:, :2], axis=1) > 0.55)
+    nodes = np.vstack([lattice[away & (np.linalg.norm(lattice, axis=1) <= 1.0)],
+                       disc + [0, 0, gap / 2], disc - [0, 0, gap / 2]])
+    nodes += np.random.default_rng(0).normal(0, 0.001, nodes.shape)   # no four nodes on a circle
+    cells = delaunay(nodes)
+    centroids = nodes[cells].mean(axis=1)
+    pocket = (np.abs(centroids[:, 2]) < gap / 2) & (np.linalg.norm(centroids[:, :2], axis=1) < 0.4)
+    delaunay_cells = DelaunayCells.of(nodes, cells)
+    delaunay_cells = dataclasses.replace(delaunay_cells, centroid_values=np.where(pocket, -1.0, 1.0))
+    keep = ~pocket
+    assert pocket.sum() > 20 and delaunay_cells.volume[pocket].sum() > 10 * np.median(delaunay_cells.volume)
+    fill = enclosed_inside_voids(delaunay_cells, keep)
+    assert fill[pocket].all() == filled and fill[pocket].any() == filled
+    assert not fill[keep].any()

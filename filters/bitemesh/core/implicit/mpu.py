@@ -14,7 +14,7 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..compiled import kernel
+from ..compiled import kernel, threads
 from ..errors import InvalidInputError, check_number, check_points
 from ..grid.sampled import bounding_box
 from .mpu_function import MPUImplicit, _bspline_weights, _quadric, _quadric_gradient
@@ -119,7 +119,7 @@ def _auxiliary_points(points, normals, tree, centres, half_side):
     Returns the (k, 9, 3) points, (k, 9) distances and (k, 9) validity.
     """
     where = centres[:, None, :] + _AUXILIARY * half_side
-    _, near = tree.query(where.reshape(-1, 3), k=_AUX_NEIGHBOURS)
+    _, near = tree.query(where.reshape(-1, 3), k=_AUX_NEIGHBOURS, workers=threads())
     signed = np.einsum("qjd,qjd->qj", normals[near], points[near] - where.reshape(-1, 1, 3))
     valid = (signed > 0).all(axis=1) | (signed < 0).all(axis=1)
     shape = where.shape[:2]
@@ -147,7 +147,7 @@ def _fit_cells(points, normals, tree, centres, radii, half_side):
 
     The error of a fit is max over its support points of |f(p)| / |grad f(p)|.
     """
-    supports = tree.query_ball_point(centres, radii)
+    supports = tree.query_ball_point(centres, radii, workers=threads())
     sizes = np.fromiter(map(len, supports), dtype=np.intp, count=len(supports))
     index = np.fromiter(chain.from_iterable(supports), dtype=np.intp, count=int(sizes.sum()))
     cell = np.repeat(np.arange(len(centres)), sizes)
@@ -191,11 +191,11 @@ def _support_radii(tree, centres, radius, min_points):
 
     Returns the (k,) radii and the (k,) counts in the ungrown ball.
     """
-    counts = tree.query_ball_point(centres, radius, return_length=True)
+    counts = tree.query_ball_point(centres, radius, return_length=True, workers=threads())
     radii = np.full(len(centres), radius)
     small = counts < min_points
     if small.any():
-        distance, _ = tree.query(centres[small], k=min_points)
+        distance, _ = tree.query(centres[small], k=min_points, workers=threads())
         steps = np.ceil(np.log(distance[:, -1] * (1 + 1e-9) / radius) / np.log(_GROWTH))
         radii[small] = radius * _GROWTH ** np.maximum(steps, 0)
     return radii, counts

@@ -96,6 +96,11 @@ def facet_measures(corners: np.ndarray) -> np.ndarray:
     return np.sqrt(np.maximum(np.linalg.det(gram), 0.0)) / factorial(edges.shape[1])
 
 
+def regular_edge(measure: float, k: int) -> float:
+    """The edge of the regular k-simplex of ``measure`` (its volume a^k / k! sqrt((k + 1) / 2^k)): a cell's size."""
+    return float((measure * factorial(k) * np.sqrt(2.0 ** k / (k + 1))) ** (1.0 / k))
+
+
 def signed_measures(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """(m,) signed area (2D) or volume (3D) of each cell; > 0 when positively oriented."""
     return by_blocks(partial(_signed_measures, points), cells)

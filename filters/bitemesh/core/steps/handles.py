@@ -17,7 +17,7 @@ import numpy as np
 
 from ..compiled import kernel
 from ..grid.sampled import ImplicitGrid
-from ..mesh.simplicial import facet_corners, signed_measures
+from ..mesh.simplicial import facet_corners, regular_edge, signed_measures
 from ..mesh.topology import CellComplex, boundary_facets, connected_components, euler_change, euler_characteristic
 
 #: the six edges of a tetrahedron, as pairs of its vertex positions.
@@ -175,7 +175,7 @@ def break_handles(grid: ImplicitGrid, points: np.ndarray, complex_: CellComplex,
     parts = complex_.components(keep)
     cut = keep & ~_grown_inside(growth_complex, len(points), keep, value, parts)
     fill = ~keep & ~_grown_outside(growth_complex, cells, len(points), keep, value)
-    cell_size = float(np.cbrt(6 * np.sqrt(2) * np.median(signed_measures(points, kept_cells))))
+    cell_size = regular_edge(float(np.median(signed_measures(points, kept_cells))), 3)
     candidates = [candidate for candidate in _clusters(points, cells, cut, value, fill=False)
                   + _clusters(points, cells, fill, value, fill=True)
                   if candidate[0] <= max_depth * cell_size and len(candidate[2]) <= MAX_CELLS]

@@ -16,7 +16,8 @@ from scipy.sparse import csgraph
 from ..errors import MeshingError
 from ..grid.sampled import ImplicitGrid, SampledGrid
 from .handles import MAX_DEPTH, THICK_DEPTH, break_handles, handle_count
-from ..mesh.simplicial import Mesh, signed_measures
+from ..mesh.betti import THIN_VOID
+from ..mesh.simplicial import Mesh, facet_measures, regular_edge, signed_measures
 from ..parameters import SpuriousParameters
 from ..mesh.validity import check_valid_domain
 from ..mesh.quality import radius_ratio
@@ -34,8 +35,6 @@ MAX_REPAIR_ROUNDS = 200
 FILL_ROUNDS = 5
 #: rounds of handle removal, each followed by the repair.
 HANDLE_ROUNDS = 2
-#: an enclosed void of less volume than this many cells (of the median volume) is below the mesh's resolution.
-SMALL_VOID = 10
 #: cells with a radius ratio below this are flat.
 FLAT_QUALITY = 0.02
 #: cells with a radius ratio below this have no volume to speak of (a finite-element solver cannot use them).
@@ -68,8 +67,7 @@ class DelaunayCells:
 
 def enclosed_inside_voids(delaunay: DelaunayCells, keep: np.ndarray, every: bool = False) -> np.ndarray:
     """(m,) bool, the dropped cells that form voids closed off from the hull and lie inside (mean f > 0 there, from
-    ``delaunay.centroid_values``), or
-    are smaller than :data:`SMALL_VOID` cells (a pocket of a cavity thinner than a cell, cut off from it); with
+    ``delaunay.centroid_values``), or are narrower than :data:`THIN_VOID` cells (below the mesh's resolution); with
     ``every``, every void closed off from the hull (a domain known to have none: a myocardium).
 
     A cavity that f says is outside (a ventricle, the hole of a shell) stays open unless ``every``.
@@ -85,9 +83,15 @@ def enclosed_inside_voids(delaunay: DelaunayCells, keep: np.ndarray, every: bool
     centroid_value = delaunay.centroid_values[dropped]
     void_volume = np.bincount(labels, weights=volume)
     mean_value = np.bincount(labels, weights=volume * centroid_value) / void_volume
-    small = void_volume < SMALL_VOID * np.median(delaunay.volume[keep]) if keep.any() else False
+    walls = complex_.facet_counts(~keep)[complex_.facet_ids[dropped]] == 1   # (d, k + 1): facets with kept cells
+    wall_cells, _ = np.nonzero(walls)
+    area = facet_measures(delaunay.points[complex_.facets[complex_.facet_ids[dropped][walls]]])
+    k = delaunay.cells.shape[1] - 1
+    width = k * void_volume / np.maximum(np.bincount(labels[wall_cells], weights=area, minlength=len(void_volume)),
+                                         1e-300)
+    thin = width < THIN_VOID * regular_edge(float(np.median(delaunay.volume[keep])), k) if keep.any() else False
     fill = np.zeros(len(keep), bool)
-    fill[dropped] = (~touches_hull & ((mean_value > 0) | small | every))[labels]
+    fill[dropped] = (~touches_hull & ((mean_value > 0) | thin | every))[labels]
     return fill
 
 

@@ -24,8 +24,8 @@ from .biting import bite
 from .delaunay import delaunay
 from .repair import carve_domain
 from .retriangulate import relax_by_triangulation
-from ..errors import BitemeshWarning, InvalidInputError, check_number
-from ..mesh.betti import check_topology
+from ..errors import BitemeshWarning, InvalidInputError, check_number, point_text
+from ..mesh.betti import check_topology, enclosed_voids
 from .fidelity import Fidelity
 from .verdict import judge_fidelity
 from ..grid.sampled import (BYTES_PER_NODE, EXACT_WITHIN, SampledGrid, available_memory_mb, grid_shape_unchecked,
@@ -373,7 +373,13 @@ def mesh_source(source: Source, implicit: ImplicitParameters = ImplicitParameter
     with timed(seconds, "topology"):
         check_topology(result.mesh, inside, radius * frame.scale, bool(fidelity.allow_unfaithful),
                        around=grid.inside_offsets, one_fit=source.one_fit, grid=grid, frame=frame)
+    mesh = frame.mesh_to_user(result.mesh)
+    voids = enclosed_voids(mesh)
+    if voids:
+        notes += (f"the mesh encloses {len(voids)} void(s), the largest {voids[0][0]:.3g} in volume around "
+                  f"{point_text(voids[0][1])}: cavities that f has too (a hollow object's, or a bubble of the fitted "
+                  "surface inside a wall); handles='remove' fills every void",)
     report(progress, 1.0, "done")
-    return MeshingResult(mesh=frame.mesh_to_user(result.mesh), implicit=grid, nodes=frame.to_user(result.nodes),
+    return MeshingResult(mesh=mesh, implicit=grid, nodes=frame.to_user(result.nodes),
                          radius=radius * frame.scale, seconds=seconds, frame=frame, function=function,
                          labels=source.labels, fidelity=measured, notes=notes)
