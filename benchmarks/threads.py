@@ -48,6 +48,44 @@ digest = hashlib.sha256(result.mesh.points.tobytes() + result.mesh.cells.tobytes
 print(json.dumps({"wall": wall, "seconds": result.seconds, "cells": len(result.mesh.cells), "hash": digest}))
 """
 
+#: run in a fresh interpreter: each threaded kernel on a 136,000-cell sphere (its mesh, grid and samples) on 1 thread
+#: and on THREADS, medians of REPEATS calls each, the counts alternating; JSON name -> [1 thread, THREADS] seconds
+KERNEL_WORKER = """
+import json, statistics, sys, time
+import numpy as np
+import bitemesh
+from bitemesh.core.compiled import using_threads
+from bitemesh.core.implicit.mpu import fit_mpu
+from bitemesh.core.mesh.quality import dihedral_angles, signed_radius_ratio
+from bitemesh.core.mesh.simplicial import circumspheres
+from bitemesh.core.optimize.measures import inverse_mean_ratio, mean_ratio_terms
+from bitemesh.core.shapes import sample_surface, sphere
+threads, repeats = int(sys.argv[1]), int(sys.argv[2])
+points, normals = sample_surface(sphere(), spacing=0.012, noise=0.002, seed=0)
+result = bitemesh.mesh(bitemesh.Samples(points, normals), cells=136000, optimize=0)
+mesh, grid = result.mesh, result.implicit
+inside = np.random.default_rng(0).uniform(grid.origin, grid.upper, (300000, 3))
+kernels = {"radius ratios": lambda: signed_radius_ratio(mesh.points, mesh.cells),
+           "dihedral angles": lambda: dihedral_angles(mesh.points, mesh.cells),
+           "circumspheres": lambda: circumspheres(mesh.points, mesh.cells),
+           "inverse mean ratio": lambda: inverse_mean_ratio(mesh.points, mesh.cells),
+           "mean ratio terms": lambda: mean_ratio_terms(mesh.points, mesh.cells),
+           "f at 300,000 points (grid)": lambda: grid.evaluate(inside),
+           "Newton steps to f = 0": lambda: grid.project(inside[:100000]),
+           "MPU fit (k-d queries)": lambda: fit_mpu(points, normals)}
+seconds = {name: {1: [], threads: []} for name in kernels}
+for name, call in kernels.items():
+    for _ in range(repeats):
+        for count in (1, threads):
+            with using_threads(count):
+                call()
+                start = time.perf_counter()
+                call()
+                seconds[name][count].append(time.perf_counter() - start)
+print(json.dumps({name: [statistics.median(times[1]), statistics.median(times[threads])]
+                  for name, times in seconds.items()}))
+"""
+
 #: run in a fresh interpreter: bitemesh demo, timed from before the import, with numba's compile events counted
 DEMO_WORKER = """
 import sys, time
@@ -92,6 +130,11 @@ def mesh_runs(case: str, counts, repeats: int) -> dict:
     return runs
 
 
+def kernel_runs(threads: int, repeats: int) -> dict:
+    """Kernel name -> [seconds on 1 thread, on ``threads``] (:data:`KERNEL_WORKER`)."""
+    return json.loads(fresh(KERNEL_WORKER, threads, repeats).strip().splitlines()[-1])
+
+
 def demo_runs(repeats: int) -> dict:
     """"installed" / "empty" / "filled" -> list of (seconds, kernels compiled) of the demo; "build" -> [seconds of
     ``pip wheel .``]."""
@@ -115,7 +158,7 @@ def demo_runs(repeats: int) -> dict:
     return runs
 
 
-def report(meshes: dict, demo: dict, counts, repeats: int) -> str:
+def report(meshes: dict, kernels: dict, demo: dict, counts, repeats: int) -> str:
     most = counts[-1]
     lines = ["# Every core and the first run", "",
              f"`python benchmarks/threads.py --repeats {repeats}` on this {os.cpu_count()}-core machine "
@@ -135,6 +178,10 @@ def report(meshes: dict, demo: dict, counts, repeats: int) -> str:
                  f"{statistics.median(run['seconds'][step] for run in runs[most]):.2f}"
                  if step in runs[1][0]["seconds"] else "-" for step in steps]
         lines.append(f"| {case} | " + " | ".join(cells) + " |")
+    lines += ["", f"Per threaded kernel, on a 136,000-cell sphere (median of {repeats} calls, in one process; the "
+              "scaling each would give on more cores is at most its ratio's share of a mesh):", "",
+              f"| kernel | 1 thread (s) | {most} threads (s) | speed-up |", "|---|---|---|---|"]
+    lines += [f"| {name} | {one:.3f} | {many:.3f} | {one / many:.2f}x |" for name, (one, many) in kernels.items()]
     median = {state: statistics.median(seconds for seconds, _ in demo[state])
               for state in ("installed", "empty", "filled")}
     lines += ["", "## The first run", "",
@@ -158,7 +205,8 @@ def main() -> None:
     args = parser.parse_args()
     counts = sorted({1, os.cpu_count() or 1})
     meshes = {case: mesh_runs(case, counts, args.repeats) for case in ("heart", "sphere")}
-    text = report(meshes, demo_runs(args.repeats), counts, args.repeats)
+    kernels = kernel_runs(counts[-1], args.repeats)
+    text = report(meshes, kernels, demo_runs(args.repeats), counts, args.repeats)
     print(text)
     if args.out:
         args.out.write_text(text)

@@ -19,11 +19,18 @@ from math import factorial
 
 import numpy as np
 
+from numba import prange
+
 from ..compiled import kernel
 from ..errors import InvalidInputError, check_number
 from .simplicial import Mesh, by_blocks, circumspheres, facet_corners, facets_of, signed_measures
 from .topology import (distinct_faces)
 from .validity import _check_cells, _check_mesh
+
+#: cells a thread takes at a time in the threaded kernels; and fewer cells than this are measured on one thread
+#: (a flip's few cells: a launch costs more than they do).
+_BLOCK = 1024
+THREADED_CELLS = 4096
 
 
 def _ridge_facets(n_vertices: int) -> np.ndarray:
@@ -90,7 +97,8 @@ def signed_radius_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """
     points = np.ascontiguousarray(points, dtype=np.float64)
     flat = np.ascontiguousarray(cells, dtype=np.int64).reshape(-1, points.shape[1] + 1)
-    kernel = {2: _radius_ratios_2d, 3: _radius_ratios_3d}.get(points.shape[1], radius_ratios_any)
+    tetrahedra = _radius_ratios_3d_threads if len(flat) >= THREADED_CELLS else _radius_ratios_3d
+    kernel = {2: _radius_ratios_2d, 3: tetrahedra}.get(points.shape[1], radius_ratios_any)
     return kernel(points, flat).reshape(np.shape(cells)[:-1])
 
 
@@ -123,29 +131,43 @@ def _dot3(a0, a1, a2, b0, b1, b2):
 
 
 @kernel
+def _radius_ratio_of(points, cells, m):
+    """:func:`signed_radius_ratio` of tetrahedron ``m`` of ``cells``, in the order of operations of the numpy formulas
+    it replaced (the same bits)."""
+    p, q, r, s = cells[m, 0], cells[m, 1], cells[m, 2], cells[m, 3]
+    a0, a1, a2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
+    b0, b1, b2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
+    c0, c1, c2 = points[s, 0] - points[p, 0], points[s, 1] - points[p, 1], points[s, 2] - points[p, 2]
+    bc0, bc1, bc2 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+    ca0, ca1, ca2 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+    ab0, ab1, ab2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    six_volume = _dot3(a0, a1, a2, bc0, bc1, bc2)
+    aa, bb, cc = _dot3(a0, a1, a2, a0, a1, a2), _dot3(b0, b1, b2, b0, b1, b2), _dot3(c0, c1, c2, c0, c1, c2)
+    n0 = aa * bc0 + bb * ca0 + cc * ab0
+    n1 = aa * bc1 + bb * ca1 + cc * ab1
+    n2 = aa * bc2 + bb * ca2 + cc * ab2
+    f0, f1, f2 = bc0 + ca0 + ab0, bc1 + ca1 + ab1, bc2 + ca2 + ab2  # twice the area vector opposite vertex 0
+    surface = (np.sqrt(_dot3(bc0, bc1, bc2, bc0, bc1, bc2)) + np.sqrt(_dot3(ca0, ca1, ca2, ca0, ca1, ca2))
+               + np.sqrt(_dot3(ab0, ab1, ab2, ab0, ab1, ab2)) + np.sqrt(_dot3(f0, f1, f2, f0, f1, f2)))
+    denominator = surface * np.sqrt(_dot3(n0, n1, n2, n0, n1, n2))
+    return 6.0 * six_volume * abs(six_volume) / denominator if denominator > 0 else 0.0
+
+
+@kernel
 def _radius_ratios_3d(points, cells):
-    """:func:`signed_radius_ratio` of tetrahedra, one cell at a time, in the order of operations of the numpy
-    formulas it replaced (the same bits)."""
-    out = np.zeros(len(cells))
+    """:func:`signed_radius_ratio` of tetrahedra, one cell at a time on this thread (a flip's few cells)."""
+    out = np.empty(len(cells))
     for m in range(len(cells)):
-        p, q, r, s = cells[m, 0], cells[m, 1], cells[m, 2], cells[m, 3]
-        a0, a1, a2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
-        b0, b1, b2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
-        c0, c1, c2 = points[s, 0] - points[p, 0], points[s, 1] - points[p, 1], points[s, 2] - points[p, 2]
-        bc0, bc1, bc2 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
-        ca0, ca1, ca2 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
-        ab0, ab1, ab2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
-        six_volume = _dot3(a0, a1, a2, bc0, bc1, bc2)
-        aa, bb, cc = _dot3(a0, a1, a2, a0, a1, a2), _dot3(b0, b1, b2, b0, b1, b2), _dot3(c0, c1, c2, c0, c1, c2)
-        n0 = aa * bc0 + bb * ca0 + cc * ab0
-        n1 = aa * bc1 + bb * ca1 + cc * ab1
-        n2 = aa * bc2 + bb * ca2 + cc * ab2
-        f0, f1, f2 = bc0 + ca0 + ab0, bc1 + ca1 + ab1, bc2 + ca2 + ab2  # twice the area vector opposite vertex 0
-        surface = (np.sqrt(_dot3(bc0, bc1, bc2, bc0, bc1, bc2)) + np.sqrt(_dot3(ca0, ca1, ca2, ca0, ca1, ca2))
-                   + np.sqrt(_dot3(ab0, ab1, ab2, ab0, ab1, ab2)) + np.sqrt(_dot3(f0, f1, f2, f0, f1, f2)))
-        denominator = surface * np.sqrt(_dot3(n0, n1, n2, n0, n1, n2))
-        if denominator > 0:
-            out[m] = 6.0 * six_volume * abs(six_volume) / denominator
+        out[m] = _radius_ratio_of(points, cells, m)
+    return out
+
+
+@kernel(parallel=True)
+def _radius_ratios_3d_threads(points, cells):
+    """:func:`_radius_ratios_3d` on :func:`~bitemesh.core.compiled.threads` threads (the same bits)."""
+    out = np.empty(len(cells))
+    for m in prange(len(cells)):
+        out[m] = _radius_ratio_of(points, cells, m)
     return out
 
 
@@ -228,32 +250,39 @@ _TET_FACETS = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
 _TET_EDGE_FACETS = _ridge_facets(4)
 
 
-@kernel
+@kernel(parallel=True)
 def _dihedral_angles_3d(points, cells):
     """(m, 6) :func:`dihedral_angles` of tetrahedra, one cell at a time: the facets' area normals
     0.5 (q - p) x (r - p), then per edge atan2(|a x b|, -a . b) in degrees, NaN where a normal is zero; the order of
     operations of the numpy formulas it replaced (the same bits)."""
     out = np.empty((len(cells), 6))
-    normal = np.empty((4, 3))
-    for m in range(len(cells)):
-        for i in range(4):
-            p, q, r = cells[m, _TET_FACETS[i, 0]], cells[m, _TET_FACETS[i, 1]], cells[m, _TET_FACETS[i, 2]]
-            u0, u1, u2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
-            v0, v1, v2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
-            normal[i, 0] = 0.5 * (u1 * v2 - u2 * v1)
-            normal[i, 1] = 0.5 * (u2 * v0 - u0 * v2)
-            normal[i, 2] = 0.5 * (u0 * v1 - u1 * v0)
-        for e in range(6):
-            i, j = _TET_EDGE_FACETS[e, 0], _TET_EDGE_FACETS[e, 1]
-            a0, a1, a2 = normal[i, 0], normal[i, 1], normal[i, 2]
-            b0, b1, b2 = normal[j, 0], normal[j, 1], normal[j, 2]
-            c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
-            sine = np.sqrt((c0 * c0 + c1 * c1) + c2 * c2)
-            if np.sqrt((a0 * a0 + a1 * a1) + a2 * a2) == 0 or np.sqrt((b0 * b0 + b1 * b1) + b2 * b2) == 0:
-                out[m, e] = np.nan
-            else:
-                out[m, e] = np.arctan2(sine, -_dot3(a0, a1, a2, b0, b1, b2)) * (180 / np.pi)
+    for block in prange((len(cells) + _BLOCK - 1) // _BLOCK):
+        normal = np.empty((4, 3))
+        for m in range(block * _BLOCK, min(len(cells), (block + 1) * _BLOCK)):
+            _dihedral_angles_of(points, cells, m, normal, out[m])
     return out
+
+
+@kernel
+def _dihedral_angles_of(points, cells, m, normal, out):
+    """``out`` (6,) := the dihedral angles of tetrahedron ``m``; ``normal`` (4, 3): room for its facets' normals."""
+    for i in range(4):
+        p, q, r = cells[m, _TET_FACETS[i, 0]], cells[m, _TET_FACETS[i, 1]], cells[m, _TET_FACETS[i, 2]]
+        u0, u1, u2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
+        v0, v1, v2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
+        normal[i, 0] = 0.5 * (u1 * v2 - u2 * v1)
+        normal[i, 1] = 0.5 * (u2 * v0 - u0 * v2)
+        normal[i, 2] = 0.5 * (u0 * v1 - u1 * v0)
+    for e in range(6):
+        i, j = _TET_EDGE_FACETS[e, 0], _TET_EDGE_FACETS[e, 1]
+        a0, a1, a2 = normal[i, 0], normal[i, 1], normal[i, 2]
+        b0, b1, b2 = normal[j, 0], normal[j, 1], normal[j, 2]
+        c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        sine = np.sqrt((c0 * c0 + c1 * c1) + c2 * c2)
+        if np.sqrt((a0 * a0 + a1 * a1) + a2 * a2) == 0 or np.sqrt((b0 * b0 + b1 * b1) + b2 * b2) == 0:
+            out[e] = np.nan
+        else:
+            out[e] = np.arctan2(sine, -_dot3(a0, a1, a2, b0, b1, b2)) * (180 / np.pi)
 
 
 def edge_lengths(points: np.ndarray, cells: np.ndarray):

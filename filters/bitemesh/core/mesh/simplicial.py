@@ -6,6 +6,7 @@ from functools import partial
 from math import factorial
 
 import numpy as np
+from numba import prange
 
 from ..compiled import kernel
 
@@ -172,11 +173,11 @@ def _circumsphere(points: np.ndarray, cell: np.ndarray, out: np.ndarray) -> None
     out[k] = np.sqrt(squared) if abs(det) > 1e-300 else np.inf
 
 
-@kernel
+@kernel(parallel=True)
 def _circumspheres(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """(m, k + 1) :func:`_circumsphere` of every cell."""
+    """(m, k + 1) :func:`_circumsphere` of every cell, on :func:`~bitemesh.core.compiled.threads` threads."""
     out = np.empty((len(cells), cells.shape[1]))
-    for m in range(len(cells)):
+    for m in prange(len(cells)):
         _circumsphere(points, cells[m], out[m])
     return out
 

@@ -4,10 +4,11 @@ and its gradient, the smallest angles, the mean edge length, the boundary nodes 
 from __future__ import annotations
 
 import numpy as np
+from numba import prange
 
 from ..grid.sampled import ImplicitGrid
 from ..compiled import kernel
-from ..mesh.quality import dihedral_angles, dot, edge_lengths
+from ..mesh.quality import _BLOCK, dihedral_angles, dot, edge_lengths
 from ..mesh.topology import boundary_facets
 
 #: sum of squared edge lengths / V^(2/k) of the regular triangle and tetrahedron.
@@ -65,7 +66,7 @@ def _edge_terms(points: np.ndarray, cell: np.ndarray, edges: np.ndarray, total: 
     return (k + 1) * squared - _lane_sum(scratch, k)
 
 
-@kernel
+@kernel(parallel=True)
 def mean_ratio_terms(points: np.ndarray, cells: np.ndarray):
     """What :func:`mean_ratio_cost` and its derivatives need, for the (m, k + 1) ``cells`` of (n, k) ``points``.
 
@@ -81,49 +82,51 @@ def mean_ratio_terms(points: np.ndarray, cells: np.ndarray):
     m, k = len(cells), points.shape[1]
     volume, squares = np.empty(m), np.empty(m)
     volume_gradient, centred = np.empty((m, k + 1, k)), np.empty((m, k + 1, k))
-    edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
-    for c in range(m):
-        squares[c] = _edge_terms(points, cells[c], edges, total, scratch)
-        # d V / d x_i for i >= 1: the cofactors of the edge matrix, / k!; d V / d x_0 = -(their sum)
-        cofactors = volume_gradient[c, 1:]
-        if k == 2:
-            cofactors[0, 0], cofactors[0, 1] = edges[1, 1] / 2.0, -edges[1, 0] / 2.0
-            cofactors[1, 0], cofactors[1, 1] = -edges[0, 1] / 2.0, edges[0, 0] / 2.0
-        else:
-            for i in range(3):
-                a, b = edges[(i + 1) % 3], edges[(i + 2) % 3]
-                cofactors[i, 0] = (a[1] * b[2] - a[2] * b[1]) / 6.0
-                cofactors[i, 1] = (a[2] * b[0] - a[0] * b[2]) / 6.0
-                cofactors[i, 2] = (a[0] * b[1] - a[1] * b[0]) / 6.0
-        for d in range(k):
-            scratch[d] = edges[0, d] * cofactors[0, d]
-            summed = cofactors[0, d] + cofactors[1, d]
-            if k == 3:
-                summed += cofactors[2, d]
-            volume_gradient[c, 0, d] = -summed
-            share = total[d] / (k + 1)
-            centred[c, 0, d] = 0.0 - share
-            for j in range(k):
-                centred[c, j + 1, d] = edges[j, d] - share
-        volume[c] = _lane_sum(scratch, k)
+    for block in prange((m + _BLOCK - 1) // _BLOCK):
+        edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
+        for c in range(block * _BLOCK, min(m, (block + 1) * _BLOCK)):
+            squares[c] = _edge_terms(points, cells[c], edges, total, scratch)
+            # d V / d x_i for i >= 1: the cofactors of the edge matrix, / k!; d V / d x_0 = -(their sum)
+            cofactors = volume_gradient[c, 1:]
+            if k == 2:
+                cofactors[0, 0], cofactors[0, 1] = edges[1, 1] / 2.0, -edges[1, 0] / 2.0
+                cofactors[1, 0], cofactors[1, 1] = -edges[0, 1] / 2.0, edges[0, 0] / 2.0
+            else:
+                for i in range(3):
+                    a, b = edges[(i + 1) % 3], edges[(i + 2) % 3]
+                    cofactors[i, 0] = (a[1] * b[2] - a[2] * b[1]) / 6.0
+                    cofactors[i, 1] = (a[2] * b[0] - a[0] * b[2]) / 6.0
+                    cofactors[i, 2] = (a[0] * b[1] - a[1] * b[0]) / 6.0
+            for d in range(k):
+                scratch[d] = edges[0, d] * cofactors[0, d]
+                summed = cofactors[0, d] + cofactors[1, d]
+                if k == 3:
+                    summed += cofactors[2, d]
+                volume_gradient[c, 0, d] = -summed
+                share = total[d] / (k + 1)
+                centred[c, 0, d] = 0.0 - share
+                for j in range(k):
+                    centred[c, j + 1, d] = edges[j, d] - share
+            volume[c] = _lane_sum(scratch, k)
     return volume, squares, volume_gradient, centred
 
 
-@kernel
+@kernel(parallel=True)
 def _inverse_mean_ratio(points: np.ndarray, cells: np.ndarray, scale: float) -> np.ndarray:
     m, k = len(cells), points.shape[1]
     cost = np.empty(m)
-    edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
-    for c in range(m):
-        squares = _edge_terms(points, cells[c], edges, total, scratch)
-        if k == 2:
-            volume = 0.5 * (edges[0, 0] * edges[1, 1] - edges[0, 1] * edges[1, 0])
-        else:
-            scratch[0] = edges[0, 0] * (edges[1, 1] * edges[2, 2] - edges[1, 2] * edges[2, 1])
-            scratch[1] = edges[0, 1] * (edges[1, 2] * edges[2, 0] - edges[1, 0] * edges[2, 2])
-            scratch[2] = edges[0, 2] * (edges[1, 0] * edges[2, 1] - edges[1, 1] * edges[2, 0])
-            volume = _lane_sum(scratch, 3) / 6.0
-        cost[c] = squares / (scale * volume ** (2.0 / k)) if volume > 0 else np.inf
+    for block in prange((m + _BLOCK - 1) // _BLOCK):
+        edges, total, scratch = np.empty((k, k)), np.empty(k), np.empty(k * k)
+        for c in range(block * _BLOCK, min(m, (block + 1) * _BLOCK)):
+            squares = _edge_terms(points, cells[c], edges, total, scratch)
+            if k == 2:
+                volume = 0.5 * (edges[0, 0] * edges[1, 1] - edges[0, 1] * edges[1, 0])
+            else:
+                scratch[0] = edges[0, 0] * (edges[1, 1] * edges[2, 2] - edges[1, 2] * edges[2, 1])
+                scratch[1] = edges[0, 1] * (edges[1, 2] * edges[2, 0] - edges[1, 0] * edges[2, 2])
+                scratch[2] = edges[0, 2] * (edges[1, 0] * edges[2, 1] - edges[1, 1] * edges[2, 0])
+                volume = _lane_sum(scratch, 3) / 6.0
+            cost[c] = squares / (scale * volume ** (2.0 / k)) if volume > 0 else np.inf
     return cost
 
 
