@@ -271,20 +271,17 @@ def at_mesh_resolution(inside: np.ndarray, radius: float) -> np.ndarray:
     structure = np.ones((3,) * inside.ndim, bool)
     padded = np.pad(np.asarray(inside, dtype=bool), 2)
     region = ndimage.binary_closing(ndimage.binary_opening(padded, structure), structure)
-    voids, count = ndimage.label(~region)   # the outside all round (padded) is one of them
-    if count < 2:
-        return region
-    walls = np.zeros(count + 1)
-    for axis in range(region.ndim):   # the faces between a void's voxel and one of the region's
-        for void, other in ((slice(None, -1), slice(1, None)), (slice(1, None), slice(None, -1))):
-            at = [slice(None)] * region.ndim
-            beside = list(at)
-            at[axis], beside[axis] = void, other
-            walls += np.bincount(voids[tuple(at)][region[tuple(beside)]], minlength=count + 1)
-    width = region.ndim * np.bincount(voids.ravel(), minlength=count + 1) / np.maximum(walls, 1)
-    thin = width < THIN_VOID * radius
-    thin[[0, voids[(0,) * region.ndim]]] = False
-    return region | thin[voids]
+    voids, _ = ndimage.label(~region)
+    outside = voids[(0,) * region.ndim]   # all round (padded)
+    for label, box in enumerate(ndimage.find_objects(voids), start=1):
+        if label == outside or box is None:
+            continue
+        around = tuple(slice(side.start - 1, side.stop + 1) for side in box)   # inside the padding
+        void = voids[around] == label
+        walls = sum(np.count_nonzero(np.diff(void.view(np.int8), axis=axis)) for axis in range(region.ndim))
+        if region.ndim * np.count_nonzero(void) / walls < THIN_VOID * radius:
+            region[around] |= void
+    return region
 
 
 def on_dropped_parts(grid, inside: np.ndarray, centroids: np.ndarray, samples: np.ndarray, min_component: float):
