@@ -161,3 +161,16 @@ def test_the_voids_of_a_hollow_ball_are_its_cavity_with_its_volume_and_centre():
     assert np.linalg.norm(voids[0][1] - centre) < 0.05
     solid = sample_function(lambda p: 1 - np.linalg.norm(p, axis=1), -np.ones(3) * 1.1, np.ones(3) * 1.1, 0.0375)
     assert enclosed_voids(mesh_from_grid(solid, BitingParameters(radius=0.15), optimize=PLAIN).mesh) == []
+
+
+def test_a_mesh_of_scattered_points_that_encloses_a_void_says_so_in_a_note():
+    """A hollow ball sampled on both its spheres, with normals: meshed with its cavity (f has it too, so nothing is
+    refused), and the result's notes name the void, so that one which the object lacks is not silent."""
+    from bitemesh.core.shapes import Shape
+    shell = Shape("shell", lambda p: 0.25 - np.abs(np.linalg.norm(p, axis=1) - 0.75), (-1.0,) * 3, (1.0,) * 3,
+                  4 / 3 * np.pi * (1 - 0.5 ** 3), 4)
+    points, normals = sample_surface(shell, 0.04, seed=0)
+    notes = " ".join(run(points, normals, biting=BitingParameters(cells=6000)).notes)
+    assert "encloses 1 void(s)" in notes
+    assert "encloses" not in " ".join(run(*sample_surface(sphere(), 0.04, seed=0),
+                                          biting=BitingParameters(cells=3000)).notes)

@@ -18,12 +18,12 @@ from itertools import combinations
 from math import factorial
 
 import numpy as np
-
 from numba import prange
 
 from ..compiled import kernel
 from ..errors import InvalidInputError, check_number
-from .simplicial import Mesh, by_blocks, circumspheres, facet_corners, facets_of, signed_measures
+from .simplicial import (Mesh, by_blocks, circumspheres, facet_corners, facets_of, signed_measures,
+                         tetrahedron_edges)
 from .topology import (distinct_faces)
 from .validity import _check_cells, _check_mesh
 
@@ -134,13 +134,8 @@ def _dot3(a0, a1, a2, b0, b1, b2):
 def _radius_ratio_of(points, cells, m):
     """:func:`signed_radius_ratio` of tetrahedron ``m`` of ``cells``, in the order of operations of the numpy formulas
     it replaced (the same bits)."""
-    p, q, r, s = cells[m, 0], cells[m, 1], cells[m, 2], cells[m, 3]
-    a0, a1, a2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
-    b0, b1, b2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
-    c0, c1, c2 = points[s, 0] - points[p, 0], points[s, 1] - points[p, 1], points[s, 2] - points[p, 2]
-    bc0, bc1, bc2 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
-    ca0, ca1, ca2 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
-    ab0, ab1, ab2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    (a0, a1, a2), (b0, b1, b2), (c0, c1, c2), (bc0, bc1, bc2), (ca0, ca1, ca2), (ab0, ab1, ab2) = \
+        tetrahedron_edges(points, cells[m, 0], cells[m, 1], cells[m, 2], cells[m, 3])
     six_volume = _dot3(a0, a1, a2, bc0, bc1, bc2)
     aa, bb, cc = _dot3(a0, a1, a2, a0, a1, a2), _dot3(b0, b1, b2, b0, b1, b2), _dot3(c0, c1, c2, c0, c1, c2)
     n0 = aa * bc0 + bb * ca0 + cc * ab0

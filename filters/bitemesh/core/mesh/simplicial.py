@@ -141,17 +141,23 @@ def _circumspheres_any(points: np.ndarray, cells: np.ndarray):
 
 
 @kernel
+def tetrahedron_edges(points: np.ndarray, p, q, r, s):
+    """The edges a, b, c of tetrahedron (p, q, r, s) from p, and b x c, c x a, a x b: six (x, y, z) tuples."""
+    a0, a1, a2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
+    b0, b1, b2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
+    c0, c1, c2 = points[s, 0] - points[p, 0], points[s, 1] - points[p, 1], points[s, 2] - points[p, 2]
+    return ((a0, a1, a2), (b0, b1, b2), (c0, c1, c2), (b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0),
+            (c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0),
+            (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
+
+
+@kernel
 def _circumsphere(points: np.ndarray, cell: np.ndarray, out: np.ndarray) -> None:
     """``out`` (k + 1,) := the circumcentre and the circumradius of one cell (k + 1,) (see :func:`circumspheres`)."""
     p, q, r = cell[0], cell[1], cell[2]
     if len(cell) == 4:
-        s = cell[3]
-        a0, a1, a2 = points[q, 0] - points[p, 0], points[q, 1] - points[p, 1], points[q, 2] - points[p, 2]
-        b0, b1, b2 = points[r, 0] - points[p, 0], points[r, 1] - points[p, 1], points[r, 2] - points[p, 2]
-        c0, c1, c2 = points[s, 0] - points[p, 0], points[s, 1] - points[p, 1], points[s, 2] - points[p, 2]
-        bc0, bc1, bc2 = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
-        ca0, ca1, ca2 = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
-        ab0, ab1, ab2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2), (bc0, bc1, bc2), (ca0, ca1, ca2), (ab0, ab1, ab2) = \
+            tetrahedron_edges(points, p, q, r, cell[3])
         det = a0 * bc0 + a1 * bc1 + a2 * bc2
         aa, bb, cc = a0 * a0 + a1 * a1 + a2 * a2, b0 * b0 + b1 * b1 + b2 * b2, c0 * c0 + c1 * c1 + c2 * c2
         offset = ((aa * bc0 + bb * ca0 + cc * ab0), (aa * bc1 + bb * ca1 + cc * ab1), (aa * bc2 + bb * ca2 + cc * ab2))

@@ -83,9 +83,10 @@ def enclosed_inside_voids(delaunay: DelaunayCells, keep: np.ndarray, every: bool
     centroid_value = delaunay.centroid_values[dropped]
     void_volume = np.bincount(labels, weights=volume)
     mean_value = np.bincount(labels, weights=volume * centroid_value) / void_volume
-    walls = complex_.facet_counts(~keep)[complex_.facet_ids[dropped]] == 1   # (d, k + 1): facets with kept cells
+    facets = complex_.facet_ids[dropped]
+    walls = complex_.facet_counts(~keep)[facets] == 1   # (d, k + 1): the facets they share with kept cells
     wall_cells, _ = np.nonzero(walls)
-    area = facet_measures(delaunay.points[complex_.facets[complex_.facet_ids[dropped][walls]]])
+    area = facet_measures(delaunay.points[complex_.facets[facets[walls]]])
     k = delaunay.cells.shape[1] - 1
     width = k * void_volume / np.maximum(np.bincount(labels[wall_cells], weights=area, minlength=len(void_volume)),
                                          1e-300)
