@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 from ..compiled import kernel, threads
 from ..errors import InvalidInputError, check_number, check_points
 from ..grid.sampled import bounding_box
-from .mpu_function import MPUImplicit, _bspline_weights, _quadric, _quadric_gradient
+from .mpu_function import MPUImplicit, _bspline_weights, _leaf_quadric, _quadric_gradient
 from .normals import unit_normals
 from ..progress import ProgressCallback, report
 
@@ -30,6 +30,14 @@ _SUPPORT_FACTOR = 0.75
 _GROWTH = 1.25
 #: data points whose normals estimate the signed distance of an auxiliary point.
 _AUX_NEIGHBOURS = 6
+#: a local fit is wild when it claims at an auxiliary point, with the sign that the nearest points' tangent planes
+#: deny, a distance to the surface of more than this many times the distance to the nearest data point (which
+#: bounds the true one; the slack covers a quadric's slope)...
+_WILD_SLACK = 2.0
+#: ... plus this many half cell sides (a fit's own error where an auxiliary point lies on the surface).
+_WILD_TOLERANCE = 0.25
+#: fewest support points of each sheet of a sharp-edge fit.
+_SHEET_POINTS = 3
 #: point-cell pairs assembled at once while fitting.
 _FIT_PAIRS = 1 << 19
 
@@ -113,39 +121,90 @@ def _fit_general(y, weight, cell, aux_y, aux_value, aux_valid):
 
 
 def _auxiliary_points(points, normals, tree, centres, half_side):
-    """Ohtake's auxiliary points (cell corners and centre) and their signed distances (> 0 inside).
+    """Ohtake's auxiliary points (cell corners and centre), their signed distances (> 0 inside) and gaps.
 
     The distance is the mean of n_j . (p_j - q) over the 6 nearest points; it is valid when all six agree in sign.
-    Returns the (k, 9, 3) points, (k, 9) distances and (k, 9) validity.
+    Returns the (k, 9, 3) points, (k, 9) distances, (k, 9) validity and (k, 9) distances to the nearest point.
     """
     where = centres[:, None, :] + _AUXILIARY * half_side
-    _, near = tree.query(where.reshape(-1, 3), k=_AUX_NEIGHBOURS, workers=threads())
+    gap, near = tree.query(where.reshape(-1, 3), k=_AUX_NEIGHBOURS, workers=threads())
     signed = np.einsum("qjd,qjd->qj", normals[near], points[near] - where.reshape(-1, 1, 3))
     valid = (signed > 0).all(axis=1) | (signed < 0).all(axis=1)
     shape = where.shape[:2]
-    return where, signed.mean(axis=1).reshape(shape), valid.reshape(shape)
+    return where, signed.mean(axis=1).reshape(shape), valid.reshape(shape), gap[:, 0].reshape(shape)
 
 
 @kernel
-def _fit_errors(y: np.ndarray, coefficients: np.ndarray, cell: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """(k,) max over the support rows of each cell of |f(p)| / |grad f(p)| (input units), f its quadric (k, 10)
-    at the (rows, 3) points ``y`` in cell coordinates (units of the cell's radius); a NaN stays."""
+def _fit_errors(y: np.ndarray, coefficients: np.ndarray, second: np.ndarray, join: np.ndarray, cell: np.ndarray,
+                radii: np.ndarray) -> np.ndarray:
+    """(k,) max over the support rows of each cell of |f(p)| / |grad f(p)| (input units), f its local function
+    (:func:`_leaf_quadric` of the (k, 10) quadrics, (k, 10) second quadrics and (k,) joins) at the (rows, 3) points
+    ``y`` in cell coordinates (units of the cell's radius); a NaN stays."""
     errors = np.zeros(len(radii))
     for row in range(len(cell)):
-        c = coefficients[cell[row]]
+        k = cell[row]
         a, b, z = y[row, 0], y[row, 1], y[row, 2]
+        value, c = _leaf_quadric(a, b, z, coefficients[k], second[k], join[k])
         g0, g1, g2 = _quadric_gradient(a, b, z, c)
-        slope = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2) / radii[cell[row]]
-        error = abs(_quadric(a, b, z, c)) / max(slope, 1e-300)
-        if error > errors[cell[row]] or np.isnan(error):
-            errors[cell[row]] = error
+        slope = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2) / radii[k]
+        error = abs(value) / max(slope, 1e-300)
+        if error > errors[k] or np.isnan(error):
+            errors[k] = error
     return errors
 
 
-def _fit_cells(points, normals, tree, centres, radii, half_side):
-    """One local fit per cell: (k, 10) coefficients of f in y = (x - centre) / R, input units, and (k,) errors.
+def _wildness(claims, planes, bound):
+    """(...) the largest ratio of a fit's claim to its bound over the (..., 9) auxiliary points where the claim's
+    sign is not the nearest points' tangent planes' (``planes``, their mean signed distance); 0 where there is none.
+    Above 1: a fit that says inside (outside) where the planes say outside (inside), farther than any point allows."""
+    return np.max(np.where(np.sign(claims) != np.sign(planes), np.abs(claims) / bound, 0.0), axis=-1)
 
-    The error of a fit is max over its support points of |f(p)| / |grad f(p)|.
+
+def _sharp_fit(y, weight, unit_normals, aux_y, aux_value, bound, radius):
+    """A fit of a sharp edge in one cell (after Ohtake's piecewise fits): the support normals in two clusters
+    (weighted 2-means from the normal farthest from the mean and the normal farthest from that), the plane of each
+    cluster (its weighted centroid and mean normal), joined by max where each cluster's centroid lies in front of the
+    other's plane (a wedge: the union of the two half-spaces) and by min where behind (a plate or a convex edge:
+    their intersection).  Planes, not quadratics: a cluster holds a few points, over which a quadratic overshoots.
+
+    ``y`` (rows, 3) support points in cell coordinates, ``weight`` (rows,), ``unit_normals`` (rows, 3); ``aux_y``
+    (9, 3) the auxiliary points, ``aux_value`` (9,) the tangent planes' distances there, ``bound`` (9,) what a fit
+    may claim there (units of ``radius``, the support's).  Returns the two (10,) quadrics (planes, > 0 behind; input
+    units), the join (1 or -1), the fit's :func:`_wildness` and its error (input units); None where a cluster has
+    fewer than _SHEET_POINTS points.
+    """
+    mean = weight @ unit_normals
+    one = unit_normals[np.argmin(unit_normals @ mean)]
+    other = unit_normals[np.argmin(unit_normals @ one)]
+    for _ in range(8):
+        in_one = unit_normals @ one >= unit_normals @ other
+        if min(in_one.sum(), (~in_one).sum()) < _SHEET_POINTS:
+            return None
+        one, other = ((weight[rows] @ unit_normals[rows]) for rows in (in_one, ~in_one))
+        one, other = one / np.linalg.norm(one), other / np.linalg.norm(other)
+    centre_one, centre_other = (np.average(y[rows], axis=0, weights=weight[rows]) for rows in (in_one, ~in_one))
+    planes = np.zeros((2, 10))
+    planes[:, 6:9] = -np.stack([one, other])
+    planes[:, 9] = one @ centre_one, other @ centre_other
+    behind = one @ (centre_one - centre_other) + other @ (centre_other - centre_one)
+    join = -1 if behind > 0 else 1
+    claims = (np.maximum if join > 0 else np.minimum)(*(_monomials(aux_y) @ planes.T).T)
+    planes *= radius
+    error = _fit_errors(y, planes[:1], planes[1:], np.int8([join]), np.zeros(len(y), np.intp), np.array([radius]))
+    return planes[0], planes[1], join, float(_wildness(claims, aux_value, bound)), float(error[0])
+
+
+def _fit_cells(points, normals, tree, centres, radii, half_side, error_bound):
+    """One local fit per cell: (k, 10) coefficients of f in y = (x - centre) / R, input units, (k, 10) second
+    coefficients and (k,) joins of sharp-edge fits (:func:`_leaf_quadric`), and (k,) errors.
+
+    The error of a fit is max over its support points of |f(p)| / |grad f(p)|.  A quadric that claims at
+    one of its auxiliary points more than _WILD_SLACK x the distance to the nearest point (plus _WILD_TOLERANCE half
+    sides), of the sign that the nearest points' tangent planes deny, is wild (:func:`_wildness`): fitted to two sheets that meet at a small angle (a heart's RV cavity where it meets the septum),
+    one quadric bends between them (a general one about the product of their planes, a height field a steep
+    parabola) and takes the wrong sign beyond their crease, where no support point shows it.  Such a cell takes a
+    sharp-edge fit (:func:`_sharp_fit`) where that is less wild and misses the support points by no more (or by no
+    more than ``error_bound``, input units).
     """
     supports = tree.query_ball_point(centres, radii, workers=threads())
     sizes = np.fromiter(map(len, supports), dtype=np.intp, count=len(supports))
@@ -162,12 +221,9 @@ def _fit_cells(points, normals, tree, centres, radii, half_side):
     spread = np.minimum.reduceat(np.einsum("pd,pd->p", normals[index], axis[cell]), starts)
 
     # Normals spread over more than 90 degrees: a general quadric, where auxiliary points exist.
-    general = np.flatnonzero(spread < 0)
-    aux_where, aux_value, aux_valid = _auxiliary_points(points, normals, tree, centres[general], half_side)
-    usable = aux_valid.any(axis=1)
-    general, aux_where, aux_value, aux_valid = general[usable], aux_where[usable], aux_value[usable], aux_valid[usable]
-    bivariate = np.ones(len(centres), dtype=bool)
-    bivariate[general] = False
+    aux_where, aux_value, aux_valid, aux_gap = _auxiliary_points(points, normals, tree, centres, half_side)
+    aux_y = (aux_where - centres[:, None]) / radii[:, None, None]
+    general = (spread < 0) & aux_valid.any(axis=1)
 
     def rows_of(chosen):
         """Mask of the support rows of the chosen cells, and their cell numbers among the chosen."""
@@ -176,14 +232,25 @@ def _fit_cells(points, normals, tree, centres, radii, half_side):
         return rows, renumber[cell[rows]]
 
     coef = np.empty((len(centres), 10))
-    rows, sub_cell = rows_of(~bivariate)
-    aux_y = (aux_where - centres[general, None]) / radii[general, None, None]
-    coef[general] = _fit_general(y[rows], weight[rows], sub_cell, aux_y, aux_value / radii[general, None], aux_valid)
-    rows, sub_cell = rows_of(bivariate)
-    coef[bivariate] = _fit_bivariate(y[rows], weight[rows], sub_cell, axis[bivariate])
-    coef *= radii[:, None]
+    second = np.zeros((len(centres), 10))
+    join = np.zeros(len(centres), dtype=np.int8)
+    rows, sub_cell = rows_of(general)
+    coef[general] = _fit_general(y[rows], weight[rows], sub_cell, aux_y[general],
+                                 aux_value[general] / radii[general, None], aux_valid[general])
+    rows, sub_cell = rows_of(~general)
+    coef[~general] = _fit_bivariate(y[rows], weight[rows], sub_cell, axis[~general])
 
-    return coef, _fit_errors(y, coef, cell, radii)
+    bound = (_WILD_SLACK * aux_gap + _WILD_TOLERANCE * half_side) / radii[:, None]   # radius units
+    wildness = _wildness(np.einsum("kai,ki->ka", _monomials(aux_y), coef), aux_value / radii[:, None], bound)
+    coef *= radii[:, None]
+    errors = _fit_errors(y, coef, second, join, cell, radii)
+    for k in np.flatnonzero(wildness > 1):
+        rows = slice(starts[k], starts[k] + sizes[k])
+        sharp = _sharp_fit(y[rows], weight[rows], normals[index[rows]], aux_y[k], aux_value[k] / radii[k], bound[k],
+                           radii[k])
+        if sharp is not None and sharp[3] < wildness[k] and sharp[4] <= max(errors[k], error_bound):
+            coef[k], second[k], join[k], _, errors[k] = sharp
+    return coef, second, join, errors
 
 
 def _support_radii(tree, centres, radius, min_points):
@@ -209,7 +276,8 @@ def fit_mpu(points, normals, *, error_bound=None, min_points: int = 15, max_dept
     points by more than ``error_bound``.  A cell's support is the ball of radius 0.75 x its diagonal, grown by
     factors 1.25 until it holds ``min_points`` points; a cell whose ungrown ball holds fewer is a leaf.  The local
     fit is a bivariate quadratic over the tangent plane of the weighted mean normal where all support normals are
-    within 90 degrees of it, otherwise a general quadric pinned by Ohtake's auxiliary points.
+    within 90 degrees of it, otherwise a general quadric pinned by Ohtake's auxiliary points, or two bivariate
+    quadratics joined at a sharp edge where the general quadric is wild (:func:`_fit_cells`).
 
     Parameters
     ----------
@@ -245,10 +313,10 @@ def fit_mpu(points, normals, *, error_bound=None, min_points: int = 15, max_dept
         for number, (batch_centres, batch_radii) in enumerate(zip(np.split(centres, bounds), np.split(radii, bounds))):
             report(progress, (depth + number / (len(bounds) + 1)) / (max_depth + 1),
                    f"fitting MPU: level {depth}, {len(centres)} cells")
-            fits.append(_fit_cells(points, normals, tree, batch_centres, batch_radii, 0.5 * side))
-        coef, error = (np.concatenate(column) for column in zip(*fits))
+            fits.append(_fit_cells(points, normals, tree, batch_centres, batch_radii, 0.5 * side, error_bound))
+        coef, second, join, error = (np.concatenate(column) for column in zip(*fits))
         split = (error > error_bound) & (counts >= min_points) & (depth < max_depth)
-        leaves.append((centres[~split], radii[~split], coef[~split]))
+        leaves.append((centres[~split], radii[~split], coef[~split], second[~split], join[~split]))
         if not split.any():
             break
         side *= 0.5
@@ -257,4 +325,6 @@ def fit_mpu(points, normals, *, error_bound=None, min_points: int = 15, max_dept
     return MPUImplicit(centres=np.concatenate([leaf[0] for leaf in leaves]),
                        radii=np.concatenate([leaf[1] for leaf in leaves]),
                        coefficients=np.concatenate([leaf[2] for leaf in leaves]),
+                       second=np.concatenate([leaf[3] for leaf in leaves]),
+                       join=np.concatenate([leaf[4] for leaf in leaves]),
                        points=points, lower=lower, upper=upper)

@@ -64,6 +64,20 @@ def _quadric_gradient(a, b, z, c):
 
 
 @kernel
+def _leaf_quadric(a, b, z, first, second, join):
+    """A leaf's local function at y = (a, b, z) and the quadric (10,) that gives it there: ``first``, or where the
+    leaf is a sharp edge (``join`` 1: the union of two sheets, max; -1: their intersection, min) the larger or smaller
+    of ``first`` and ``second``."""
+    value = _quadric(a, b, z, first)
+    if join == 0:
+        return value, first
+    other = _quadric(a, b, z, second)
+    if (other > value) == (join > 0):
+        return other, second
+    return value, first
+
+
+@kernel
 def _buckets(x, side):
     """The (m, 3) points in cubic buckets of ``side`` from their lower corner: (lower, shape (3,), start (B + 1,),
     order (m,)); the points of bucket (i, j, l) (C order, number u) are order[start[u]:start[u + 1]]."""
@@ -92,7 +106,7 @@ def _buckets(x, side):
 
 
 @kernel
-def _blend_sums(x, centres, radii, coefficients, gradient, side):
+def _blend_sums(x, centres, radii, coefficients, second, join, gradient, side):
     """(2 or 11, m) the sums at the (m, 3) points x of w, w Q (and w grad Q, grad w, Q grad w) over the leaves
     whose support holds them, leaf after leaf: each leaf visits the buckets (:func:`_buckets`) its ball overlaps."""
     lower, shape, start, order = _buckets(x, side)
@@ -109,7 +123,6 @@ def _blend_sums(x, centres, radii, coefficients, gradient, side):
         if empty:
             continue
         scale = 1.0 / radius
-        c = coefficients[leaf]
         for i in range(first[0], last[0] + 1):
             for j in range(first[1], last[1] + 1):
                 row = (i * shape[1] + j) * shape[2]
@@ -123,7 +136,7 @@ def _blend_sums(x, centres, radii, coefficients, gradient, side):
                             continue
                         weight = _bspline(t)
                         y0, y1, y2 = d0 * scale, d1 * scale, d2 * scale
-                        local = _quadric(y0, y1, y2, c)
+                        local, c = _leaf_quadric(y0, y1, y2, coefficients[leaf], second[leaf], join[leaf])
                         sums[0, at] += weight
                         sums[1, at] += weight * local
                         if gradient:
@@ -151,6 +164,8 @@ class MPUImplicit:
     radii : (L,) float64, support radii R_i; w_i(x) = b(3 |x - c_i| / (2 R_i))
     coefficients : (L, 10) float64, Q_i in the monomials x^2, y^2, z^2, xy, xz, yz, x, y, z, 1 of
         (x - c_i) / R_i; Q_i in input units, > 0 inside
+    second : (L, 10) float64, a second quadric where the leaf is a sharp edge (Ohtake's piecewise fits)
+    join : (L,) int8, 0 (Q_i alone), 1 (max of the two quadrics: two sheets' union) or -1 (min: intersection)
     points : (n, 3) float64, the data points (f = -distance to them where no leaf reaches)
     lower, upper : (3,) float64, the data's bounding box; f <= depth in it
     """
@@ -158,6 +173,8 @@ class MPUImplicit:
     centres: np.ndarray
     radii: np.ndarray
     coefficients: np.ndarray
+    second: np.ndarray
+    join: np.ndarray
     points: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
@@ -202,8 +219,9 @@ class MPUImplicit:
         x = np.ascontiguousarray(x)
         extent = np.prod(np.ptp(x, axis=0) + self._bucket_side) if len(x) else 0.0
         side = max(self._bucket_side, float(extent / (_BUCKETS_PER_POINT * max(len(x), 1))) ** (1 / 3))
-        sums = _blend_sums(x, self.centres, self.radii, self.coefficients, gradient, side) if len(x) else \
-            np.zeros((11 if gradient else 2, 0))
+        sums = np.zeros((11 if gradient else 2, 0))
+        if len(x):
+            sums = _blend_sums(x, self.centres, self.radii, self.coefficients, self.second, self.join, gradient, side)
         total = sums[0]
         covered = total > 0
         value = sums[1]

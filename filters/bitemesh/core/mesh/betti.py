@@ -179,9 +179,10 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     f may miss part of the shape with no handle of its own); a function built otherwise (labelled contours, a
     label map) may have small handles at its zero level that no mesh at R has.  With ``grid`` (the nodes of
     ``inside``), parts of f that a part of the mesh joins are refused too (:func:`joined_parts`), naming the gap
-    and where it is, and so is where objects touch; ``frame``: the grid's local frame (its ``scale`` and
-    ``to_user``), None for user coordinates.  What the mesh or f has more ("" when nothing); ``radius``: R in user
-    units, for the message."""
+    and where it is, and so is where objects touch; with ``one_fit``, parts of f a spacing inside that a part of the
+    mesh joins and f > 0 joins at its zero level alone (objects in contact, each sampled whole); ``frame``: the
+    grid's local frame (its ``scale`` and ``to_user``), None for user coordinates.  What the mesh or f has more
+    ("" when nothing); ``radius``: R in user units, for the message."""
     scale = 1.0 if frame is None else frame.scale
 
     def place(index) -> str:   # " around (x, y, z)" of a point in node indices
@@ -201,6 +202,10 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
     across = radius / (float(np.min(grid.spacing)) * scale) if grid is not None else DEFAULT_SPACINGS_PER_R
     fold = _fold(mine, data, inside, around, one_fit, across, lambda region: place(touch(region))) \
         if not joined and (one_fit or not tear) and around is not None and inside.ndim <= 3 else None
+    # parts of f > 0 a spacing inside its zero level that meet at the zero level alone: objects that touch, each
+    # sampled whole (a sharp-edge fit joins them with no fold of f), or a neck that no mesh at R follows
+    touched, _, contact = joined_parts(mesh, grid, around()[1]) \
+        if one_fit and not joined and fold is None and grid is not None and around is not None else (0, 0.0, None)
     extra = ", ".join(word for word in ((f"{joined} parts of f joined" if joined else ""), tear) if word)
     if joined:
         text = (f"the mesh joins {joined} parts of the fitted surface that come within about {gap:.3g} of each "
@@ -209,6 +214,13 @@ def check_topology(mesh: Mesh, inside: np.ndarray, radius: float, allow: bool, a
                 "(or more cells) to keep them apart, or mesh each object apart")
     elif fold is not None:
         extra, text = fold
+    elif touched:
+        extra = f"{touched} parts of f joined at its zero level"
+        text = (f"the mesh joins {touched} parts of the fitted surface that meet at f's zero level alone, apart a "
+                f"grid spacing inside it (the mesh: {mine.describe()}; f > 0 on the grid: {data.describe()}): "
+                f"sampled surfaces that cross or touch{place(contact)} (objects in contact, each sampled whole) or a "
+                "neck narrower than R / 2; give the samples of each object apart, or lower radius (or raise cells) "
+                "until R is below twice the neck's width")
     elif extra:
         cause = (f"cells join parts of f that come closer than R = {radius:.4g} (objects that touch)"
                  if mine.parts < data.parts else f"parts thinner than R = {radius:.4g} tear between its nodes")
@@ -246,7 +258,7 @@ def _fold(mine: Topology, data: Topology, inside: np.ndarray, around, one_fit: b
                          key=lambda pair: pair[0])[1])
     return extra, (f"{what} has {extra} that appear at f's zero level alone, not a grid spacing inside or outside "
                    f"it (the mesh: {mine.describe()}; f > 0 on the grid: {data.describe()}; f a spacing inside: "
-                   f"{levels[0].describe()}, outside: {levels[1].describe()}): f folds where sampled surfaces cross "
+                   f"{levels[1].describe()}, outside: {levels[0].describe()}): f folds where sampled surfaces cross "
                    f"or touch{touching} (objects that overlap or touch, each sampled whole) or normals disagree, and "
                    "the mesh follows the fold; give the samples of the outer surface only, or of each object apart")
 
