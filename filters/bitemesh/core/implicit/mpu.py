@@ -36,6 +36,8 @@ _AUX_NEIGHBOURS = 6
 _WILD_SLACK = 2.0
 #: ... plus this many half cell sides (a fit's own error where an auxiliary point lies on the surface).
 _WILD_TOLERANCE = 0.25
+#: a cell whose support normals are not all within acos(this) = 60 degrees of their mean may be wild.
+_BENT_SPREAD = 0.5
 #: fewest support points of each sheet of a sharp-edge fit.
 _SHEET_POINTS = 3
 #: point-cell pairs assembled at once while fitting.
@@ -200,11 +202,12 @@ def _fit_cells(points, normals, tree, centres, radii, half_side, error_bound):
 
     The error of a fit is max over its support points of |f(p)| / |grad f(p)|.  A quadric that claims at
     one of its auxiliary points more than _WILD_SLACK x the distance to the nearest point (plus _WILD_TOLERANCE half
-    sides), of the sign that the nearest points' tangent planes deny, is wild (:func:`_wildness`): fitted to two sheets that meet at a small angle (a heart's RV cavity where it meets the septum),
-    one quadric bends between them (a general one about the product of their planes, a height field a steep
-    parabola) and takes the wrong sign beyond their crease, where no support point shows it.  Such a cell takes a
-    sharp-edge fit (:func:`_sharp_fit`) where that is less wild and misses the support points by no more (or by no
-    more than ``error_bound``, input units).
+    sides), of the sign that the nearest points' tangent planes deny, is wild (:func:`_wildness`): fitted to two
+    sheets that meet at a small angle (a heart's RV cavity where it meets the septum), one quadric bends between
+    them (a general one about the product of their planes, a height field a steep parabola) and takes the wrong sign
+    beyond their crease, where no support point shows it.  Such a cell takes a sharp-edge fit (:func:`_sharp_fit`)
+    where that is less wild and misses the support points by no more (or by no more than ``error_bound``, input
+    units).  Only cells whose normals spread over more than 60 degrees are asked.
     """
     supports = tree.query_ball_point(centres, radii, workers=threads())
     sizes = np.fromiter(map(len, supports), dtype=np.intp, count=len(supports))
@@ -220,10 +223,15 @@ def _fit_cells(points, normals, tree, centres, radii, half_side, error_bound):
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     spread = np.minimum.reduceat(np.einsum("pd,pd->p", normals[index], axis[cell]), starts)
 
-    # Normals spread over more than 90 degrees: a general quadric, where auxiliary points exist.
-    aux_where, aux_value, aux_valid, aux_gap = _auxiliary_points(points, normals, tree, centres, half_side)
-    aux_y = (aux_where - centres[:, None]) / radii[:, None, None]
-    general = (spread < 0) & aux_valid.any(axis=1)
+    # Normals spread over more than 90 degrees: a general quadric, where auxiliary points exist.  Those spread over
+    # more than 60 degrees may bend between two sheets: their auxiliary points tell whether they are wild.
+    bent = np.flatnonzero(spread < _BENT_SPREAD)
+    aux_where, aux_value, aux_valid, aux_gap = _auxiliary_points(points, normals, tree, centres[bent], half_side)
+    aux_y = (aux_where - centres[bent, None]) / radii[bent, None, None]
+    aux_value /= radii[bent, None]
+    is_general = (spread[bent] < 0) & aux_valid.any(axis=1)
+    general = np.zeros(len(centres), bool)
+    general[bent[is_general]] = True
 
     def rows_of(chosen):
         """Mask of the support rows of the chosen cells, and their cell numbers among the chosen."""
@@ -235,20 +243,21 @@ def _fit_cells(points, normals, tree, centres, radii, half_side, error_bound):
     second = np.zeros((len(centres), 10))
     join = np.zeros(len(centres), dtype=np.int8)
     rows, sub_cell = rows_of(general)
-    coef[general] = _fit_general(y[rows], weight[rows], sub_cell, aux_y[general],
-                                 aux_value[general] / radii[general, None], aux_valid[general])
+    coef[general] = _fit_general(y[rows], weight[rows], sub_cell, aux_y[is_general], aux_value[is_general],
+                                 aux_valid[is_general])
     rows, sub_cell = rows_of(~general)
     coef[~general] = _fit_bivariate(y[rows], weight[rows], sub_cell, axis[~general])
 
-    bound = (_WILD_SLACK * aux_gap + _WILD_TOLERANCE * half_side) / radii[:, None]   # radius units
-    wildness = _wildness(np.einsum("kai,ki->ka", _monomials(aux_y), coef), aux_value / radii[:, None], bound)
+    bound = (_WILD_SLACK * aux_gap + _WILD_TOLERANCE * half_side) / radii[bent, None]   # radius units
+    wildness = _wildness(np.einsum("kai,ki->ka", _monomials(aux_y), coef[bent]), aux_value, bound)
     coef *= radii[:, None]
     errors = _fit_errors(y, coef, second, join, cell, radii)
-    for k in np.flatnonzero(wildness > 1):
+    for at in np.flatnonzero(wildness > 1):
+        k = bent[at]
         rows = slice(starts[k], starts[k] + sizes[k])
-        sharp = _sharp_fit(y[rows], weight[rows], normals[index[rows]], aux_y[k], aux_value[k] / radii[k], bound[k],
+        sharp = _sharp_fit(y[rows], weight[rows], normals[index[rows]], aux_y[at], aux_value[at], bound[at],
                            radii[k])
-        if sharp is not None and sharp[3] < wildness[k] and sharp[4] <= max(errors[k], error_bound):
+        if sharp is not None and sharp[3] < wildness[at] and sharp[4] <= max(errors[k], error_bound):
             coef[k], second[k], join[k], _, errors[k] = sharp
     return coef, second, join, errors
 
