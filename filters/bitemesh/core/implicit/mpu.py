@@ -146,8 +146,8 @@ def _fit_errors(y: np.ndarray, coefficients: np.ndarray, second: np.ndarray, joi
     for row in range(len(cell)):
         k = cell[row]
         a, b, z = y[row, 0], y[row, 1], y[row, 2]
-        value, c = _leaf_quadric(a, b, z, coefficients[k], second[k], join[k])
-        g0, g1, g2 = _quadric_gradient(a, b, z, c)
+        value, from_second = _leaf_quadric(a, b, z, coefficients[k], second[k], join[k])
+        g0, g1, g2 = _quadric_gradient(a, b, z, second[k] if from_second else coefficients[k])
         slope = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2) / radii[k]
         error = abs(value) / max(slope, 1e-300)
         if error > errors[k] or np.isnan(error):

@@ -65,16 +65,16 @@ def _quadric_gradient(a, b, z, c):
 
 @kernel
 def _leaf_quadric(a, b, z, first, second, join):
-    """A leaf's local function at y = (a, b, z) and the quadric (10,) that gives it there: ``first``, or where the
-    leaf is a sharp edge (``join`` 1: the union of two sheets, max; -1: their intersection, min) the larger or smaller
-    of ``first`` and ``second``."""
+    """A leaf's local function at y = (a, b, z), and whether ``second`` rather than ``first`` (the (10,) quadrics)
+    gives it there: ``first`` alone, or where the leaf is a sharp edge (``join`` 1: the union of two sheets, max;
+    -1: their intersection, min) the larger or smaller of the two."""
     value = _quadric(a, b, z, first)
     if join == 0:
-        return value, first
+        return value, False
     other = _quadric(a, b, z, second)
     if (other > value) == (join > 0):
-        return other, second
-    return value, first
+        return other, True
+    return value, False
 
 
 @kernel
@@ -123,6 +123,7 @@ def _blend_sums(x, centres, radii, coefficients, second, join, gradient, side):
         if empty:
             continue
         scale = 1.0 / radius
+        quadric, other, join_leaf = coefficients[leaf], second[leaf], join[leaf]
         for i in range(first[0], last[0] + 1):
             for j in range(first[1], last[1] + 1):
                 row = (i * shape[1] + j) * shape[2]
@@ -136,11 +137,11 @@ def _blend_sums(x, centres, radii, coefficients, second, join, gradient, side):
                             continue
                         weight = _bspline(t)
                         y0, y1, y2 = d0 * scale, d1 * scale, d2 * scale
-                        local, c = _leaf_quadric(y0, y1, y2, coefficients[leaf], second[leaf], join[leaf])
+                        local, from_other = _leaf_quadric(y0, y1, y2, quadric, other, join_leaf)
                         sums[0, at] += weight
                         sums[1, at] += weight * local
                         if gradient:
-                            g0, g1, g2 = _quadric_gradient(y0, y1, y2, c)
+                            g0, g1, g2 = _quadric_gradient(y0, y1, y2, other if from_other else quadric)
                             ratio = 2.25 * _bspline_slope_ratio(t) * scale
                             sums[2, at] += weight * scale * g0
                             sums[3, at] += weight * scale * g1
