@@ -2,8 +2,8 @@
 4.1 of the paper: an octree of local quadrics (bivariate where the samples are a sheet, general with auxiliary
 points elsewhere; where either is wild between two sheets that meet at a small angle, two planes joined at a sharp
 edge, after the paper's piecewise fits), each cell subdivided until its fitting error is below the bound, blended by
-B-spline weights.  Clamped by the depth in the data's bounding box, so that every point far from the data is outside (f > 0 inside,
-about the signed distance near f = 0).
+B-spline weights.  Clamped by the depth in the data's bounding box, so that every point far from the data is
+outside (f > 0 inside, about the signed distance near f = 0).
 
 This module fits the octree (:func:`fit_mpu`); the fitted function, its evaluation and gradient, is
 :class:`MPUImplicit` in :mod:`bitemesh.core.implicit.mpu_function` (re-exported here).
