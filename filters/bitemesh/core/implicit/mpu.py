@@ -174,14 +174,14 @@ def _sharp_fit(y, weight, unit_normals, aux_y, aux_value, bound, radius):
     (9, 3) the auxiliary points, ``aux_value`` (9,) the tangent planes' distances there, ``bound`` (9,) what a fit
     may claim there (units of ``radius``, the support's).  Returns the two (10,) quadrics (planes, > 0 behind; input
     units), the join (1 or -1), the fit's :func:`_wildness` and its error (input units); None where a cluster has
-    fewer than _SHEET_POINTS points.
+    fewer than _SHEET_POINTS points (or no weight).
     """
     mean = weight @ unit_normals
     one = unit_normals[np.argmin(unit_normals @ mean)]
     other = unit_normals[np.argmin(unit_normals @ one)]
     for _ in range(8):
         in_one = unit_normals @ one >= unit_normals @ other
-        if min(in_one.sum(), (~in_one).sum()) < _SHEET_POINTS:
+        if min(in_one.sum(), (~in_one).sum()) < _SHEET_POINTS or min(weight[in_one].sum(), weight[~in_one].sum()) <= 0:
             return None
         one, other = ((weight[rows] @ unit_normals[rows]) for rows in (in_one, ~in_one))
         one, other = one / np.linalg.norm(one), other / np.linalg.norm(other)
@@ -258,8 +258,11 @@ def _fit_cells(points, normals, tree, centres, radii, half_side, error_bound):
         rows = slice(starts[k], starts[k] + sizes[k])
         sharp = _sharp_fit(y[rows], weight[rows], normals[index[rows]], aux_y[at], aux_value[at], bound[at],
                            radii[k])
-        if sharp is not None and sharp[3] < wildness[at] and sharp[4] <= max(errors[k], error_bound):
-            coef[k], second[k], join[k], _, errors[k] = sharp
+        if sharp is None:
+            continue
+        first, other, joined, wild, error = sharp
+        if wild < wildness[at] and error <= max(errors[k], error_bound):
+            coef[k], second[k], join[k], errors[k] = first, other, joined, error
     return coef, second, join, errors
 
 
@@ -286,8 +289,8 @@ def fit_mpu(points, normals, *, error_bound=None, min_points: int = 15, max_dept
     points by more than ``error_bound``.  A cell's support is the ball of radius 0.75 x its diagonal, grown by
     factors 1.25 until it holds ``min_points`` points; a cell whose ungrown ball holds fewer is a leaf.  The local
     fit is a bivariate quadratic over the tangent plane of the weighted mean normal where all support normals are
-    within 90 degrees of it, otherwise a general quadric pinned by Ohtake's auxiliary points, or two bivariate
-    quadratics joined at a sharp edge where the general quadric is wild (:func:`_fit_cells`).
+    within 90 degrees of it, otherwise a general quadric pinned by Ohtake's auxiliary points; two planes joined at a
+    sharp edge where either is wild between two sheets that meet at a small angle (:func:`_fit_cells`).
 
     Parameters
     ----------
